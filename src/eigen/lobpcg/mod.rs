@@ -1,0 +1,1 @@
+//! LOBPCG (under construction).

@@ -1,0 +1,39 @@
+//! # freeform
+//!
+//! Mesh-free, reduced-order simulation of elastic objects from RKPM skinning eigenmodes
+//! (the FreeForm method). The library follows one data flow, one module per stage:
+//!
+//! ```text
+//! geometry (shape) -> sampling (integration points, volumes) -> centers (FPS)
+//!   -> rkpm (kernels, support radii, shape functions) -> material (E, nu, rho per point)
+//!   -> assembly (sparse H_w and M) -> eigen (LOBPCG | dense) -> skinning (weights W(X))
+//! ```
+//!
+//! [`pipeline::build_basis`] runs the whole flow from a [`geometry::Shape`]; every stage is
+//! also a public function so a caller can enter the flow anywhere (bring points, kernels or
+//! matrices of your own).
+//!
+//! Units: the library is unit-agnostic but consistent; the docs say "metres", "Pa" and
+//! "kg/m^3" for SI input. Shapes: "N x 3" means N rows of `[x, y, z]`.
+#![warn(missing_docs)]
+#![allow(missing_docs)] // TEMP during construction
+
+pub mod assembly;
+pub mod centers;
+pub mod eigen;
+pub mod error;
+pub mod geometry;
+pub mod io;
+pub mod material;
+pub mod pipeline;
+pub mod progress;
+pub mod report;
+pub mod rkpm;
+pub mod sampling;
+pub mod skinning;
+pub mod sparse;
+
+pub use error::{Error, Result};
+
+/// A point or vector in 3D, `[x, y, z]` (metres for positions).
+pub type Point3 = [f64; 3];
