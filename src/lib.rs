@@ -21,6 +21,7 @@
 pub mod assembly;
 pub mod centers;
 pub mod eigen;
+pub mod elasticity;
 pub mod error;
 pub mod geometry;
 pub mod io;

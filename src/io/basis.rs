@@ -1,1 +1,166 @@
-//! (under construction)
+//! The basis file: a NumPy `.npz` archive (a zip of `.npy` arrays, uncompressed, as
+//! `numpy.savez` writes) that the simulator and Python read.
+//!
+//! | array | dtype, shape | content |
+//! |---|---|---|
+//! | `format_version` | int64, (1,) | 1 |
+//! | `centers` | float64, (K, 3) | kernel centres p_k, metres |
+//! | `radii` | float64, (K,) | support radii a_k, metres |
+//! | `kernel_type` | int64, (1,) | 0 cubic, 1 quartic, 2 gaussian |
+//! | `coefficients` | float64, (K, m+1) | c, column 0 the constant mode, c^T M c = I |
+//! | `eigenvalues` | float64, (m+1,) | ascending, first 0 |
+//! | `metadata` | uint8, (bytes,) | UTF-8 JSON: every parameter that produced the basis |
+//!
+//! Python: `z = numpy.load("basis.npz"); json.loads(bytes(z["metadata"]))`.
+
+use crate::rkpm::{KernelType, Kernels};
+use crate::skinning::Basis;
+use crate::{Error, Point3, Result};
+use faer::Mat;
+use npyz::WriterBuilder;
+use std::io::{Read, Write};
+use std::path::Path;
+
+/// Version written into `format_version`.
+pub const FORMAT_VERSION: i64 = 1;
+
+fn kernel_code(k: KernelType) -> i64 {
+    match k {
+        KernelType::Cubic => 0,
+        KernelType::Quartic => 1,
+        KernelType::Gaussian => 2,
+    }
+}
+
+fn npy_bytes<T: npyz::Serialize + npyz::AutoSerialize + Copy>(shape: &[u64], data: &[T]) -> std::io::Result<Vec<u8>> {
+    let mut buf = Vec::new();
+    {
+        let mut w = npyz::WriteOptions::<T>::new().default_dtype().shape(shape).writer(&mut buf).begin_nd()?;
+        w.extend(data.iter().copied())?;
+        w.finish()?;
+    }
+    Ok(buf)
+}
+
+/// Write `basis` and its metadata (any JSON value) to `path` atomically: the archive is
+/// written to a temporary file next to it and renamed, so a failed write never leaves a
+/// half-written basis behind.
+pub fn save(path: &Path, basis: &Basis, metadata: &serde_json::Value) -> Result<()> {
+    let io_err = |source| Error::Io { path: path.to_path_buf(), source };
+    let k = basis.kernels.len();
+    let m1 = basis.modes();
+    let centers: Vec<f64> = basis.kernels.centers.iter().flatten().copied().collect();
+    let mut coef = Vec::with_capacity(k * m1);
+    for i in 0..k {
+        for j in 0..m1 {
+            coef.push(basis.coefficients[(i, j)]);
+        }
+    }
+    let meta = serde_json::to_vec_pretty(metadata).map_err(|e| io_err(std::io::Error::other(e)))?;
+    let entries: Vec<(&str, Vec<u8>)> = vec![
+        ("format_version", npy_bytes(&[1], &[FORMAT_VERSION]).map_err(io_err)?),
+        ("centers", npy_bytes(&[k as u64, 3], &centers).map_err(io_err)?),
+        ("radii", npy_bytes(&[k as u64], &basis.kernels.radii).map_err(io_err)?),
+        ("kernel_type", npy_bytes(&[1], &[kernel_code(basis.kernels.kind)]).map_err(io_err)?),
+        ("coefficients", npy_bytes(&[k as u64, m1 as u64], &coef).map_err(io_err)?),
+        ("eigenvalues", npy_bytes(&[m1 as u64], &basis.eigenvalues).map_err(io_err)?),
+        ("metadata", npy_bytes(&[meta.len() as u64], &meta).map_err(io_err)?),
+    ];
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let tmp = tempfile_in(dir).map_err(io_err)?;
+    {
+        let file = std::fs::File::create(&tmp).map_err(io_err)?;
+        let mut zip = zip::ZipWriter::new(std::io::BufWriter::new(file));
+        let opts = zip::write::SimpleFileOptions::default()
+            .compression_method(zip::CompressionMethod::Stored)
+            .large_file(true);
+        for (name, bytes) in entries {
+            zip.start_file(format!("{name}.npy"), opts).map_err(|e| io_err(std::io::Error::other(e)))?;
+            zip.write_all(&bytes).map_err(io_err)?;
+        }
+        let mut inner = zip.finish().map_err(|e| io_err(std::io::Error::other(e)))?;
+        inner.flush().map_err(io_err)?;
+    }
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        io_err(e)
+    })
+}
+
+fn tempfile_in(dir: &Path) -> std::io::Result<std::path::PathBuf> {
+    let pid = std::process::id();
+    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_nanos()).unwrap_or(0);
+    Ok(dir.join(format!(".freeform-basis-{pid}-{nanos}.tmp")))
+}
+
+/// A basis read back from disk, with its metadata.
+#[derive(Debug, Clone)]
+pub struct LoadedBasis {
+    /// The basis.
+    pub basis: Basis,
+    /// The metadata JSON stored with it.
+    pub metadata: serde_json::Value,
+}
+
+/// Read a basis written by [`save`] (or by Python with the same arrays).
+pub fn load(path: &Path) -> Result<LoadedBasis> {
+    let bad = |reason: String| Error::BasisFile { path: path.to_path_buf(), reason };
+    let file = std::fs::File::open(path).map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
+    let mut zip = zip::ZipArchive::new(std::io::BufReader::new(file)).map_err(|e| bad(format!("not a zip/npz archive ({e})")))?;
+    let mut read = |name: &str| -> Result<(Vec<u64>, Vec<u8>)> {
+        let mut entry = zip.by_name(&format!("{name}.npy")).map_err(|_| bad(format!("missing array `{name}`")))?;
+        let mut bytes = Vec::new();
+        entry.read_to_end(&mut bytes).map_err(|e| bad(format!("array `{name}`: {e}")))?;
+        let npy = npyz::NpyFile::new(&bytes[..]).map_err(|e| bad(format!("array `{name}`: {e}")))?;
+        Ok((npy.shape().to_vec(), bytes))
+    };
+    fn decode<T: npyz::Deserialize>(bytes: &[u8]) -> std::io::Result<Vec<T>> {
+        npyz::NpyFile::new(bytes)?.into_vec::<T>()
+    }
+    let f64s = |name: &str, bytes: &[u8]| decode::<f64>(bytes).map_err(|e| bad(format!("array `{name}` is not float64: {e}")));
+    let i64s = |name: &str, bytes: &[u8]| decode::<i64>(bytes).map_err(|e| bad(format!("array `{name}` is not int64: {e}")));
+
+    let (_, b) = read("format_version")?;
+    let version = i64s("format_version", &b)?;
+    if version.first() != Some(&FORMAT_VERSION) {
+        return Err(bad(format!("format_version {version:?}; this build reads version {FORMAT_VERSION}")));
+    }
+    let (cs, b) = read("centers")?;
+    let centers = f64s("centers", &b)?;
+    if cs.len() != 2 || cs[1] != 3 {
+        return Err(bad(format!("centers has shape {cs:?}, expected (K, 3)")));
+    }
+    let k = cs[0] as usize;
+    let (_, b) = read("radii")?;
+    let radii = f64s("radii", &b)?;
+    if radii.len() != k {
+        return Err(bad(format!("radii has {} entries for {k} centres", radii.len())));
+    }
+    let (_, b) = read("kernel_type")?;
+    let kind = match i64s("kernel_type", &b)?.first() {
+        Some(0) => KernelType::Cubic,
+        Some(1) => KernelType::Quartic,
+        Some(2) => KernelType::Gaussian,
+        other => return Err(bad(format!("unknown kernel_type {other:?}"))),
+    };
+    let (shape, b) = read("coefficients")?;
+    let coef = f64s("coefficients", &b)?;
+    if shape.len() != 2 || shape[0] as usize != k {
+        return Err(bad(format!("coefficients has shape {shape:?}, expected ({k}, m+1)")));
+    }
+    let m1 = shape[1] as usize;
+    let (_, b) = read("eigenvalues")?;
+    let eigenvalues = f64s("eigenvalues", &b)?;
+    if eigenvalues.len() != m1 {
+        return Err(bad(format!("{} eigenvalues for {m1} coefficient columns", eigenvalues.len())));
+    }
+    let (_, b) = read("metadata")?;
+    let meta_bytes = decode::<u8>(&b).map_err(|e| bad(format!("metadata: {e}")))?;
+    let metadata = serde_json::from_slice(&meta_bytes).map_err(|e| bad(format!("metadata is not JSON: {e}")))?;
+    if centers.iter().chain(&radii).chain(&coef).chain(&eigenvalues).any(|v| !v.is_finite()) {
+        return Err(bad("contains NaN or infinite values".into()));
+    }
+    let centers: Vec<Point3> = centers.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    let coefficients = Mat::from_fn(k, m1, |i, j| coef[i * m1 + j]);
+    Ok(LoadedBasis { basis: Basis { kernels: Kernels { centers, radii, kind }, coefficients, eigenvalues }, metadata })
+}

@@ -1,0 +1,34 @@
+//! Small fixtures shared by the integration tests.
+#![allow(dead_code)]
+
+use freeform::centers::farthest_point_sampling;
+use freeform::geometry::Aabb;
+use freeform::rkpm::{support_radii, KernelType, Kernels, SupportOptions};
+use freeform::sampling::{grid_points, IntegrationPoints};
+use freeform::Point3;
+
+/// Grid points filling the box [0, size] at spacing h.
+pub fn box_points(size: [f64; 3], h: f64) -> IntegrationPoints {
+    let aabb = Aabb { min: [0.0; 3], max: size };
+    grid_points(&aabb, h, None, &|p: &[Point3]| vec![true; p.len()]).expect("box grid")
+}
+
+/// K kernels by FPS over the points, default supports.
+pub fn kernels_for(ip: &IntegrationPoints, k: usize, kind: KernelType) -> Kernels {
+    let idx = farthest_point_sampling(&ip.points, k).expect("fps");
+    let centers: Vec<Point3> = idx.iter().map(|&i| ip.points[i]).collect();
+    let radii = support_radii(&centers, &SupportOptions::default()).expect("radii");
+    Kernels { centers, radii, kind }
+}
+
+/// Deterministic pseudo-random numbers in [0, 1) (splitmix64).
+pub struct Rng(pub u64);
+impl Rng {
+    pub fn next(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9E3779B97F4A7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58476D1CE4E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D049BB133111EB);
+        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
