@@ -28,13 +28,26 @@ const ROWS_PER_TASK: usize = 128;
 
 /// Assemble H_w and M from shape functions at N integration points with volumes `volumes`
 /// (N, m^3) and Hessian weights `weights` (N, lambda + 4 mu, Pa). `k` is the kernel count.
-pub fn assemble(sf: &ShapeFunctions, volumes: &[f64], weights: &[f64], k: usize) -> Result<Assembled> {
+pub fn assemble(
+    sf: &ShapeFunctions,
+    volumes: &[f64],
+    weights: &[f64],
+    k: usize,
+) -> Result<Assembled> {
     let n = sf.rows();
     if volumes.len() != n {
-        return Err(Error::LengthMismatch { what: "volumes", expected: n, got: volumes.len() });
+        return Err(Error::LengthMismatch {
+            what: "volumes",
+            expected: n,
+            got: volumes.len(),
+        });
     }
     if weights.len() != n {
-        return Err(Error::LengthMismatch { what: "hessian weights", expected: n, got: weights.len() });
+        return Err(Error::LengthMismatch {
+            what: "hessian weights",
+            expected: n,
+            got: weights.len(),
+        });
     }
     // Transpose: for each kernel, the (point, entry) pairs it covers, points ascending.
     let mut tptr = vec![0usize; k + 1];
@@ -65,7 +78,8 @@ pub fn assemble(sf: &ShapeFunctions, volumes: &[f64], weights: &[f64], k: usize)
             let mut acc_m = vec![0.0f64; k];
             let mut seen = vec![false; k];
             let mut touched: Vec<usize> = Vec::new();
-            let (mut counts, mut cols, mut hv, mut mv) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+            let (mut counts, mut cols, mut hv, mut mv) =
+                (Vec::new(), Vec::new(), Vec::new(), Vec::new());
             for _row in rows {
                 let row = _row;
                 for s in tptr[row]..tptr[row + 1] {
@@ -104,7 +118,11 @@ pub fn assemble(sf: &ShapeFunctions, volumes: &[f64], weights: &[f64], k: usize)
     let nnz: usize = tasks.iter().map(|t| t.1.len()).sum();
     let mut ptr = Vec::with_capacity(k + 1);
     ptr.push(0);
-    let (mut idx, mut hval, mut mval) = (Vec::with_capacity(nnz), Vec::with_capacity(nnz), Vec::with_capacity(nnz));
+    let (mut idx, mut hval, mut mval) = (
+        Vec::with_capacity(nnz),
+        Vec::with_capacity(nnz),
+        Vec::with_capacity(nnz),
+    );
     for (counts, cols, hv, mv) in tasks {
         for c in counts {
             let last = *ptr.last().unwrap_or(&0);
@@ -115,7 +133,10 @@ pub fn assemble(sf: &ShapeFunctions, volumes: &[f64], weights: &[f64], k: usize)
         mval.extend_from_slice(&mv);
     }
     if let Some(bad) = hval.iter().chain(&mval).position(|v| !v.is_finite()) {
-        return Err(Error::NonFinite { what: "assembled matrices (check volumes and material values)", index: bad });
+        return Err(Error::NonFinite {
+            what: "assembled matrices (check volumes and material values)",
+            index: bad,
+        });
     }
     Ok(Assembled {
         hessian: from_compressed(k, ptr.clone(), idx.clone(), hval),

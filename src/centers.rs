@@ -65,20 +65,30 @@ fn too_few_distinct(k: usize, found: usize) -> Error {
 /// Errors if k is 0, exceeds N, or exceeds the number of distinct points.
 pub fn farthest_point_sampling(points: &[Point3], k: usize) -> Result<Vec<usize>> {
     check(points, k)?;
-    let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(points)
-        .map_err(|e| Error::param("integration points", points.len(), format!("k-d tree: {e:?}")))?;
+    let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(points).map_err(|e| {
+        Error::param(
+            "integration points",
+            points.len(),
+            format!("k-d tree: {e:?}"),
+        )
+    })?;
     let s0 = start_index(points);
     let mut dist: Vec<f64> = points.iter().map(|p| dist2(p, &points[s0])).collect();
     // Heap entries (squared distance bits, Reverse(index)): non-negative f64 bit patterns order
     // like the numbers, and Reverse makes the lowest index win ties, as in the brute force.
-    let mut heap: BinaryHeap<(u64, Reverse<u32>)> =
-        dist.iter().enumerate().map(|(i, d)| (d.to_bits(), Reverse(i as u32))).collect();
+    let mut heap: BinaryHeap<(u64, Reverse<u32>)> = dist
+        .iter()
+        .enumerate()
+        .map(|(i, d)| (d.to_bits(), Reverse(i as u32)))
+        .collect();
     let mut chosen = Vec::with_capacity(k);
     chosen.push(s0);
     while chosen.len() < k {
         let (bits, idx) = loop {
             match heap.pop() {
-                Some((bits, Reverse(i))) if bits == dist[i as usize].to_bits() => break (bits, i as usize),
+                Some((bits, Reverse(i))) if bits == dist[i as usize].to_bits() => {
+                    break (bits, i as usize)
+                }
                 Some(_) => continue, // stale entry: the point got closer since it was pushed
                 None => return Err(too_few_distinct(k, chosen.len())),
             }
@@ -89,7 +99,13 @@ pub fn farthest_point_sampling(points: &[Point3], k: usize) -> Result<Vec<usize>
         }
         chosen.push(idx);
         let c = points[idx];
-        for r in tree.query(&c).within::<SquaredEuclidean<f64>>(d_max).unsorted().execute().iter() {
+        for r in tree
+            .query(&c)
+            .within::<SquaredEuclidean<f64>>(d_max)
+            .unsorted()
+            .execute()
+            .iter()
+        {
             let j = r.item as usize;
             let d = dist2(&points[j], &c);
             if d < dist[j] {
@@ -139,7 +155,13 @@ pub fn spacing_stats(centers: &[Point3]) -> (f64, f64, f64) {
     let two = std::num::NonZero::new(2).expect("2 > 0");
     let d: Vec<f64> = centers
         .iter()
-        .map(|c| tree.query(c).nearest_n::<SquaredEuclidean<f64>>(two).execute().last().map_or(0.0, |r| r.distance.sqrt()))
+        .map(|c| {
+            tree.query(c)
+                .nearest_n::<SquaredEuclidean<f64>>(two)
+                .execute()
+                .last()
+                .map_or(0.0, |r| r.distance.sqrt())
+        })
         .collect();
     let min = d.iter().copied().fold(f64::INFINITY, f64::min);
     let max = d.iter().copied().fold(0.0, f64::max);
@@ -165,10 +187,18 @@ mod tests {
     #[test]
     fn tree_fps_equals_brute_force() {
         let pts = cloud(3000, 7);
-        assert_eq!(farthest_point_sampling(&pts, 200).unwrap(), farthest_point_sampling_brute(&pts, 200).unwrap());
+        assert_eq!(
+            farthest_point_sampling(&pts, 200).unwrap(),
+            farthest_point_sampling_brute(&pts, 200).unwrap()
+        );
         // A regular grid has many exact distance ties: tie-breaking must agree too.
-        let grid: Vec<Point3> = (0..1000).map(|i| [(i % 10) as f64, ((i / 10) % 10) as f64, (i / 100) as f64]).collect();
-        assert_eq!(farthest_point_sampling(&grid, 150).unwrap(), farthest_point_sampling_brute(&grid, 150).unwrap());
+        let grid: Vec<Point3> = (0..1000)
+            .map(|i| [(i % 10) as f64, ((i / 10) % 10) as f64, (i / 100) as f64])
+            .collect();
+        assert_eq!(
+            farthest_point_sampling(&grid, 150).unwrap(),
+            farthest_point_sampling_brute(&grid, 150).unwrap()
+        );
     }
 
     #[test]
@@ -181,7 +211,10 @@ mod tests {
         assert!(e.contains("1 distinct"), "{e}");
         let mut nan = cloud(10, 2);
         nan[3][1] = f64::NAN;
-        assert!(matches!(farthest_point_sampling(&nan, 2), Err(Error::NonFinite { index: 3, .. })));
+        assert!(matches!(
+            farthest_point_sampling(&nan, 2),
+            Err(Error::NonFinite { index: 3, .. })
+        ));
     }
 
     #[test]

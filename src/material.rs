@@ -27,7 +27,11 @@ impl Default for Material {
     /// The standard beam's material (design.md section 3): E = 5e6 Pa, nu = 0.45,
     /// rho = 1000 kg/m^3 (a soft rubber).
     fn default() -> Self {
-        Self { youngs: 5e6, poisson: 0.45, density: 1000.0 }
+        Self {
+            youngs: 5e6,
+            poisson: 0.45,
+            density: 1000.0,
+        }
     }
 }
 
@@ -35,7 +39,11 @@ impl Material {
     /// Check E > 0, -1 < nu < 0.5, rho > 0, all finite.
     pub fn validate(&self) -> Result<()> {
         if !(self.youngs.is_finite() && self.youngs > 0.0) {
-            return Err(Error::param("youngs", self.youngs, "Young's modulus must be a positive number of pascals"));
+            return Err(Error::param(
+                "youngs",
+                self.youngs,
+                "Young's modulus must be a positive number of pascals",
+            ));
         }
         if !(self.poisson > -1.0 && self.poisson < 0.5) {
             return Err(Error::param(
@@ -45,7 +53,11 @@ impl Material {
             ));
         }
         if !(self.density.is_finite() && self.density > 0.0) {
-            return Err(Error::param("density", self.density, "density must be a positive number of kg/m^3"));
+            return Err(Error::param(
+                "density",
+                self.density,
+                "density must be a positive number of kg/m^3",
+            ));
         }
         Ok(())
     }
@@ -99,7 +111,9 @@ impl Region {
                 let d: f64 = (0..3).map(|i| (x[i] - center[i]).powi(2)).sum();
                 d <= radius * radius
             }
-            Region::HalfSpace { point, normal } => (0..3).map(|i| (x[i] - point[i]) * normal[i]).sum::<f64>() >= 0.0,
+            Region::HalfSpace { point, normal } => {
+                (0..3).map(|i| (x[i] - point[i]) * normal[i]).sum::<f64>() >= 0.0
+            }
         }
     }
 }
@@ -129,11 +143,19 @@ impl MaterialField {
     /// The same material at `n` points.
     pub fn homogeneous(n: usize, m: &Material) -> Result<Self> {
         m.validate()?;
-        Ok(Self { youngs: vec![m.youngs; n], poisson: vec![m.poisson; n], density: vec![m.density; n] })
+        Ok(Self {
+            youngs: vec![m.youngs; n],
+            poisson: vec![m.poisson; n],
+            density: vec![m.density; n],
+        })
     }
 
     /// `base` everywhere, then each override in order on the points inside its region.
-    pub fn from_regions(points: &[Point3], base: &Material, overrides: &[MaterialOverride]) -> Result<Self> {
+    pub fn from_regions(
+        points: &[Point3],
+        base: &Material,
+        overrides: &[MaterialOverride],
+    ) -> Result<Self> {
         let mut f = Self::homogeneous(points.len(), base)?;
         for o in overrides {
             o.material.validate()?;
@@ -153,15 +175,27 @@ impl MaterialField {
         let n = youngs.len();
         for (what, len) in [("poisson", poisson.len()), ("density", density.len())] {
             if len != n {
-                return Err(Error::LengthMismatch { what, expected: n, got: len });
+                return Err(Error::LengthMismatch {
+                    what,
+                    expected: n,
+                    got: len,
+                });
             }
         }
         for i in 0..n {
-            Material { youngs: youngs[i], poisson: poisson[i], density: density[i] }
-                .validate()
-                .map_err(|e| Error::param("material", format!("point {i}"), e.to_string()))?;
+            Material {
+                youngs: youngs[i],
+                poisson: poisson[i],
+                density: density[i],
+            }
+            .validate()
+            .map_err(|e| Error::param("material", format!("point {i}"), e.to_string()))?;
         }
-        Ok(Self { youngs, poisson, density })
+        Ok(Self {
+            youngs,
+            poisson,
+            density,
+        })
     }
 
     /// Number of points.
@@ -211,9 +245,15 @@ mod tests {
         for bad in [
             Material { youngs: 0.0, ..ok },
             Material { youngs: -1.0, ..ok },
-            Material { youngs: f64::NAN, ..ok },
+            Material {
+                youngs: f64::NAN,
+                ..ok
+            },
             Material { poisson: 0.5, ..ok },
-            Material { poisson: -1.0, ..ok },
+            Material {
+                poisson: -1.0,
+                ..ok
+            },
             Material { density: 0.0, ..ok },
         ] {
             assert!(bad.validate().is_err(), "{bad:?}");
@@ -223,14 +263,32 @@ mod tests {
     #[test]
     fn regions_override_in_order() {
         let pts = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]];
-        let stiff = Material { youngs: 1e9, ..Material::default() };
-        let soft = Material { youngs: 1e3, ..Material::default() };
+        let stiff = Material {
+            youngs: 1e9,
+            ..Material::default()
+        };
+        let soft = Material {
+            youngs: 1e3,
+            ..Material::default()
+        };
         let f = MaterialField::from_regions(
             &pts,
             &Material::default(),
             &[
-                MaterialOverride { region: Region::HalfSpace { point: [0.5, 0.0, 0.0], normal: [1.0, 0.0, 0.0] }, material: stiff },
-                MaterialOverride { region: Region::Sphere { center: [2.0, 0.0, 0.0], radius: 0.1 }, material: soft },
+                MaterialOverride {
+                    region: Region::HalfSpace {
+                        point: [0.5, 0.0, 0.0],
+                        normal: [1.0, 0.0, 0.0],
+                    },
+                    material: stiff,
+                },
+                MaterialOverride {
+                    region: Region::Sphere {
+                        center: [2.0, 0.0, 0.0],
+                        radius: 0.1,
+                    },
+                    material: soft,
+                },
             ],
         )
         .unwrap();

@@ -32,6 +32,10 @@ impl Stopwatch {
     pub fn start() -> Self {
         Self(Instant::now())
     }
+    /// Seconds since start.
+    pub fn elapsed(&self) -> f64 {
+        self.0.elapsed().as_secs_f64()
+    }
     /// Seconds since start; restarts the watch.
     pub fn lap(&mut self) -> f64 {
         let now = Instant::now();

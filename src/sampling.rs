@@ -53,13 +53,21 @@ impl Resolution {
             Resolution::Spacing(h) => h,
             Resolution::Count(n) => {
                 if n == 0 {
-                    return Err(Error::param("points", 0, "need at least one integration point"));
+                    return Err(Error::param(
+                        "points",
+                        0,
+                        "need at least one integration point",
+                    ));
                 }
                 (volume / n as f64).cbrt()
             }
         };
         if !(h.is_finite() && h > 0.0) {
-            return Err(Error::param("spacing", h, "grid spacing must be a positive length"));
+            return Err(Error::param(
+                "spacing",
+                h,
+                "grid spacing must be a positive length",
+            ));
         }
         Ok(h)
     }
@@ -83,7 +91,11 @@ pub fn grid_points(
     for d in 0..3 {
         let len = aabb.max[d] - aabb.min[d];
         if !(len.is_finite() && len > 0.0) {
-            return Err(Error::param("shape", format!("extent {len} along axis {d}"), "the shape is flat or empty along this axis"));
+            return Err(Error::param(
+                "shape",
+                format!("extent {len} along axis {d}"),
+                "the shape is flat or empty along this axis",
+            ));
         }
         n[d] = ((len / h).round() as usize).max(1);
         step[d] = len / n[d] as f64;
@@ -105,18 +117,28 @@ pub fn grid_points(
                 })
                 .collect();
             let keep = inside(&cand);
-            cand.into_iter().zip(keep).filter_map(|(p, k)| k.then_some(p)).collect()
+            cand.into_iter()
+                .zip(keep)
+                .filter_map(|(p, k)| k.then_some(p))
+                .collect()
         })
         .collect();
     let points: Vec<Point3> = slabs.into_iter().flatten().collect();
     if points.is_empty() {
-        return Err(Error::param("spacing", h, "no grid point falls inside the shape; use a smaller spacing or more points"));
+        return Err(Error::param(
+            "spacing",
+            h,
+            "no grid point falls inside the shape; use a smaller spacing or more points",
+        ));
     }
     let v = match exact_volume {
         Some(vol) => vol / points.len() as f64,
         None => cell_volume,
     };
-    Ok(IntegrationPoints { volumes: vec![v; points.len()], points })
+    Ok(IntegrationPoints {
+        volumes: vec![v; points.len()],
+        points,
+    })
 }
 
 /// Options for point-cloud quadrature weights.
@@ -137,10 +159,22 @@ pub fn cloud_volumes(points: &[Point3], opts: &CloudVolumeOptions) -> Result<(Ve
     crate::error::check_finite_points("point cloud", points)?;
     let voxel = match opts.voxel {
         Some(v) if v.is_finite() && v > 0.0 => v,
-        Some(v) => return Err(Error::param("voxel", v, "voxel size must be a positive length")),
+        Some(v) => {
+            return Err(Error::param(
+                "voxel",
+                v,
+                "voxel size must be a positive length",
+            ))
+        }
         None => 2.0 * median_nn_distance(points)?,
     };
-    let key = |p: &Point3| [(p[0] / voxel).floor() as i64, (p[1] / voxel).floor() as i64, (p[2] / voxel).floor() as i64];
+    let key = |p: &Point3| {
+        [
+            (p[0] / voxel).floor() as i64,
+            (p[1] / voxel).floor() as i64,
+            (p[2] / voxel).floor() as i64,
+        ]
+    };
     let mut counts: HashMap<[i64; 3], u32> = HashMap::new();
     for p in points {
         *counts.entry(key(p)).or_insert(0) += 1;
@@ -149,7 +183,11 @@ pub fn cloud_volumes(points: &[Point3], opts: &CloudVolumeOptions) -> Result<(Ve
     let mut vols: Vec<f64> = points.iter().map(|p| v3 / counts[&key(p)] as f64).collect();
     if let Some(total) = opts.total_volume {
         if !(total.is_finite() && total > 0.0) {
-            return Err(Error::param("volume", total, "total volume must be a positive number of m^3"));
+            return Err(Error::param(
+                "volume",
+                total,
+                "total volume must be a positive number of m^3",
+            ));
         }
         let s = total / vols.iter().sum::<f64>();
         vols.iter_mut().for_each(|v| *v *= s);
@@ -166,11 +204,21 @@ fn median_nn_distance(points: &[Point3]) -> Result<f64> {
     let mut d: Vec<f64> = points
         .par_iter()
         .step_by(stride)
-        .map(|p| tree.query(p).nearest_n::<SquaredEuclidean<f64>>(two).execute().last().map_or(0.0, |r| r.distance.sqrt()))
+        .map(|p| {
+            tree.query(p)
+                .nearest_n::<SquaredEuclidean<f64>>(two)
+                .execute()
+                .last()
+                .map_or(0.0, |r| r.distance.sqrt())
+        })
         .filter(|&d| d > 0.0)
         .collect();
     if d.is_empty() {
-        return Err(Error::param("points", points.len(), "all points coincide: the cloud has no extent"));
+        return Err(Error::param(
+            "points",
+            points.len(),
+            "all points coincide: the cloud has no extent",
+        ));
     }
     d.sort_by(f64::total_cmp);
     Ok(d[d.len() / 2])
@@ -182,7 +230,10 @@ mod tests {
 
     #[test]
     fn box_grid_tiles_exactly() {
-        let b = Aabb { min: [0.0; 3], max: [5.0, 1.0, 1.0] };
+        let b = Aabb {
+            min: [0.0; 3],
+            max: [5.0, 1.0, 1.0],
+        };
         let ip = grid_points(&b, 0.1, None, &|p| vec![true; p.len()]).unwrap();
         assert_eq!(ip.len(), 50 * 10 * 10);
         assert!((ip.total_volume() - 5.0).abs() < 1e-12);
@@ -194,12 +245,23 @@ mod tests {
 
     #[test]
     fn inside_filter_and_exact_volume() {
-        let b = Aabb { min: [-1.0; 3], max: [1.0; 3] };
-        let inside = |p: &[Point3]| p.iter().map(|x| x[0] * x[0] + x[1] * x[1] + x[2] * x[2] < 1.0).collect();
+        let b = Aabb {
+            min: [-1.0; 3],
+            max: [1.0; 3],
+        };
+        let inside = |p: &[Point3]| {
+            p.iter()
+                .map(|x| x[0] * x[0] + x[1] * x[1] + x[2] * x[2] < 1.0)
+                .collect()
+        };
         let exact = 4.0 / 3.0 * std::f64::consts::PI;
         let raw = grid_points(&b, 0.05, None, &inside).unwrap();
         // Cell counting converges like h / R: within 1 % at h = 0.05.
-        assert!((raw.total_volume() / exact - 1.0).abs() < 0.01, "{}", raw.total_volume());
+        assert!(
+            (raw.total_volume() / exact - 1.0).abs() < 0.01,
+            "{}",
+            raw.total_volume()
+        );
         let ip = grid_points(&b, 0.05, Some(exact), &inside).unwrap();
         // Summing ~33k equal weights accumulates ~N eps relative round-off.
         assert!((ip.total_volume() / exact - 1.0).abs() < 1e-10);
@@ -211,16 +273,41 @@ mod tests {
     fn cloud_volumes_handle_density_variation() {
         // A unit cube sampled on a 20^3 grid, plus 8000 extra points crammed into one corner
         // cell: voxel weights must still sum to ~ the cube volume.
-        let mut pts: Vec<Point3> =
-            (0..8000).map(|i| [((i % 20) as f64 + 0.5) / 20.0, (((i / 20) % 20) as f64 + 0.5) / 20.0, ((i / 400) as f64 + 0.5) / 20.0]).collect();
+        let mut pts: Vec<Point3> = (0..8000)
+            .map(|i| {
+                [
+                    ((i % 20) as f64 + 0.5) / 20.0,
+                    (((i / 20) % 20) as f64 + 0.5) / 20.0,
+                    ((i / 400) as f64 + 0.5) / 20.0,
+                ]
+            })
+            .collect();
         for i in 0..8000 {
-            pts.push([0.01 + 1e-5 * (i % 20) as f64, 0.01 + 1e-5 * ((i / 20) % 20) as f64, 0.01 + 1e-5 * (i / 400) as f64]);
+            pts.push([
+                0.01 + 1e-5 * (i % 20) as f64,
+                0.01 + 1e-5 * ((i / 20) % 20) as f64,
+                0.01 + 1e-5 * (i / 400) as f64,
+            ]);
         }
-        let (v, voxel) = cloud_volumes(&pts, &CloudVolumeOptions { voxel: Some(0.1), total_volume: None }).unwrap();
+        let (v, voxel) = cloud_volumes(
+            &pts,
+            &CloudVolumeOptions {
+                voxel: Some(0.1),
+                total_volume: None,
+            },
+        )
+        .unwrap();
         assert_eq!(voxel, 0.1);
         let total: f64 = v.iter().sum();
         assert!((total - 1.0).abs() < 1e-9, "{total}");
-        let (v, _) = cloud_volumes(&pts, &CloudVolumeOptions { voxel: Some(0.1), total_volume: Some(2.0) }).unwrap();
+        let (v, _) = cloud_volumes(
+            &pts,
+            &CloudVolumeOptions {
+                voxel: Some(0.1),
+                total_volume: Some(2.0),
+            },
+        )
+        .unwrap();
         assert!((v.iter().sum::<f64>() - 2.0).abs() < 1e-12);
         assert!(cloud_volumes(&[], &CloudVolumeOptions::default()).is_err());
         assert!(cloud_volumes(&[[1.0; 3]; 4], &CloudVolumeOptions::default()).is_err());

@@ -62,7 +62,11 @@ impl Basis {
         let modes = self.modes();
         let c = &self.coefficients;
         if c.nrows() != self.kernels.len() {
-            return Err(Error::LengthMismatch { what: "basis coefficients (rows)", expected: self.kernels.len(), got: c.nrows() });
+            return Err(Error::LengthMismatch {
+                what: "basis coefficients (rows)",
+                expected: self.kernels.len(),
+                got: c.nrows(),
+            });
         }
         let mut values = vec![0.0; queries.len() * modes];
         let mut gradients = vec![[0.0; 3]; queries.len() * modes];
@@ -83,6 +87,10 @@ impl Basis {
                     }
                 }
             });
-        Ok(SkinningWeights { modes, values, gradients })
+        Ok(SkinningWeights {
+            modes,
+            values,
+            gradients,
+        })
     }
 }

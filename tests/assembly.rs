@@ -51,8 +51,18 @@ fn setup(overrides: &[MaterialOverride]) -> (ShapeFunctions, Vec<f64>, MaterialF
 
 #[test]
 fn proposition_1_matches_finite_differences() {
-    let stiff = Material { youngs: 5e8, poisson: 0.3, density: 1000.0 };
-    let overrides = [MaterialOverride { region: Region::Box { min: [0.0; 3], max: [1.0, 1.0, 1.0] }, material: stiff }];
+    let stiff = Material {
+        youngs: 5e8,
+        poisson: 0.3,
+        density: 1000.0,
+    };
+    let overrides = [MaterialOverride {
+        region: Region::Box {
+            min: [0.0; 3],
+            max: [1.0, 1.0, 1.0],
+        },
+        material: stiff,
+    }];
     let (sf, vol, mat, k) = setup(&overrides);
     let a = assemble(&sf, &vol, &mat.hessian_weights(), k).unwrap();
     let h = dense(&a.hessian);
@@ -69,13 +79,18 @@ fn proposition_1_matches_finite_differences() {
                 d[q][s] += dq;
                 energy(&sf, &vol, &mat, &d)
             };
-            fd += (e(step, step) - e(step, -step) - e(-step, step) + e(-step, -step)) / (4.0 * step * step);
+            fd += (e(step, step) - e(step, -step) - e(-step, step) + e(-step, -step))
+                / (4.0 * step * step);
         }
         // The energy is a polynomial of degree 6 in d: the O(step^2) truncation with
         // derivatives ~ hmax / a^4 and a ~ 0.5 is ~ 1e-7 hmax; round-off in 4 energy
         // evaluations ~ 1e-16 * E_scale / step^2 is smaller. 1e-6 relative to max |H| checks
         // Prop. 1 (a wrong weight, e.g. lambda + 2 mu, is off by ~20 %).
-        assert!((fd - h[p][q]).abs() < 1e-6 * hmax, "H[{p}][{q}] = {} but FD gives {fd}", h[p][q]);
+        assert!(
+            (fd - h[p][q]).abs() < 1e-6 * hmax,
+            "H[{p}][{q}] = {} but FD gives {fd}",
+            h[p][q]
+        );
     }
 }
 
@@ -105,16 +120,32 @@ fn hessian_and_mass_structure() {
     let eh = hd.self_adjoint_eigenvalues(faer::Side::Lower).unwrap();
     assert!(em[0] > 0.0, "M min eigenvalue {}", em[0]);
     // H's smallest eigenvalue is 0 (constant); round-off allows ~1e-12 hmax below zero.
-    assert!(eh[0] > -1e-10 * hmax && eh[0].abs() < 1e-10 * hmax, "{}", eh[0]);
-    assert!(eh[1] > 1e-6 * hmax, "second eigenvalue must be positive: {}", eh[1]);
+    assert!(
+        eh[0] > -1e-10 * hmax && eh[0].abs() < 1e-10 * hmax,
+        "{}",
+        eh[0]
+    );
+    assert!(
+        eh[1] > 1e-6 * hmax,
+        "second eigenvalue must be positive: {}",
+        eh[1]
+    );
 }
 
 #[test]
 fn assembly_is_deterministic_across_thread_counts() {
     let (sf, vol, mat, k) = setup(&[]);
     let w = mat.hessian_weights();
-    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(|| assemble(&sf, &vol, &w, k).unwrap());
-    let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap().install(|| assemble(&sf, &vol, &w, k).unwrap());
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+        .install(|| assemble(&sf, &vol, &w, k).unwrap());
+    let two = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap()
+        .install(|| assemble(&sf, &vol, &w, k).unwrap());
     assert_eq!(one.hessian.val(), two.hessian.val());
     assert_eq!(one.mass.val(), two.mass.val());
 }

@@ -10,7 +10,9 @@ const KINDS: [KernelType; 3] = [KernelType::Cubic, KernelType::Quartic, KernelTy
 
 fn random_queries(n: usize, size: [f64; 3], seed: u64) -> Vec<Point3> {
     let mut r = Rng(seed);
-    (0..n).map(|_| [size[0] * r.next(), size[1] * r.next(), size[2] * r.next()]).collect()
+    (0..n)
+        .map(|_| [size[0] * r.next(), size[1] * r.next(), size[2] * r.next()])
+        .collect()
 }
 
 #[test]
@@ -23,7 +25,11 @@ fn reproducing_conditions_hold_to_round_off() {
         q.push([0.0, 0.0, 0.0]);
         q.push([2.0, 1.0, 1.0]);
         let (sf, stats) = evaluate(&kernels, &q, &ShapeFunctionOptions::default());
-        assert!(stats.failed.is_empty(), "{kind:?}: {} points failed", stats.failed.len());
+        assert!(
+            stats.failed.is_empty(),
+            "{kind:?}: {} points failed",
+            stats.failed.len()
+        );
         let err = reproducing_error(&kernels, &q, &sf);
         // Each identity is a 4x4 solve on O(1)-scaled data followed by a sum of ~30 terms:
         // round-off ~ 30 eps cond ~ 1e-12 for cond ~ 1e2; 1e-10 leaves margin for the
@@ -50,7 +56,11 @@ fn gradients_match_finite_differences() {
                 let (sp, _) = evaluate(&kernels, &[xp], &opts);
                 let (sm, _) = evaluate(&kernels, &[xm], &opts);
                 let value = |s: &freeform::rkpm::ShapeFunctions, k: u32| {
-                    s.pattern.row(0).iter().position(|&kk| kk == k).map_or(0.0, |e| s.phi[e])
+                    s.pattern
+                        .row(0)
+                        .iter()
+                        .position(|&kk| kk == k)
+                        .map_or(0.0, |e| s.phi[e])
                 };
                 for e in sf.pattern.ptr[i]..sf.pattern.ptr[i + 1] {
                     let k = sf.pattern.kernels[e];
@@ -74,7 +84,11 @@ fn unit_invariance() {
     let (s1, _) = evaluate(&k1, &q, &ShapeFunctionOptions::default());
     for s in [1e-3, 1e3] {
         let ks = Kernels {
-            centers: k1.centers.iter().map(|p| [p[0] * s, p[1] * s, p[2] * s]).collect(),
+            centers: k1
+                .centers
+                .iter()
+                .map(|p| [p[0] * s, p[1] * s, p[2] * s])
+                .collect(),
             radii: k1.radii.iter().map(|a| a * s).collect(),
             kind: k1.kind,
         };
@@ -85,7 +99,10 @@ fn unit_invariance() {
         for e in 0..s1.nnz() {
             assert!((ss.phi[e] - s1.phi[e]).abs() < 1e-12, "phi at scale {s}");
             for d in 0..3 {
-                assert!((ss.grad[e][d] * s - s1.grad[e][d]).abs() < 1e-10, "grad at scale {s}");
+                assert!(
+                    (ss.grad[e][d] * s - s1.grad[e][d]).abs() < 1e-10,
+                    "grad at scale {s}"
+                );
             }
         }
     }
@@ -102,7 +119,11 @@ fn uncovered_points_are_reported_not_inverted() {
     assert_eq!(stats.min_rcond, 0.0);
     assert!(sf.phi.iter().all(|v| v.is_finite()));
     // Too few kernels around a point: a kernel set of three coplanar kernels.
-    let flat = Kernels { centers: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], radii: vec![5.0; 3], kind: KernelType::Cubic };
+    let flat = Kernels {
+        centers: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+        radii: vec![5.0; 3],
+        kind: KernelType::Cubic,
+    };
     let (_, stats) = evaluate(&flat, &[[0.2, 0.2, 0.0]], &ShapeFunctionOptions::default());
     assert_eq!(stats.failed, vec![0]);
 }

@@ -32,10 +32,17 @@ fn kernel_code(k: KernelType) -> i64 {
     }
 }
 
-fn npy_bytes<T: npyz::Serialize + npyz::AutoSerialize + Copy>(shape: &[u64], data: &[T]) -> std::io::Result<Vec<u8>> {
+fn npy_bytes<T: npyz::Serialize + npyz::AutoSerialize + Copy>(
+    shape: &[u64],
+    data: &[T],
+) -> std::io::Result<Vec<u8>> {
     let mut buf = Vec::new();
     {
-        let mut w = npyz::WriteOptions::<T>::new().default_dtype().shape(shape).writer(&mut buf).begin_nd()?;
+        let mut w = npyz::WriteOptions::<T>::new()
+            .default_dtype()
+            .shape(shape)
+            .writer(&mut buf)
+            .begin_nd()?;
         w.extend(data.iter().copied())?;
         w.finish()?;
     }
@@ -46,7 +53,10 @@ fn npy_bytes<T: npyz::Serialize + npyz::AutoSerialize + Copy>(shape: &[u64], dat
 /// written to a temporary file next to it and renamed, so a failed write never leaves a
 /// half-written basis behind.
 pub fn save(path: &Path, basis: &Basis, metadata: &serde_json::Value) -> Result<()> {
-    let io_err = |source| Error::Io { path: path.to_path_buf(), source };
+    let io_err = |source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
     let k = basis.kernels.len();
     let m1 = basis.modes();
     let centers: Vec<f64> = basis.kernels.centers.iter().flatten().copied().collect();
@@ -58,15 +68,39 @@ pub fn save(path: &Path, basis: &Basis, metadata: &serde_json::Value) -> Result<
     }
     let meta = serde_json::to_vec_pretty(metadata).map_err(|e| io_err(std::io::Error::other(e)))?;
     let entries: Vec<(&str, Vec<u8>)> = vec![
-        ("format_version", npy_bytes(&[1], &[FORMAT_VERSION]).map_err(io_err)?),
-        ("centers", npy_bytes(&[k as u64, 3], &centers).map_err(io_err)?),
-        ("radii", npy_bytes(&[k as u64], &basis.kernels.radii).map_err(io_err)?),
-        ("kernel_type", npy_bytes(&[1], &[kernel_code(basis.kernels.kind)]).map_err(io_err)?),
-        ("coefficients", npy_bytes(&[k as u64, m1 as u64], &coef).map_err(io_err)?),
-        ("eigenvalues", npy_bytes(&[m1 as u64], &basis.eigenvalues).map_err(io_err)?),
-        ("metadata", npy_bytes(&[meta.len() as u64], &meta).map_err(io_err)?),
+        (
+            "format_version",
+            npy_bytes(&[1], &[FORMAT_VERSION]).map_err(io_err)?,
+        ),
+        (
+            "centers",
+            npy_bytes(&[k as u64, 3], &centers).map_err(io_err)?,
+        ),
+        (
+            "radii",
+            npy_bytes(&[k as u64], &basis.kernels.radii).map_err(io_err)?,
+        ),
+        (
+            "kernel_type",
+            npy_bytes(&[1], &[kernel_code(basis.kernels.kind)]).map_err(io_err)?,
+        ),
+        (
+            "coefficients",
+            npy_bytes(&[k as u64, m1 as u64], &coef).map_err(io_err)?,
+        ),
+        (
+            "eigenvalues",
+            npy_bytes(&[m1 as u64], &basis.eigenvalues).map_err(io_err)?,
+        ),
+        (
+            "metadata",
+            npy_bytes(&[meta.len() as u64], &meta).map_err(io_err)?,
+        ),
     ];
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
     let tmp = tempfile_in(dir).map_err(io_err)?;
     {
         let file = std::fs::File::create(&tmp).map_err(io_err)?;
@@ -75,7 +109,8 @@ pub fn save(path: &Path, basis: &Basis, metadata: &serde_json::Value) -> Result<
             .compression_method(zip::CompressionMethod::Stored)
             .large_file(true);
         for (name, bytes) in entries {
-            zip.start_file(format!("{name}.npy"), opts).map_err(|e| io_err(std::io::Error::other(e)))?;
+            zip.start_file(format!("{name}.npy"), opts)
+                .map_err(|e| io_err(std::io::Error::other(e)))?;
             zip.write_all(&bytes).map_err(io_err)?;
         }
         let mut inner = zip.finish().map_err(|e| io_err(std::io::Error::other(e)))?;
@@ -89,7 +124,10 @@ pub fn save(path: &Path, basis: &Basis, metadata: &serde_json::Value) -> Result<
 
 fn tempfile_in(dir: &Path) -> std::io::Result<std::path::PathBuf> {
     let pid = std::process::id();
-    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_nanos()).unwrap_or(0);
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_nanos())
+        .unwrap_or(0);
     Ok(dir.join(format!(".freeform-basis-{pid}-{nanos}.tmp")))
 }
 
@@ -104,26 +142,44 @@ pub struct LoadedBasis {
 
 /// Read a basis written by [`save`] (or by Python with the same arrays).
 pub fn load(path: &Path) -> Result<LoadedBasis> {
-    let bad = |reason: String| Error::BasisFile { path: path.to_path_buf(), reason };
-    let file = std::fs::File::open(path).map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
-    let mut zip = zip::ZipArchive::new(std::io::BufReader::new(file)).map_err(|e| bad(format!("not a zip/npz archive ({e})")))?;
+    let bad = |reason: String| Error::BasisFile {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let file = std::fs::File::open(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let mut zip = zip::ZipArchive::new(std::io::BufReader::new(file))
+        .map_err(|e| bad(format!("not a zip/npz archive ({e})")))?;
     let mut read = |name: &str| -> Result<(Vec<u64>, Vec<u8>)> {
-        let mut entry = zip.by_name(&format!("{name}.npy")).map_err(|_| bad(format!("missing array `{name}`")))?;
+        let mut entry = zip
+            .by_name(&format!("{name}.npy"))
+            .map_err(|_| bad(format!("missing array `{name}`")))?;
         let mut bytes = Vec::new();
-        entry.read_to_end(&mut bytes).map_err(|e| bad(format!("array `{name}`: {e}")))?;
-        let npy = npyz::NpyFile::new(&bytes[..]).map_err(|e| bad(format!("array `{name}`: {e}")))?;
+        entry
+            .read_to_end(&mut bytes)
+            .map_err(|e| bad(format!("array `{name}`: {e}")))?;
+        let npy =
+            npyz::NpyFile::new(&bytes[..]).map_err(|e| bad(format!("array `{name}`: {e}")))?;
         Ok((npy.shape().to_vec(), bytes))
     };
     fn decode<T: npyz::Deserialize>(bytes: &[u8]) -> std::io::Result<Vec<T>> {
         npyz::NpyFile::new(bytes)?.into_vec::<T>()
     }
-    let f64s = |name: &str, bytes: &[u8]| decode::<f64>(bytes).map_err(|e| bad(format!("array `{name}` is not float64: {e}")));
-    let i64s = |name: &str, bytes: &[u8]| decode::<i64>(bytes).map_err(|e| bad(format!("array `{name}` is not int64: {e}")));
+    let f64s = |name: &str, bytes: &[u8]| {
+        decode::<f64>(bytes).map_err(|e| bad(format!("array `{name}` is not float64: {e}")))
+    };
+    let i64s = |name: &str, bytes: &[u8]| {
+        decode::<i64>(bytes).map_err(|e| bad(format!("array `{name}` is not int64: {e}")))
+    };
 
     let (_, b) = read("format_version")?;
     let version = i64s("format_version", &b)?;
     if version.first() != Some(&FORMAT_VERSION) {
-        return Err(bad(format!("format_version {version:?}; this build reads version {FORMAT_VERSION}")));
+        return Err(bad(format!(
+            "format_version {version:?}; this build reads version {FORMAT_VERSION}"
+        )));
     }
     let (cs, b) = read("centers")?;
     let centers = f64s("centers", &b)?;
@@ -134,7 +190,10 @@ pub fn load(path: &Path) -> Result<LoadedBasis> {
     let (_, b) = read("radii")?;
     let radii = f64s("radii", &b)?;
     if radii.len() != k {
-        return Err(bad(format!("radii has {} entries for {k} centres", radii.len())));
+        return Err(bad(format!(
+            "radii has {} entries for {k} centres",
+            radii.len()
+        )));
     }
     let (_, b) = read("kernel_type")?;
     let kind = match i64s("kernel_type", &b)?.first() {
@@ -146,21 +205,47 @@ pub fn load(path: &Path) -> Result<LoadedBasis> {
     let (shape, b) = read("coefficients")?;
     let coef = f64s("coefficients", &b)?;
     if shape.len() != 2 || shape[0] as usize != k {
-        return Err(bad(format!("coefficients has shape {shape:?}, expected ({k}, m+1)")));
+        return Err(bad(format!(
+            "coefficients has shape {shape:?}, expected ({k}, m+1)"
+        )));
     }
     let m1 = shape[1] as usize;
     let (_, b) = read("eigenvalues")?;
     let eigenvalues = f64s("eigenvalues", &b)?;
     if eigenvalues.len() != m1 {
-        return Err(bad(format!("{} eigenvalues for {m1} coefficient columns", eigenvalues.len())));
+        return Err(bad(format!(
+            "{} eigenvalues for {m1} coefficient columns",
+            eigenvalues.len()
+        )));
     }
     let (_, b) = read("metadata")?;
     let meta_bytes = decode::<u8>(&b).map_err(|e| bad(format!("metadata: {e}")))?;
-    let metadata = serde_json::from_slice(&meta_bytes).map_err(|e| bad(format!("metadata is not JSON: {e}")))?;
-    if centers.iter().chain(&radii).chain(&coef).chain(&eigenvalues).any(|v| !v.is_finite()) {
+    let metadata = serde_json::from_slice(&meta_bytes)
+        .map_err(|e| bad(format!("metadata is not JSON: {e}")))?;
+    if centers
+        .iter()
+        .chain(&radii)
+        .chain(&coef)
+        .chain(&eigenvalues)
+        .any(|v| !v.is_finite())
+    {
         return Err(bad("contains NaN or infinite values".into()));
     }
-    let centers: Vec<Point3> = centers.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    let centers: Vec<Point3> = centers
+        .chunks_exact(3)
+        .map(|c| [c[0], c[1], c[2]])
+        .collect();
     let coefficients = Mat::from_fn(k, m1, |i, j| coef[i * m1 + j]);
-    Ok(LoadedBasis { basis: Basis { kernels: Kernels { centers, radii, kind }, coefficients, eigenvalues }, metadata })
+    Ok(LoadedBasis {
+        basis: Basis {
+            kernels: Kernels {
+                centers,
+                radii,
+                kind,
+            },
+            coefficients,
+            eigenvalues,
+        },
+        metadata,
+    })
 }

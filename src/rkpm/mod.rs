@@ -9,8 +9,8 @@ mod support;
 pub use kernel::{KernelType, GAUSSIAN_ALPHA};
 pub use neighbors::{covering_kernels, CoverPattern};
 pub use shape_functions::{
-    evaluate, reproducing_error, ReproducingError, ShapeFunctionOptions, ShapeFunctions,
-    ShapeStats,
+    evaluate, evaluate_on, reproducing_error, ReproducingError, ShapeFunctionOptions,
+    ShapeFunctions, ShapeStats,
 };
 pub use support::{support_radii, SupportOptions};
 

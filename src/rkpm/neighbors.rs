@@ -35,18 +35,30 @@ impl CoverPattern {
 /// Runs in parallel over query points; the result is deterministic.
 pub fn covering_kernels(kernels: &Kernels, queries: &[Point3]) -> CoverPattern {
     if kernels.is_empty() {
-        return CoverPattern { ptr: vec![0; queries.len() + 1], kernels: Vec::new() };
+        return CoverPattern {
+            ptr: vec![0; queries.len() + 1],
+            kernels: Vec::new(),
+        };
     }
     let tree: ImmutableKdTree<f64, 3> = match ImmutableKdTree::new_from_slice(&kernels.centers) {
         Ok(t) => t,
         // Construction only fails on empty input, handled above.
-        Err(_) => return CoverPattern { ptr: vec![0; queries.len() + 1], kernels: Vec::new() },
+        Err(_) => {
+            return CoverPattern {
+                ptr: vec![0; queries.len() + 1],
+                kernels: Vec::new(),
+            }
+        }
     };
     let a_max = kernels.radii.iter().copied().fold(0.0, f64::max);
     let rows: Vec<Vec<u32>> = queries
         .par_iter()
         .map(|x| {
-            let found = tree.query(x).within::<SquaredEuclidean<f64>>(a_max * a_max).unsorted().execute();
+            let found = tree
+                .query(x)
+                .within::<SquaredEuclidean<f64>>(a_max * a_max)
+                .unsorted()
+                .execute();
             let mut row: Vec<u32> = found
                 .iter()
                 .filter_map(|r| {

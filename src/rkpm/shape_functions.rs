@@ -51,7 +51,10 @@ impl ShapeFunctions {
     }
     /// Bytes held by this structure.
     pub fn memory_bytes(&self) -> usize {
-        self.pattern.ptr.len() * 8 + self.pattern.kernels.len() * 4 + self.phi.len() * 8 + self.grad.len() * 24
+        self.pattern.ptr.len() * 8
+            + self.pattern.kernels.len() * 4
+            + self.phi.len() * 8
+            + self.grad.len() * 24
     }
 }
 
@@ -80,8 +83,22 @@ struct PointResult {
 /// Evaluate phi and grad phi at every query point (N x 3, metres). Points whose moment matrix
 /// is singular or worse than `opts.min_rcond` are listed in `ShapeStats::failed` and get zero
 /// rows; use [`ShapeStats::failed`] (or the pipeline's coverage repair) before using the result.
-pub fn evaluate(kernels: &Kernels, queries: &[Point3], opts: &ShapeFunctionOptions) -> (ShapeFunctions, ShapeStats) {
-    let pattern = covering_kernels(kernels, queries);
+pub fn evaluate(
+    kernels: &Kernels,
+    queries: &[Point3],
+    opts: &ShapeFunctionOptions,
+) -> (ShapeFunctions, ShapeStats) {
+    evaluate_on(kernels, queries, covering_kernels(kernels, queries), opts)
+}
+
+/// [`evaluate`] with the covering pattern already found (by [`covering_kernels`] on the same
+/// kernels and queries).
+pub fn evaluate_on(
+    kernels: &Kernels,
+    queries: &[Point3],
+    pattern: CoverPattern,
+    opts: &ShapeFunctionOptions,
+) -> (ShapeFunctions, ShapeStats) {
     let nnz = pattern.nnz();
     let mut phi = vec![0.0; nnz];
     let mut grad = vec![[0.0; 3]; nnz];
@@ -103,10 +120,23 @@ pub fn evaluate(kernels: &Kernels, queries: &[Point3], opts: &ShapeFunctionOptio
             .into_par_iter()
             .zip(grad_rows)
             .enumerate()
-            .map(|(i, (prow, grow))| point_shape(kernels, queries[i], pattern.row(i), opts.min_rcond, prow, grow))
+            .map(|(i, (prow, grow))| {
+                point_shape(
+                    kernels,
+                    queries[i],
+                    pattern.row(i),
+                    opts.min_rcond,
+                    prow,
+                    grow,
+                )
+            })
             .collect()
     };
-    let mut stats = ShapeStats { min_rcond: f64::INFINITY, min_cover: usize::MAX, ..Default::default() };
+    let mut stats = ShapeStats {
+        min_rcond: f64::INFINITY,
+        min_cover: usize::MAX,
+        ..Default::default()
+    };
     for (i, r) in results.iter().enumerate() {
         let cover = pattern.ptr[i + 1] - pattern.ptr[i];
         stats.min_cover = stats.min_cover.min(cover);
@@ -123,7 +153,11 @@ pub fn evaluate(kernels: &Kernels, queries: &[Point3], opts: &ShapeFunctionOptio
         stats.min_rcond = 0.0;
         stats.min_cover = 0;
     }
-    stats.mean_cover = if queries.is_empty() { 0.0 } else { nnz as f64 / queries.len() as f64 };
+    stats.mean_cover = if queries.is_empty() {
+        0.0
+    } else {
+        nnz as f64 / queries.len() as f64
+    };
     (ShapeFunctions { pattern, phi, grad }, stats)
 }
 
@@ -186,7 +220,9 @@ fn point_shape(
     if !(rcond >= min_rcond) {
         phi.fill(0.0);
         grad.fill([0.0; 3]);
-        return PointResult { rcond: if rcond.is_finite() { rcond } else { 0.0 } };
+        return PointResult {
+            rcond: if rcond.is_finite() { rcond } else { 0.0 },
+        };
     }
     let b = [minv[0][0], minv[1][0], minv[2][0], minv[3][0]];
     // grad b_j = -M^-1 (dM_j b)
@@ -203,7 +239,12 @@ fn point_shape(
         let w = phi[slot];
         let gw = grad[slot];
         let p = kernels.centers[k as usize];
-        let q = [1.0, (x[0] - p[0]) * inv_ref, (x[1] - p[1]) * inv_ref, (x[2] - p[2]) * inv_ref];
+        let q = [
+            1.0,
+            (x[0] - p[0]) * inv_ref,
+            (x[1] - p[1]) * inv_ref,
+            (x[2] - p[2]) * inv_ref,
+        ];
         let qb = dot4(&q, &b);
         phi[slot] = w * qb;
         for j in 0..3 {
@@ -222,7 +263,11 @@ fn window(kernels: &Kernels, k: usize, x: Point3, inv_ref: f64) -> (f64, [f64; 3
     let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
     let (w, wps) = kernels.kind.eval(r / a);
     let f = wps / (a * a);
-    (w, [f * d[0], f * d[1], f * d[2]], [1.0, d[0] * inv_ref, d[1] * inv_ref, d[2] * inv_ref])
+    (
+        w,
+        [f * d[0], f * d[1], f * d[2]],
+        [1.0, d[0] * inv_ref, d[1] * inv_ref, d[2] * inv_ref],
+    )
 }
 
 #[inline]
@@ -232,11 +277,18 @@ fn dot4(a: &[f64; 4], b: &[f64; 4]) -> f64 {
 
 #[inline]
 fn matvec4(m: &[[f64; 4]; 4], v: &[f64; 4]) -> [f64; 4] {
-    [dot4(&m[0], v), dot4(&m[1], v), dot4(&m[2], v), dot4(&m[3], v)]
+    [
+        dot4(&m[0], v),
+        dot4(&m[1], v),
+        dot4(&m[2], v),
+        dot4(&m[3], v),
+    ]
 }
 
 fn norm1(m: &[[f64; 4]; 4]) -> f64 {
-    (0..4).map(|c| (0..4).map(|r| m[r][c].abs()).sum::<f64>()).fold(0.0, f64::max)
+    (0..4)
+        .map(|c| (0..4).map(|r| m[r][c].abs()).sum::<f64>())
+        .fold(0.0, f64::max)
 }
 
 /// Cholesky factor (lower) of a 4 x 4 SPD matrix; None if a pivot is not positive.
@@ -298,13 +350,20 @@ pub struct ReproducingError {
 impl ReproducingError {
     /// The largest of the four figures.
     pub fn max(&self) -> f64 {
-        self.partition_of_unity.max(self.linear).max(self.gradient_sum).max(self.gradient_linear)
+        self.partition_of_unity
+            .max(self.linear)
+            .max(self.gradient_sum)
+            .max(self.gradient_linear)
     }
 }
 
 /// Check the reproducing identities of `sf` (evaluated at `queries`) to round-off. Rows of
 /// points that failed the conditioning check (all zero) are skipped.
-pub fn reproducing_error(kernels: &Kernels, queries: &[Point3], sf: &ShapeFunctions) -> ReproducingError {
+pub fn reproducing_error(
+    kernels: &Kernels,
+    queries: &[Point3],
+    sf: &ShapeFunctions,
+) -> ReproducingError {
     (0..sf.rows())
         .into_par_iter()
         .map(|i| {
@@ -357,7 +416,12 @@ pub fn reproducing_error(kernels: &Kernels, queries: &[Point3], sf: &ShapeFuncti
 }
 
 /// Turn failed points into a [`Error::Coverage`] naming the worst one.
-pub(crate) fn coverage_error(queries: &[Point3], sf: &ShapeFunctions, stats: &ShapeStats, min_rcond: f64) -> Result<()> {
+pub(crate) fn coverage_error(
+    queries: &[Point3],
+    sf: &ShapeFunctions,
+    stats: &ShapeStats,
+    min_rcond: f64,
+) -> Result<()> {
     if stats.failed.is_empty() {
         return Ok(());
     }

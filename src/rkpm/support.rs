@@ -21,7 +21,10 @@ pub struct SupportOptions {
 
 impl Default for SupportOptions {
     fn default() -> Self {
-        Self { factor: 2.0, neighbor: 4 }
+        Self {
+            factor: 2.0,
+            neighbor: 4,
+        }
     }
 }
 
@@ -29,10 +32,18 @@ impl SupportOptions {
     /// Check the ranges: factor finite and > 0, neighbour >= 1.
     pub fn validate(&self) -> Result<()> {
         if !(self.factor.is_finite() && self.factor > 0.0) {
-            return Err(Error::param("support factor", self.factor, "must be a positive number (default 2.0)"));
+            return Err(Error::param(
+                "support factor",
+                self.factor,
+                "must be a positive number (default 2.0)",
+            ));
         }
         if self.neighbor == 0 {
-            return Err(Error::param("support neighbor", 0, "must be at least 1 (default 4)"));
+            return Err(Error::param(
+                "support neighbor",
+                0,
+                "must be at least 1 (default 4)",
+            ));
         }
         Ok(())
     }
@@ -46,7 +57,10 @@ pub fn support_radii(centers: &[Point3], opts: &SupportOptions) -> Result<Vec<f6
         return Err(Error::param(
             "kernels",
             k,
-            format!("need more than {} kernels to size supports by the {}-th neighbour", opts.neighbor, opts.neighbor),
+            format!(
+                "need more than {} kernels to size supports by the {}-th neighbour",
+                opts.neighbor, opts.neighbor
+            ),
         ));
     }
     let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(centers)
@@ -55,7 +69,10 @@ pub fn support_radii(centers: &[Point3], opts: &SupportOptions) -> Result<Vec<f6
     let radii: Vec<f64> = centers
         .par_iter()
         .map(|p| {
-            let found = tree.query(p).nearest_n::<SquaredEuclidean<f64>>(want).execute();
+            let found = tree
+                .query(p)
+                .nearest_n::<SquaredEuclidean<f64>>(want)
+                .execute();
             // The query point itself is the nearest (distance 0); duplicates of it also count
             // as neighbours at distance 0, which the zero check below catches.
             let d2 = found.last().map_or(0.0, |r| r.distance);

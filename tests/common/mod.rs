@@ -9,7 +9,10 @@ use freeform::Point3;
 
 /// Grid points filling the box [0, size] at spacing h.
 pub fn box_points(size: [f64; 3], h: f64) -> IntegrationPoints {
-    let aabb = Aabb { min: [0.0; 3], max: size };
+    let aabb = Aabb {
+        min: [0.0; 3],
+        max: size,
+    };
     grid_points(&aabb, h, None, &|p: &[Point3]| vec![true; p.len()]).expect("box grid")
 }
 
@@ -18,7 +21,11 @@ pub fn kernels_for(ip: &IntegrationPoints, k: usize, kind: KernelType) -> Kernel
     let idx = farthest_point_sampling(&ip.points, k).expect("fps");
     let centers: Vec<Point3> = idx.iter().map(|&i| ip.points[i]).collect();
     let radii = support_radii(&centers, &SupportOptions::default()).expect("radii");
-    Kernels { centers, radii, kind }
+    Kernels {
+        centers,
+        radii,
+        kind,
+    }
 }
 
 /// Deterministic pseudo-random numbers in [0, 1) (splitmix64).
