@@ -3,6 +3,28 @@
 //!
 //! A shape answers three questions for the sampling stage: its bounding box, its volume (when
 //! it has a well-defined one) and, for solids, whether points are inside.
+//!
+//! - [`Shape`] is what the pipeline consumes; [`Shape::parse`] turns a CLI spec
+//!   (`box:LX,LY,LZ`, `sphere:R`, or a file path) into one.
+//! - [`TriMesh`] is a validated, outward-oriented triangle mesh whose inside test is the
+//!   generalized winding number, evaluated hierarchically by a [`WindingTree`].
+//! - [`PointCloud`] is a validated set of points (no inside test).
+//! - [`generate`] builds simple meshes (box, icosphere) for tests and examples.
+
+pub(crate) mod fileio;
+pub mod generate;
+mod mesh;
+mod pointcloud;
+mod shape;
+mod spec;
+mod topology;
+pub mod winding;
+
+pub use mesh::TriMesh;
+pub use pointcloud::PointCloud;
+pub use shape::Shape;
+pub use topology::{weld_exact, EdgeReport};
+pub use winding::{WindingParams, WindingTree};
 
 use crate::Point3;
 use std::path::PathBuf;
@@ -16,11 +38,52 @@ pub struct Aabb {
     pub max: Point3,
 }
 
+impl Aabb {
+    /// The smallest box containing all `points` (N x 3, metres); `None` when `points` is
+    /// empty. Non-finite coordinates are not filtered: validate the points first.
+    pub fn from_points(points: &[Point3]) -> Option<Aabb> {
+        let first = points.first()?;
+        let mut b = Aabb {
+            min: *first,
+            max: *first,
+        };
+        for p in points {
+            for (a, &c) in p.iter().enumerate() {
+                b.min[a] = b.min[a].min(c);
+                b.max[a] = b.max[a].max(c);
+            }
+        }
+        Some(b)
+    }
+
+    /// Edge lengths `max - min` per axis, metres.
+    pub fn size(&self) -> [f64; 3] {
+        [0, 1, 2].map(|a| self.max[a] - self.min[a])
+    }
+
+    /// Centre `(min + max) / 2`, metres.
+    pub fn center(&self) -> Point3 {
+        [0, 1, 2].map(|a| 0.5 * (self.min[a] + self.max[a]))
+    }
+
+    /// Length of the diagonal, metres.
+    pub fn diagonal(&self) -> f64 {
+        let s = self.size();
+        (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt()
+    }
+
+    /// Whether `p` (metres) lies in the closed box.
+    pub fn contains(&self, p: &Point3) -> bool {
+        (0..3).all(|a| p[a] >= self.min[a] && p[a] <= self.max[a])
+    }
+}
+
 /// Options that change how a shape is read.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ShapeOptions {
-    /// Accept a triangle mesh with boundary edges (holes); inside is then decided by the
-    /// generalized winding number >= 0.5. Off by default: an open mesh is an error.
+    /// Accept a triangle mesh with boundary edges (holes), non-manifold edges or inconsistently
+    /// oriented neighbouring triangles; inside is then decided by the generalized winding
+    /// number >= 0.5 (see [`TriMesh`]). Off by default: such a mesh is an error.
     pub allow_open_mesh: bool,
 }
 
@@ -63,14 +126,61 @@ pub enum GeometryError {
          non-manifold edges); repair it, or pass --allow-open-mesh to decide inside by winding number"
     )]
     NotWatertight {
-        /// File.
+        /// File (`<in-memory mesh>` for meshes built with [`TriMesh::new`]).
         path: PathBuf,
         /// Edges used by exactly one triangle.
         boundary_edges: usize,
         /// Edges used by more than two triangles.
         nonmanifold_edges: usize,
     },
+    /// Two triangles that share an edge traverse it in the same direction, so the mesh has no
+    /// consistent inside and outside.
+    #[error(
+        "{path}: mesh orientation is inconsistent ({misoriented_edges} edges are traversed in the \
+         same direction by both of their triangles); fix the face winding, or pass \
+         --allow-open-mesh to use the winding number anyway"
+    )]
+    Misoriented {
+        /// File (`<in-memory mesh>` for meshes built with [`TriMesh::new`]).
+        path: PathBuf,
+        /// Manifold edges whose two triangles disagree on orientation.
+        misoriented_edges: usize,
+    },
     /// The shape encloses no volume or has no points.
     #[error("{0}")]
     Degenerate(String),
+    /// An argument to a geometry function (e.g. a writer) is inconsistent.
+    #[error("invalid input: {0}")]
+    InvalidInput(String),
 }
+
+impl GeometryError {
+    /// Attach a file path to errors raised while building a shape from that file's content
+    /// (`NotWatertight`, `Misoriented`, `Degenerate`); other variants are returned unchanged.
+    pub fn with_path(self, path: &std::path::Path) -> GeometryError {
+        match self {
+            GeometryError::NotWatertight {
+                boundary_edges,
+                nonmanifold_edges,
+                ..
+            } => GeometryError::NotWatertight {
+                path: path.to_path_buf(),
+                boundary_edges,
+                nonmanifold_edges,
+            },
+            GeometryError::Misoriented {
+                misoriented_edges, ..
+            } => GeometryError::Misoriented {
+                path: path.to_path_buf(),
+                misoriented_edges,
+            },
+            GeometryError::Degenerate(msg) => {
+                GeometryError::Degenerate(format!("{}: {msg}", path.display()))
+            }
+            other => other,
+        }
+    }
+}
+
+/// Path label used in errors about meshes that did not come from a file.
+pub(crate) const IN_MEMORY: &str = "<in-memory mesh>";

@@ -1,1 +1,430 @@
-//! (under construction)
+//! PLY meshes and point clouds, ASCII and binary (read with `ply-rs-bw`, written by hand).
+//!
+//! Reading:
+//! - The `vertex` element must have scalar `x`, `y`, `z` properties (any numeric type); every
+//!   other vertex property is skipped without being stored, so 3D Gaussian splat files
+//!   (`x, y, z, nx, ny, nz, f_dc_*, f_rest_*, opacity, scale_*, rot_*`) cost 32 bytes per
+//!   splat while reading.
+//! - A non-empty `face` element (list property `vertex_indices` or `vertex_index`) makes the
+//!   file a mesh; faces with more than three vertices are fan-triangulated from their first
+//!   vertex (exact for planar polygons, see [`crate::io::obj`]); bit-identical vertices are
+//!   welded. Without faces (or with `element face 0`) the file is a point cloud.
+//! - Errors name the element and index; truncated payloads, wrong counts, non-finite
+//!   coordinates and out-of-range indices are all reported, never panicking.
+//!
+//! Writing: [`write_ply_points`] (binary little endian, `float` properties) and
+//! [`write_ply_points_with`] / [`write_ply_mesh`] with explicit [`PlyWriteOptions`].
+
+use crate::geometry::fileio::{
+    create, finish, first_non_finite, io_error, mesh_from_file_data, parse_error,
+};
+use crate::geometry::{GeometryError, PointCloud, Shape, ShapeOptions};
+use crate::Point3;
+use ply_rs_bw::parser::Parser;
+use ply_rs_bw::ply::{Property, PropertyAccess, PropertyAccessResult, PropertyType};
+use std::fs::File;
+use std::io::{BufReader, Write};
+use std::path::Path;
+
+/// Names accepted for the face index list.
+const FACE_LISTS: [&str; 2] = ["vertex_indices", "vertex_index"];
+
+/// What a PLY file holds, before validation as a [`Shape`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlyData {
+    /// Vertex positions, V x 3, metres (finite).
+    pub points: Vec<Point3>,
+    /// Fan-triangulated faces (F x 3, zero-based, in range); `None` if the file has no faces.
+    pub triangles: Option<Vec<[u32; 3]>>,
+}
+
+/// Read a PLY file as a [`Shape`]: [`Shape::Mesh`] if it has faces, else
+/// [`Shape::PointCloud`].
+///
+/// # Errors
+/// [`GeometryError::Io`] if the file cannot be opened; [`GeometryError::Parse`] for an empty or
+/// malformed file (bad header, truncated payload, wrong counts), missing `x`/`y`/`z`, non-finite
+/// coordinates, bad faces; the [`crate::geometry::TriMesh::new`] or [`PointCloud::new`] errors
+/// with the path.
+pub fn read_ply(path: &Path, opts: &ShapeOptions) -> Result<Shape, GeometryError> {
+    let data = read_ply_data(path)?;
+    match data.triangles {
+        Some(triangles) => Ok(Shape::Mesh(mesh_from_file_data(
+            path,
+            data.points,
+            triangles,
+            opts,
+        )?)),
+        None => Ok(Shape::PointCloud(
+            PointCloud::new(data.points).map_err(|e| e.with_path(path))?,
+        )),
+    }
+}
+
+/// Read only the vertex positions of a PLY file (faces, if any, are parsed and ignored) as a
+/// point cloud: the way to load splat centres or scanned points.
+///
+/// # Errors
+/// As [`read_ply`]; `Degenerate` if there are no vertices.
+pub fn read_ply_points(path: &Path) -> Result<PointCloud, GeometryError> {
+    let data = read_ply_data(path)?;
+    PointCloud::new(data.points).map_err(|e| e.with_path(path))
+}
+
+/// Read a PLY file's positions and faces without building a shape.
+///
+/// # Errors
+/// As [`read_ply`] minus the shape validation.
+pub fn read_ply_data(path: &Path) -> Result<PlyData, GeometryError> {
+    let file = File::open(path).map_err(|e| io_error(path, e))?;
+    let meta = file.metadata().map_err(|e| io_error(path, e))?;
+    if meta.is_dir() {
+        let e = std::io::Error::new(std::io::ErrorKind::InvalidInput, "is a directory");
+        return Err(io_error(path, e));
+    }
+    if meta.len() == 0 {
+        return Err(parse_error(path, "empty file"));
+    }
+    let mut reader = BufReader::new(file);
+    let ply = Parser::<Record>::new()
+        .read_ply(&mut reader)
+        .map_err(|e| parse_error(path, format!("PLY: {e}")))?;
+
+    let vdef = ply
+        .header
+        .elements
+        .get("vertex")
+        .ok_or_else(|| parse_error(path, "PLY has no `vertex` element"))?;
+    for name in ["x", "y", "z"] {
+        match vdef.properties.get(name).map(|p| &p.data_type) {
+            Some(PropertyType::Scalar(_)) => {}
+            Some(PropertyType::List(..)) => {
+                return Err(parse_error(
+                    path,
+                    format!("PLY vertex property `{name}` is a list"),
+                ))
+            }
+            None => {
+                return Err(parse_error(
+                    path,
+                    format!("PLY vertex element has no `{name}` property"),
+                ))
+            }
+        }
+    }
+    let records = ply.payload.get("vertex").map(Vec::as_slice).unwrap_or(&[]);
+    let points: Vec<Point3> = records.iter().map(|r| r.xyz).collect();
+    if let Some(i) = first_non_finite(&points) {
+        return Err(parse_error(
+            path,
+            format!("PLY vertex {i} has a non-finite coordinate {:?}", points[i]),
+        ));
+    }
+
+    let faces = match ply.header.elements.get("face") {
+        Some(fdef) if fdef.count > 0 => {
+            if !FACE_LISTS.iter().any(|n| fdef.properties.contains_key(*n)) {
+                return Err(parse_error(
+                    path,
+                    "PLY face element has no `vertex_indices` (or `vertex_index`) list",
+                ));
+            }
+            ply.payload.get("face").map(Vec::as_slice).unwrap_or(&[])
+        }
+        _ => &[],
+    };
+    let triangles = if faces.is_empty() {
+        None
+    } else {
+        Some(triangulate(path, faces, points.len())?)
+    };
+    Ok(PlyData { points, triangles })
+}
+
+/// Fan-triangulate the face lists, checking sizes and index ranges.
+fn triangulate(path: &Path, faces: &[Record], nv: usize) -> Result<Vec<[u32; 3]>, GeometryError> {
+    let mut triangles = Vec::with_capacity(faces.len());
+    for (f, rec) in faces.iter().enumerate() {
+        let list = &rec.list;
+        if list.len() < 3 {
+            return Err(parse_error(
+                path,
+                format!("PLY face {f} has {} vertices, needs at least 3", list.len()),
+            ));
+        }
+        if let Some(&i) = list.iter().find(|&&i| i < 0 || i as u64 >= nv as u64) {
+            return Err(parse_error(
+                path,
+                format!("PLY face {f} refers to vertex {i}, but the file has {nv} vertices"),
+            ));
+        }
+        for k in 1..list.len() - 1 {
+            triangles.push([list[0], list[k], list[k + 1]].map(|i| i as u32));
+        }
+    }
+    Ok(triangles)
+}
+
+/// One PLY element as read: only what we use is stored.
+#[derive(Debug, Default)]
+struct Record {
+    /// `x`, `y`, `z` (vertex elements).
+    xyz: Point3,
+    /// `vertex_indices` / `vertex_index` (face elements).
+    list: Vec<i64>,
+}
+
+impl PropertyAccess for Record {
+    fn new() -> Self {
+        Record::default()
+    }
+
+    fn set_property(&mut self, name: &str, property: Property) -> PropertyAccessResult {
+        let axis = match name {
+            "x" => 0,
+            "y" => 1,
+            "z" => 2,
+            n if FACE_LISTS.contains(&n) => {
+                return match integer_list(property) {
+                    Some(list) => {
+                        self.list = list;
+                        PropertyAccessResult::Set
+                    }
+                    None => PropertyAccessResult::UnsupportedType,
+                };
+            }
+            _ => return PropertyAccessResult::Ignored,
+        };
+        match scalar(&property) {
+            Some(v) => {
+                self.xyz[axis] = v;
+                PropertyAccessResult::Set
+            }
+            None => PropertyAccessResult::UnsupportedType,
+        }
+    }
+}
+
+fn scalar(p: &Property) -> Option<f64> {
+    Some(match *p {
+        Property::Char(v) => f64::from(v),
+        Property::UChar(v) => f64::from(v),
+        Property::Short(v) => f64::from(v),
+        Property::UShort(v) => f64::from(v),
+        Property::Int(v) => f64::from(v),
+        Property::UInt(v) => f64::from(v),
+        Property::Float(v) => f64::from(v),
+        Property::Double(v) => v,
+        _ => return None,
+    })
+}
+
+fn integer_list(p: Property) -> Option<Vec<i64>> {
+    Some(match p {
+        Property::ListChar(v) => v.into_iter().map(i64::from).collect(),
+        Property::ListUChar(v) => v.into_iter().map(i64::from).collect(),
+        Property::ListShort(v) => v.into_iter().map(i64::from).collect(),
+        Property::ListUShort(v) => v.into_iter().map(i64::from).collect(),
+        Property::ListInt(v) => v.into_iter().map(i64::from).collect(),
+        Property::ListUInt(v) => v.into_iter().map(i64::from).collect(),
+        _ => return None,
+    })
+}
+
+/// PLY encodings [`write_ply_points_with`] and [`write_ply_mesh`] can produce.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PlyFormat {
+    /// `format ascii 1.0`; numbers in shortest round-trip notation.
+    Ascii,
+    /// `format binary_little_endian 1.0`.
+    BinaryLittleEndian,
+}
+
+/// Scalar type for the written coordinates and extra properties.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PlyScalar {
+    /// 32-bit `float`: what splat viewers and most tools expect.
+    Float,
+    /// 64-bit `double`: lossless.
+    Double,
+}
+
+/// How to write a PLY file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[must_use]
+pub struct PlyWriteOptions {
+    /// Encoding. Default binary little endian (compact, fast).
+    pub format: PlyFormat,
+    /// Scalar type of x, y, z and the extra properties. Default `float`, the type viewers of
+    /// Gaussian splats and point clouds expect.
+    pub scalar: PlyScalar,
+}
+
+impl Default for PlyWriteOptions {
+    fn default() -> Self {
+        PlyWriteOptions {
+            format: PlyFormat::BinaryLittleEndian,
+            scalar: PlyScalar::Float,
+        }
+    }
+}
+
+/// Write points (N x 3, metres) with optional extra per-point properties as a binary
+/// little-endian PLY with `float` properties: `element vertex N`, `x y z`, then each extra
+/// `(name, values)` in order (values: N entries, any unit). Same as [`write_ply_points_with`]
+/// with default options.
+///
+/// # Errors
+/// See [`write_ply_points_with`].
+pub fn write_ply_points(
+    path: &Path,
+    points: &[Point3],
+    extra: &[(&str, &[f64])],
+) -> Result<(), GeometryError> {
+    write_ply_points_with(path, points, extra, PlyWriteOptions::default())
+}
+
+/// Write points (N x 3, metres) and extra per-point properties (`(name, N values)`) as a PLY
+/// point set in the given format and scalar type.
+///
+/// # Errors
+/// [`GeometryError::InvalidInput`] if an extra has the wrong length or a bad name (empty,
+/// whitespace, `x`/`y`/`z` or duplicated); [`GeometryError::Io`] when writing fails.
+pub fn write_ply_points_with(
+    path: &Path,
+    points: &[Point3],
+    extra: &[(&str, &[f64])],
+    opts: PlyWriteOptions,
+) -> Result<(), GeometryError> {
+    let mut names: Vec<&str> = vec!["x", "y", "z"];
+    for (name, values) in extra {
+        if name.is_empty() || name.chars().any(char::is_whitespace) || names.contains(name) {
+            return Err(GeometryError::InvalidInput(format!(
+                "PLY property name `{name}` is empty, contains whitespace, or is used twice"
+            )));
+        }
+        if values.len() != points.len() {
+            return Err(GeometryError::InvalidInput(format!(
+                "PLY property `{name}` has {} values for {} points",
+                values.len(),
+                points.len()
+            )));
+        }
+        names.push(name);
+    }
+    let mut w = create(path)?;
+    let mut header = header_start(opts, points.len());
+    let ty = scalar_name(opts.scalar);
+    for n in &names {
+        header.push_str(&format!("property {ty} {n}\n"));
+    }
+    header.push_str("end_header\n");
+    let mut out = header.into_bytes();
+    let mut row: Vec<f64> = Vec::with_capacity(names.len());
+    for (i, p) in points.iter().enumerate() {
+        row.clear();
+        row.extend_from_slice(p);
+        row.extend(extra.iter().map(|(_, v)| v[i]));
+        push_row(&mut out, &row, opts);
+        if out.len() > 1 << 20 {
+            w.write_all(&out).map_err(|e| io_error(path, e))?;
+            out.clear();
+        }
+    }
+    w.write_all(&out).map_err(|e| io_error(path, e))?;
+    finish(path, w)
+}
+
+/// Write a triangle mesh (vertices V x 3 metres, triangles F x 3 zero-based) as a PLY with
+/// `element vertex` (x, y, z) and `element face` (`list uchar int vertex_indices`). Writes what
+/// it is given (indices only range-checked), so tests can produce broken meshes on purpose.
+///
+/// # Errors
+/// [`GeometryError::InvalidInput`] for an index out of range; [`GeometryError::Io`] when writing
+/// fails.
+pub fn write_ply_mesh(
+    path: &Path,
+    vertices: &[Point3],
+    triangles: &[[u32; 3]],
+    opts: PlyWriteOptions,
+) -> Result<(), GeometryError> {
+    if let Some((f, t)) = triangles.iter().enumerate().find(|(_, t)| {
+        t.iter()
+            .any(|&i| i as usize >= vertices.len() || i > i32::MAX as u32)
+    }) {
+        return Err(GeometryError::InvalidInput(format!(
+            "triangle {f} = {t:?} refers past the {} vertices",
+            vertices.len()
+        )));
+    }
+    let mut header = header_start(opts, vertices.len());
+    let ty = scalar_name(opts.scalar);
+    for n in ["x", "y", "z"] {
+        header.push_str(&format!("property {ty} {n}\n"));
+    }
+    header.push_str(&format!(
+        "element face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        triangles.len()
+    ));
+    let mut out = header.into_bytes();
+    for p in vertices {
+        push_row(&mut out, p, opts);
+    }
+    for t in triangles {
+        match opts.format {
+            PlyFormat::Ascii => {
+                out.extend_from_slice(format!("3 {} {} {}\n", t[0], t[1], t[2]).as_bytes())
+            }
+            PlyFormat::BinaryLittleEndian => {
+                out.push(3);
+                for &i in t {
+                    out.extend_from_slice(&(i as i32).to_le_bytes());
+                }
+            }
+        }
+    }
+    let mut w = create(path)?;
+    w.write_all(&out).map_err(|e| io_error(path, e))?;
+    finish(path, w)
+}
+
+fn header_start(opts: PlyWriteOptions, n: usize) -> String {
+    let format = match opts.format {
+        PlyFormat::Ascii => "ascii",
+        PlyFormat::BinaryLittleEndian => "binary_little_endian",
+    };
+    format!("ply\nformat {format} 1.0\ncomment written by freeform\nelement vertex {n}\n")
+}
+
+fn scalar_name(s: PlyScalar) -> &'static str {
+    match s {
+        PlyScalar::Float => "float",
+        PlyScalar::Double => "double",
+    }
+}
+
+fn push_row(out: &mut Vec<u8>, row: &[f64], opts: PlyWriteOptions) {
+    match (opts.format, opts.scalar) {
+        (PlyFormat::Ascii, scalar) => {
+            let text: Vec<String> = row
+                .iter()
+                .map(|&v| match scalar {
+                    PlyScalar::Float => format!("{}", v as f32),
+                    PlyScalar::Double => format!("{v}"),
+                })
+                .collect();
+            out.extend_from_slice(text.join(" ").as_bytes());
+            out.push(b'\n');
+        }
+        (PlyFormat::BinaryLittleEndian, PlyScalar::Float) => {
+            for &v in row {
+                out.extend_from_slice(&(v as f32).to_le_bytes());
+            }
+        }
+        (PlyFormat::BinaryLittleEndian, PlyScalar::Double) => {
+            for &v in row {
+                out.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+    }
+}
