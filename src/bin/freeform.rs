@@ -42,6 +42,7 @@ enum SolverArg {
 }
 
 #[derive(Args)]
+#[command(allow_negative_numbers = true)]
 struct ModesArgs {
     /// The shape: box:LX,LY,LZ (corner at the origin), sphere:R (centred at the origin), or a
     /// .obj / .stl / .ply file (a PLY without faces is a point cloud, e.g. Gaussian splats).
