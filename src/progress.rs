@@ -45,7 +45,9 @@ impl Progress for TerminalProgress {
             Some(_) => indicatif::ProgressStyle::with_template(
                 "{prefix:>16} [{bar:30}] {pos}/{len} {elapsed} {msg}",
             ),
-            None => indicatif::ProgressStyle::with_template("{prefix:>16} {spinner} {elapsed} {msg}"),
+            None => {
+                indicatif::ProgressStyle::with_template("{prefix:>16} {spinner} {elapsed} {msg}")
+            }
         };
         if let Ok(style) = style {
             bar.set_style(style.progress_chars("=> "));
