@@ -419,6 +419,14 @@ fn fast_winding_number_agrees_with_exact_sum() {
             pts.len()
         );
     }
+    // Non-finite queries are outside, alone or inside a batch of inside points.
+    let m = &meshes[1].1;
+    let mut pts = vec![[0.0, 0.0, 0.1]; 50];
+    pts[7] = [f64::NAN, 0.0, 0.0];
+    pts[30] = [0.0, f64::INFINITY, 0.0];
+    let got = m.contains(&pts);
+    assert!(!got[7] && !got[30] && got.iter().filter(|&&b| b).count() == 48);
+    assert!(!m.winding_tree().contains(&pts)[7]);
     // The hollow box's cavity is outside, its volume is the difference.
     let hollow = &meshes[3].1;
     assert!((hollow.volume().unwrap() - 56.0).abs() < 1e-12);

@@ -86,6 +86,7 @@ impl Shape {
     ///
     /// Primitives use closed sets (points on the boundary are inside); meshes use the
     /// generalized winding number >= 0.5 (points exactly on the surface may go either way).
+    /// Points with a NaN coordinate are outside.
     pub fn contains(&self, points: &[Point3]) -> Option<Vec<bool>> {
         match self {
             Shape::Box { size } => Some(

@@ -14,9 +14,9 @@ impl WindingTree {
     /// Generalized winding number at `q` (metres), dimensionless: ~1 inside and ~0 outside a
     /// closed outward-oriented mesh.
     ///
-    /// Nodes far from `q` (distance > beta x radius) contribute their dipole + quadrupole
-    /// expansion, the rest is summed exactly. Deterministic: the result depends only on `q`
-    /// and the tree.
+    /// Nodes far from `q` (distance > beta x radius) contribute their dipole + quadrupole +
+    /// octupole expansion, the rest is summed exactly. Deterministic: the result depends only
+    /// on `q` and the tree.
     pub fn winding_number(&self, q: &Point3) -> f64 {
         if self.nodes.is_empty() {
             return 0.0;
@@ -26,11 +26,12 @@ impl WindingTree {
         let mut sum = 0.0;
         while sp > 0 {
             sp -= 1;
-            let node = &self.nodes[stack[sp] as usize];
+            let i = stack[sp] as usize;
+            let node = &self.nodes[i];
             let d = sub(&node.center, q);
             let d2 = dot(&d, &d);
             if d2 > node.far2 {
-                sum += node.mom.far_field(&d, d2);
+                sum += self.moments[i].far_field(&d, d2);
             } else if node.count > 0 {
                 let start = node.first as usize;
                 for [a, b, c] in &self.tris[start..start + node.count as usize] {
@@ -54,7 +55,8 @@ impl WindingTree {
             .collect()
     }
 
-    /// Inside test for every point (N x 3, metres): `w >= 0.5`, rayon-parallel.
+    /// Inside test for every point (N x 3, metres): `w >= 0.5`, rayon-parallel. Points with a
+    /// NaN coordinate get `w = NaN` and are reported outside.
     pub fn contains(&self, points: &[Point3]) -> Vec<bool> {
         points
             .par_iter()

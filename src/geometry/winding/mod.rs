@@ -88,7 +88,8 @@ pub fn solid_angle(a: &Point3, b: &Point3, c: &Point3, q: &Point3) -> f64 {
 /// Exact generalized winding number at `q` (metres): the O(F) solid-angle sum over
 /// `triangles` (F x 3 indices into `vertices`, V x 3, metres), divided by 4 pi.
 ///
-/// Indices must be in range (they are for a [`crate::geometry::TriMesh`]).
+/// # Panics
+/// If an index is out of range (never for a [`crate::geometry::TriMesh`]'s own arrays).
 pub fn winding_number_exact(vertices: &[Point3], triangles: &[[u32; 3]], q: &Point3) -> f64 {
     let sum: f64 = triangles
         .iter()
