@@ -630,6 +630,12 @@ fn obj_quads_groups_and_relative_indices() {
         }
     );
     assert_eq!(shape.render_points().unwrap().len(), 8);
+    // The same file with a byte order mark and CRLF line ends.
+    let text = std::fs::read_to_string(data("cube_quads.obj")).unwrap();
+    let dir = tmp();
+    let crlf = format!("\u{feff}{}", text.replace('\n', "\r\n"));
+    let p = write(dir.path(), "bom_crlf.obj", crlf.as_bytes());
+    assert_eq!(parse(&p).unwrap().volume(), Some(1.0));
 }
 
 #[test]

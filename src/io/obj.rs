@@ -50,6 +50,8 @@ pub fn read_obj_raw(path: &Path) -> Result<(Vec<Point3>, Vec<[u32; 3]>), Geometr
             ),
         )
     })?;
+    // A UTF-8 byte order mark would hide the first line's keyword from both parsers.
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let counts = precheck(path, text)?;
     if counts.faces == 0 {
         return Err(parse_error(
