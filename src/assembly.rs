@@ -5,9 +5,10 @@
 //! M_kl     = sum_i v_i phi_k(X_i) phi_l(X_i)                                    [m^3]
 //! ```
 //!
-//! Row-parallel Gustavson product over the kernel-to-point transpose of the shape functions:
-//! each row's sum runs over points in ascending order, so the result is the same bit for bit
-//! for any thread count, and exactly symmetric. Memory is proportional to the non-zeros.
+//! Row-parallel Gustavson product over the kernel-to-point transpose of the shape functions,
+//! computing the upper triangle only and mirroring it: each entry's sum runs over points in
+//! ascending order, so the result is the same bit for bit for any thread count, and exactly
+//! symmetric. Memory is proportional to the non-zeros.
 
 use crate::rkpm::ShapeFunctions;
 use crate::sparse::{from_compressed, SparseMatrix};
@@ -21,6 +22,132 @@ pub struct Assembled {
     pub hessian: SparseMatrix,
     /// Consistent mass matrix M, m^3 (density is not in it).
     pub mass: SparseMatrix,
+}
+
+/// Upper-triangle rows (columns j >= i) of a block of rows: per-row counts, then the
+/// concatenated column indices and H and M values.
+#[derive(Default)]
+struct UpperRows {
+    counts: Vec<usize>,
+    cols: Vec<usize>,
+    h: Vec<f64>,
+    m: Vec<f64>,
+}
+
+/// Gustavson product for rows `rows` of the upper triangle: row i sums, over the points p in
+/// kernel i's support (ascending), the contributions of the kernels j >= i covering p. Each
+/// point's kernel list is sorted, so those start right at kernel i's own entry.
+#[inline(never)]
+#[allow(clippy::too_many_arguments)]
+fn upper_rows(
+    sf: &ShapeFunctions,
+    volumes: &[f64],
+    weights: &[f64],
+    tptr: &[usize],
+    tpoint: &[u32],
+    tentry: &[u32],
+    rows: std::ops::Range<usize>,
+    k: usize,
+) -> UpperRows {
+    let mut acc_h = vec![0.0f64; k];
+    let mut acc_m = vec![0.0f64; k];
+    let mut seen = vec![false; k];
+    let mut touched: Vec<usize> = Vec::new();
+    let mut out = UpperRows::default();
+    for row in rows {
+        for s in tptr[row]..tptr[row + 1] {
+            let p = tpoint[s] as usize;
+            let ei = tentry[s] as usize;
+            let (gi, fi) = (sf.grad[ei], sf.phi[ei]);
+            let wh = volumes[p] * weights[p];
+            let wm = volumes[p];
+            let end = sf.pattern.ptr[p + 1];
+            for ((&j, gj), &fj) in sf.pattern.kernels[ei..end].iter().zip(&sf.grad[ei..end]).zip(&sf.phi[ei..end]) {
+                let j = j as usize;
+                if !seen[j] {
+                    seen[j] = true;
+                    touched.push(j);
+                }
+                acc_h[j] += wh * (gi[0] * gj[0] + gi[1] * gj[1] + gi[2] * gj[2]);
+                acc_m[j] += wm * (fi * fj);
+            }
+        }
+        touched.sort_unstable();
+        out.counts.push(touched.len());
+        for &j in &touched {
+            out.cols.push(j);
+            out.h.push(acc_h[j]);
+            out.m.push(acc_m[j]);
+            acc_h[j] = 0.0;
+            acc_m[j] = 0.0;
+            seen[j] = false;
+        }
+        touched.clear();
+    }
+    out
+}
+
+/// Full symmetric CSR (= CSC) arrays from upper-triangle rows: entry (i, j) with j > i is
+/// also stored as (j, i) with the identical value, so the result is exactly symmetric.
+/// Lower entries of a row come first (rows ascending), then its upper entries: columns stay
+/// sorted.
+#[inline(never)]
+fn mirror(upper: &[UpperRows], k: usize) -> (Vec<usize>, Vec<usize>, Vec<f64>, Vec<f64>) {
+    let mut count = vec![0usize; k];
+    let mut row = 0;
+    for block in upper {
+        let mut at = 0;
+        for &c in &block.counts {
+            count[row] += c;
+            for &j in &block.cols[at..at + c] {
+                if j != row {
+                    count[j] += 1;
+                }
+            }
+            at += c;
+            row += 1;
+        }
+    }
+    let mut ptr = vec![0usize; k + 1];
+    for i in 0..k {
+        ptr[i + 1] = ptr[i] + count[i];
+    }
+    let nnz = ptr[k];
+    let (mut idx, mut hv, mut mv) = (vec![0usize; nnz], vec![0.0; nnz], vec![0.0; nnz]);
+    // Lower parts are filled from the front as rows are visited in ascending order, so each
+    // row's lower entries end up sorted; its own upper entries go after them.
+    let mut next = ptr.clone();
+    let mut row = 0;
+    for block in upper {
+        let mut at = 0;
+        for &c in &block.counts {
+            for e in at..at + c {
+                let j = block.cols[e];
+                if j != row {
+                    let d = next[j];
+                    idx[d] = row;
+                    hv[d] = block.h[e];
+                    mv[d] = block.m[e];
+                    next[j] += 1;
+                }
+            }
+            at += c;
+            row += 1;
+        }
+    }
+    let mut row = 0;
+    for block in upper {
+        let mut at = 0;
+        for &c in &block.counts {
+            let d = next[row];
+            idx[d..d + c].copy_from_slice(&block.cols[at..at + c]);
+            hv[d..d + c].copy_from_slice(&block.h[at..at + c]);
+            mv[d..d + c].copy_from_slice(&block.m[at..at + c]);
+            at += c;
+            row += 1;
+        }
+    }
+    (ptr, idx, hv, mv)
 }
 
 /// Rows per parallel task: large enough to amortize the O(K) scratch, small enough to balance.
@@ -70,68 +197,14 @@ pub fn assemble(
     }
     drop(fill);
 
-    let tasks: Vec<(Vec<usize>, Vec<usize>, Vec<f64>, Vec<f64>)> = (0..k.div_ceil(ROWS_PER_TASK))
+    let upper: Vec<UpperRows> = (0..k.div_ceil(ROWS_PER_TASK))
         .into_par_iter()
         .map(|t| {
             let rows = t * ROWS_PER_TASK..((t + 1) * ROWS_PER_TASK).min(k);
-            let mut acc_h = vec![0.0f64; k];
-            let mut acc_m = vec![0.0f64; k];
-            let mut seen = vec![false; k];
-            let mut touched: Vec<usize> = Vec::new();
-            let (mut counts, mut cols, mut hv, mut mv) =
-                (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-            for _row in rows {
-                let row = _row;
-                for s in tptr[row]..tptr[row + 1] {
-                    let p = tpoint[s] as usize;
-                    let ei = tentry[s] as usize;
-                    let (gi, fi) = (sf.grad[ei], sf.phi[ei]);
-                    let wh = volumes[p] * weights[p];
-                    let wm = volumes[p];
-                    for e in sf.pattern.ptr[p]..sf.pattern.ptr[p + 1] {
-                        let j = sf.pattern.kernels[e] as usize;
-                        let gj = sf.grad[e];
-                        if !seen[j] {
-                            seen[j] = true;
-                            touched.push(j);
-                        }
-                        acc_h[j] += wh * (gi[0] * gj[0] + gi[1] * gj[1] + gi[2] * gj[2]);
-                        acc_m[j] += wm * (fi * sf.phi[e]);
-                    }
-                }
-                touched.sort_unstable();
-                counts.push(touched.len());
-                for &j in &touched {
-                    cols.push(j);
-                    hv.push(acc_h[j]);
-                    mv.push(acc_m[j]);
-                    acc_h[j] = 0.0;
-                    acc_m[j] = 0.0;
-                    seen[j] = false;
-                }
-                touched.clear();
-            }
-            (counts, cols, hv, mv)
+            upper_rows(sf, volumes, weights, &tptr, &tpoint, &tentry, rows, k)
         })
         .collect();
-
-    let nnz: usize = tasks.iter().map(|t| t.1.len()).sum();
-    let mut ptr = Vec::with_capacity(k + 1);
-    ptr.push(0);
-    let (mut idx, mut hval, mut mval) = (
-        Vec::with_capacity(nnz),
-        Vec::with_capacity(nnz),
-        Vec::with_capacity(nnz),
-    );
-    for (counts, cols, hv, mv) in tasks {
-        for c in counts {
-            let last = *ptr.last().unwrap_or(&0);
-            ptr.push(last + c);
-        }
-        idx.extend_from_slice(&cols);
-        hval.extend_from_slice(&hv);
-        mval.extend_from_slice(&mv);
-    }
+    let (ptr, idx, hval, mval) = mirror(&upper, k);
     if let Some(bad) = hval.iter().chain(&mval).position(|v| !v.is_finite()) {
         return Err(Error::NonFinite {
             what: "assembled matrices (check volumes and material values)",

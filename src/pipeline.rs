@@ -5,7 +5,7 @@
 //! integration points and per-point materials.
 
 use crate::assembly::assemble;
-use crate::centers::farthest_point_sampling;
+use crate::centers::{farthest_point_sampling, morton_order};
 use crate::eigen::{dense::DenseSolver, EigenRequest, Eigensolver};
 use crate::geometry::Shape;
 use crate::material::{Material, MaterialField, MaterialOverride};
@@ -369,7 +369,8 @@ pub fn build_basis_from_points(
     let mut warnings = Vec::new();
 
     progress.begin("centers", Some(opts.kernels as u64));
-    let idx = farthest_point_sampling(&points.points, opts.kernels)?;
+    let mut idx = farthest_point_sampling(&points.points, opts.kernels)?;
+    morton_order(&points.points, &mut idx);
     let centers: Vec<Point3> = idx.iter().map(|&i| points.points[i]).collect();
     let radii = support_radii(&centers, &opts.support)?;
     let mut kernels = Kernels {
