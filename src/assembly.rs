@@ -62,7 +62,11 @@ fn upper_rows(
             let wh = volumes[p] * weights[p];
             let wm = volumes[p];
             let end = sf.pattern.ptr[p + 1];
-            for ((&j, gj), &fj) in sf.pattern.kernels[ei..end].iter().zip(&sf.grad[ei..end]).zip(&sf.phi[ei..end]) {
+            for ((&j, gj), &fj) in sf.pattern.kernels[ei..end]
+                .iter()
+                .zip(&sf.grad[ei..end])
+                .zip(&sf.phi[ei..end])
+            {
                 let j = j as usize;
                 if !seen[j] {
                     seen[j] = true;

@@ -169,7 +169,11 @@ pub fn morton_order(points: &[Point3], indices: &mut [usize]) {
         }
     }
     let ext = (0..3).map(|d| hi[d] - lo[d]).fold(0.0, f64::max);
-    let scale = if ext > 0.0 { ((1u64 << 21) - 1) as f64 / ext } else { 0.0 };
+    let scale = if ext > 0.0 {
+        ((1u64 << 21) - 1) as f64 / ext
+    } else {
+        0.0
+    };
     let code = |i: usize| {
         let q = |d: usize| ((points[i][d] - lo[d]) * scale) as u64;
         spread3(q(0)) | (spread3(q(1)) << 1) | (spread3(q(2)) << 2)
@@ -237,14 +241,20 @@ mod tests {
 
     #[test]
     fn morton_order_is_a_local_permutation() {
-        let grid: Vec<Point3> = (0..64).map(|i| [(i % 4) as f64, ((i / 4) % 4) as f64, (i / 16) as f64]).collect();
+        let grid: Vec<Point3> = (0..64)
+            .map(|i| [(i % 4) as f64, ((i / 4) % 4) as f64, (i / 16) as f64])
+            .collect();
         let mut idx: Vec<usize> = (0..64).rev().collect();
         morton_order(&grid, &mut idx);
         let mut sorted = idx.clone();
         sorted.sort_unstable();
         assert_eq!(sorted, (0..64).collect::<Vec<_>>());
         // The first 8 along the curve fill the 2 x 2 x 2 corner cube.
-        assert!(idx[..8].iter().all(|&i| grid[i].iter().all(|&c| c < 2.0)), "{:?}", &idx[..8]);
+        assert!(
+            idx[..8].iter().all(|&i| grid[i].iter().all(|&c| c < 2.0)),
+            "{:?}",
+            &idx[..8]
+        );
         assert_eq!(idx[0], 0);
         assert_eq!(idx[1], 1); // x bit first
         assert_eq!(idx[2], 4); // then y

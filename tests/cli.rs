@@ -5,30 +5,69 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 fn freeform(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_freeform")).args(args).output().expect("run freeform")
+    Command::new(env!("CARGO_BIN_EXE_freeform"))
+        .args(args)
+        .output()
+        .expect("run freeform")
 }
 
 #[test]
 fn modes_json_report_has_every_key() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("b.npz");
-    let o = freeform(&["modes", "box:2,1,1", "--kernels", "200", "--modes", "6", "--points", "10000", "--json", "--out", out.to_str().unwrap()]);
+    let o = freeform(&[
+        "modes",
+        "box:2,1,1",
+        "--kernels",
+        "200",
+        "--modes",
+        "6",
+        "--points",
+        "10000",
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let r: serde_json::Value = serde_json::from_slice(&o.stdout).expect("stdout is JSON");
     for key in [
-        "kernels", "points", "modes", "nnz_hessian", "nnz_mass", "solver", "eigenvalues", "max_relative_residual",
-        "orthonormality_error", "reproducing_error", "timings_s", "peak_memory_bytes",
+        "kernels",
+        "points",
+        "modes",
+        "nnz_hessian",
+        "nnz_mass",
+        "solver",
+        "eigenvalues",
+        "max_relative_residual",
+        "orthonormality_error",
+        "reproducing_error",
+        "timings_s",
+        "peak_memory_bytes",
     ] {
         assert!(r.get(key).is_some(), "missing key {key}");
     }
-    for key in ["sampling", "centers", "neighbors", "shape_functions", "assembly", "eigensolve", "total"] {
-        assert!(r["timings_s"][key].as_f64().is_some(), "missing timing {key}");
+    for key in [
+        "sampling",
+        "centers",
+        "neighbors",
+        "shape_functions",
+        "assembly",
+        "eigensolve",
+        "total",
+    ] {
+        assert!(
+            r["timings_s"][key].as_f64().is_some(),
+            "missing timing {key}"
+        );
     }
     assert_eq!(r["kernels"], 200);
     assert_eq!(r["modes"], 6);
     let ev = r["eigenvalues"].as_array().unwrap();
     assert_eq!(ev.len(), 7);
-    assert!(ev.windows(2).all(|w| w[0].as_f64() <= w[1].as_f64()), "ascending");
+    assert!(
+        ev.windows(2).all(|w| w[0].as_f64() <= w[1].as_f64()),
+        "ascending"
+    );
     assert!(r["reproducing_error"].as_f64().unwrap() < 1e-10);
     assert!(r["peak_memory_bytes"].as_u64().unwrap() > 0);
     assert!(out.exists());
@@ -41,7 +80,10 @@ fn assert_fails(args: &[&str], needle: &str, out: &Path) {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success(), "{args:?} should fail");
     assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
-    assert!(err.to_lowercase().contains(&needle.to_lowercase()), "{args:?}: expected `{needle}` in: {err}");
+    assert!(
+        err.to_lowercase().contains(&needle.to_lowercase()),
+        "{args:?}: expected `{needle}` in: {err}"
+    );
     assert!(!out.exists(), "{args:?} left an output file behind");
 }
 
@@ -66,18 +108,41 @@ fn bad_input_gives_a_clear_error() {
         (vec!["modes", garbage.to_str().unwrap()], "garbage.stl"),
         (vec!["modes", empty.to_str().unwrap()], "empty.ply"),
         (vec!["modes", nan_ply.to_str().unwrap()], "nan.ply"),
-        (vec!["modes", "box:1,1,1", "--kernels", "100", "--points", "50"], "points"),
-        (vec!["modes", "box:1,1,1", "--kernels", "100", "--modes", "99"], "modes"),
+        (
+            vec!["modes", "box:1,1,1", "--kernels", "100", "--points", "50"],
+            "points",
+        ),
+        (
+            vec!["modes", "box:1,1,1", "--kernels", "100", "--modes", "99"],
+            "modes",
+        ),
         (vec!["modes", "box:1,1,1", "--youngs", "0"], "youngs"),
         (vec!["modes", "box:1,1,1", "--youngs", "-5e6"], "youngs"),
         (vec!["modes", "box:1,1,1", "--poisson", "0.5"], "poisson"),
         (vec!["modes", "box:1,1,1", "--poisson", "-1.2"], "poisson"),
         (vec!["modes", "box:1,1,1", "--density", "0"], "density"),
         (vec!["modes", "box:1,1,1", "--tol", "0"], "tol"),
-        (vec!["modes", "box:1,1,1", "--kernels", "200", "--points", "8000", "--support", "0.3", "--support-neighbor", "1"], "not covered"),
+        (
+            vec![
+                "modes",
+                "box:1,1,1",
+                "--kernels",
+                "200",
+                "--points",
+                "8000",
+                "--support",
+                "0.3",
+                "--support-neighbor",
+                "1",
+            ],
+            "not covered",
+        ),
         (vec!["modes", "box:1,1,1", "--spacing", "-0.1"], "spacing"),
         (vec!["modes", "box:1,1,1", "--spacing", "1e-9"], "spacing"),
-        (vec!["modes", "box:1,1,1", "--kernel", "wendland"], "wendland"),
+        (
+            vec!["modes", "box:1,1,1", "--kernel", "wendland"],
+            "wendland",
+        ),
     ];
     for (mut args, needle) in cases {
         args.extend(["--out", o]);

@@ -23,25 +23,52 @@ fn c_weight() -> f64 {
 }
 
 fn small_opts(k: usize, m: usize, n: usize) -> BasisOptions {
-    BasisOptions { kernels: k, modes: m, resolution: Some(Resolution::Count(n)), solver: SolverChoice::Dense, ..BasisOptions::default() }
+    BasisOptions {
+        kernels: k,
+        modes: m,
+        resolution: Some(Resolution::Count(n)),
+        solver: SolverChoice::Dense,
+        ..BasisOptions::default()
+    }
 }
 
 #[test]
 fn box_eigenvalues_match_the_neumann_laplacian() {
     let shape = Shape::parse("box:2,1,1", &ShapeOptions::default()).unwrap();
     let run = build_basis(&shape, &small_opts(600, 6, 30_000), &Silent).unwrap();
-    let ev: Vec<f64> = run.report.eigenvalues.iter().map(|v| v / c_weight()).collect();
+    let ev: Vec<f64> = run
+        .report
+        .eigenvalues
+        .iter()
+        .map(|v| v / c_weight())
+        .collect();
     // Neumann eigenvalues of [0,2]x[0,1]x[0,1]: pi^2 (i^2/4 + j^2 + k^2):
     // 0, pi^2/4, pi^2 (x3: i=2, j=1, k=1), 5 pi^2/4 (x2), ...
-    let exact = [0.0, PI * PI / 4.0, PI * PI, PI * PI, PI * PI, 1.25 * PI * PI, 1.25 * PI * PI];
+    let exact = [
+        0.0,
+        PI * PI / 4.0,
+        PI * PI,
+        PI * PI,
+        PI * PI,
+        1.25 * PI * PI,
+        1.25 * PI * PI,
+    ];
     assert!(ev[0].abs() < 1e-9, "constant mode eigenvalue {}", ev[0]);
     for i in 1..7 {
         // K = 600 kernels: the RKPM Galerkin error on these smooth modes is measured at
         // 0.1-1 % (docs/math.md); 2 % separates them from the next analytic level (+25 %).
         let rel = (ev[i] - exact[i]).abs() / exact[i];
-        assert!(rel < 0.02, "eigenvalue {i}: {} vs {} ({rel:.2e})", ev[i], exact[i]);
+        assert!(
+            rel < 0.02,
+            "eigenvalue {i}: {} vs {} ({rel:.2e})",
+            ev[i],
+            exact[i]
+        );
         // Galerkin eigenvalues are upper bounds when quadrature is accurate.
-        assert!(ev[i] > exact[i] * (1.0 - 1e-3), "eigenvalue {i} below the exact value");
+        assert!(
+            ev[i] > exact[i] * (1.0 - 1e-3),
+            "eigenvalue {i} below the exact value"
+        );
     }
     assert!(run.report.reproducing_error < 1e-10);
     assert!(run.report.max_relative_residual < 1e-8);
@@ -53,14 +80,23 @@ fn box_eigenvalues_match_the_neumann_laplacian() {
 fn sphere_eigenvalues_match_the_neumann_laplacian() {
     let shape = Shape::parse("sphere:1", &ShapeOptions::default()).unwrap();
     let run = build_basis(&shape, &small_opts(500, 4, 30_000), &Silent).unwrap();
-    let ev: Vec<f64> = run.report.eigenvalues.iter().map(|v| v / c_weight()).collect();
+    let ev: Vec<f64> = run
+        .report
+        .eigenvalues
+        .iter()
+        .map(|v| v / c_weight())
+        .collect();
     // First non-zero Neumann eigenvalue of the unit ball: (first zero of j_1')^2 with
     // j_1'(x) = 0 at x = 2.0815759778, triple (l = 1, three orientations).
     let exact = 2.081_575_977_8f64.powi(2);
     for i in 1..4 {
         let rel = (ev[i] - exact).abs() / exact;
         // The voxelized boundary (grid points in the ball) adds O(h) error: 3 %.
-        assert!(rel < 0.03, "eigenvalue {i}: {} vs {exact} ({rel:.2e})", ev[i]);
+        assert!(
+            rel < 0.03,
+            "eigenvalue {i}: {} vs {exact} ({rel:.2e})",
+            ev[i]
+        );
     }
     // Next level l = 2: (3.3420936)^2 = 11.17, five-fold; the triple must be separated from it.
     assert!(ev[4] > 1.3 * ev[3]);
@@ -68,12 +104,35 @@ fn sphere_eigenvalues_match_the_neumann_laplacian() {
 }
 
 /// Eigenvalues for fixed kernels and points (bypasses FPS so transforms map kernels exactly).
-fn eigen_for(kernels: &Kernels, ip: &IntegrationPoints, youngs: f64, nev: usize) -> (Vec<f64>, faer::Mat<f64>) {
+fn eigen_for(
+    kernels: &Kernels,
+    ip: &IntegrationPoints,
+    youngs: f64,
+    nev: usize,
+) -> (Vec<f64>, faer::Mat<f64>) {
     let (sf, stats) = evaluate(kernels, &ip.points, &ShapeFunctionOptions::default());
     assert!(stats.failed.is_empty());
-    let mat = MaterialField::homogeneous(ip.len(), &Material { youngs, ..Material::default() }).unwrap();
+    let mat = MaterialField::homogeneous(
+        ip.len(),
+        &Material {
+            youngs,
+            ..Material::default()
+        },
+    )
+    .unwrap();
     let a = assemble(&sf, &ip.volumes, &mat.hessian_weights(), kernels.len()).unwrap();
-    let s = DenseSolver.solve(&a.hessian, &a.mass, &EigenRequest { nev, tol: 1e-10, max_iter: 1 }, &Silent).unwrap();
+    let s = DenseSolver
+        .solve(
+            &a.hessian,
+            &a.mass,
+            &EigenRequest {
+                nev,
+                tol: 1e-10,
+                max_iter: 1,
+            },
+            &Silent,
+        )
+        .unwrap();
     (s.values, s.vectors)
 }
 
@@ -108,14 +167,26 @@ fn rigid_motion_invariance_and_scaling_law() {
             r[i][j] = c * if i == j { 1.0 } else { 0.0 } + s * cross + (1.0 - c) * ax[i] * ax[j];
         }
     }
-    for (scale, shift) in [(1.0, [3.0, -7.0, 11.0]), (1e-3, [0.0; 3]), (1e3, [1e3, 0.0, 0.0])] {
+    for (scale, shift) in [
+        (1.0, [3.0, -7.0, 11.0]),
+        (1e-3, [0.0; 3]),
+        (1e3, [1e3, 0.0, 0.0]),
+    ] {
         let kt = Kernels {
-            centers: kernels.centers.iter().map(|p| transform(p, scale, &r, shift)).collect(),
+            centers: kernels
+                .centers
+                .iter()
+                .map(|p| transform(p, scale, &r, shift))
+                .collect(),
             radii: kernels.radii.iter().map(|a| a * scale).collect(),
             kind: kernels.kind,
         };
         let ipt = IntegrationPoints {
-            points: ip.points.iter().map(|p| transform(p, scale, &r, shift)).collect(),
+            points: ip
+                .points
+                .iter()
+                .map(|p| transform(p, scale, &r, shift))
+                .collect(),
             volumes: ip.volumes.iter().map(|v| v * scale.powi(3)).collect(),
         };
         let (ev, ct) = eigen_for(&kt, &ipt, 5e6, 8);
@@ -123,7 +194,11 @@ fn rigid_motion_invariance_and_scaling_law() {
             // H ~ s (volume s^3, gradients s^-2), M ~ s^3: lambda ~ s^-2. Round-off in the
             // dense solve of cond ~ 1e4 systems: 1e-9 relative.
             let predicted = ev0[i] / (scale * scale);
-            assert!((ev[i] / predicted - 1.0).abs() < 1e-9, "scale {scale}: eigenvalue {i} {} vs {predicted}", ev[i]);
+            assert!(
+                (ev[i] / predicted - 1.0).abs() < 1e-9,
+                "scale {scale}: eigenvalue {i} {} vs {predicted}",
+                ev[i]
+            );
         }
         // Modes are the same up to the normalization s^(-3/2) and sign (the first non-zero
         // mode of the 2:1:1 box is simple).
@@ -143,7 +218,12 @@ fn right_half_gradient_share(overrides: Vec<MaterialOverride>) -> f64 {
     // Spacing 1/16: 32 cells along x, split evenly at x = 1.
     let ip = box_points([2.0, 1.0, 1.0], 0.0625);
     let mat = MaterialField::from_regions(&ip.points, &Material::default(), &overrides).unwrap();
-    let opts = BasisOptions { kernels: 300, modes: 2, solver: SolverChoice::Dense, ..BasisOptions::default() };
+    let opts = BasisOptions {
+        kernels: 300,
+        modes: 2,
+        solver: SolverChoice::Dense,
+        ..BasisOptions::default()
+    };
     let run = build_basis_from_points(ip.clone(), mat, &opts, &Silent).unwrap();
     let w = run.basis.weights(&ip.points).unwrap();
     let (mut right, mut all) = (0.0, 0.0);
@@ -162,13 +242,25 @@ fn right_half_gradient_share(overrides: Vec<MaterialOverride>) -> f64 {
 fn stiff_inclusion_concentrates_low_mode_gradients_in_the_soft_part() {
     let homogeneous = right_half_gradient_share(vec![]);
     // Stiff left half: 1000x Young's modulus.
-    let stiff = Material { youngs: 5e9, ..Material::default() };
-    let left = Region::Box { min: [-1.0; 3], max: [1.0, 2.0, 2.0] };
-    let hetero = right_half_gradient_share(vec![MaterialOverride { region: left, material: stiff }]);
+    let stiff = Material {
+        youngs: 5e9,
+        ..Material::default()
+    };
+    let left = Region::Box {
+        min: [-1.0; 3],
+        max: [1.0, 2.0, 2.0],
+    };
+    let hetero = right_half_gradient_share(vec![MaterialOverride {
+        region: left,
+        material: stiff,
+    }]);
     // Homogeneous: the first mode ~ cos(pi x / 2) is symmetric about x = 1: half of its
     // gradient energy on each side. With a 1e3 contrast the stiff half barely strains: the
     // soft half must carry nearly all of it.
-    assert!((homogeneous - 0.5).abs() < 0.02, "homogeneous share {homogeneous}");
+    assert!(
+        (homogeneous - 0.5).abs() < 0.02,
+        "homogeneous share {homogeneous}"
+    );
     assert!(hetero > 0.95, "soft-half share {hetero}");
 }
 
@@ -182,7 +274,10 @@ fn deterministic_bit_for_bit() {
     assert_eq!(a.basis.kernels, b.basis.kernels);
     for j in 0..a.basis.modes() {
         for i in 0..a.basis.kernels.len() {
-            assert_eq!(a.basis.coefficients[(i, j)].to_bits(), b.basis.coefficients[(i, j)].to_bits());
+            assert_eq!(
+                a.basis.coefficients[(i, j)].to_bits(),
+                b.basis.coefficients[(i, j)].to_bits()
+            );
         }
     }
 }
@@ -197,7 +292,9 @@ fn weights_are_orthonormal_and_basis_file_round_trips() {
     let m1 = run.basis.modes();
     for a in 0..m1 {
         for b in 0..m1 {
-            let g: f64 = (0..run.points.len()).map(|i| run.points.volumes[i] * w.row(i)[a] * w.row(i)[b]).sum();
+            let g: f64 = (0..run.points.len())
+                .map(|i| run.points.volumes[i] * w.row(i)[a] * w.row(i)[b])
+                .sum();
             let id = if a == b { 1.0 } else { 0.0 };
             assert!((g - id).abs() < 1e-9, "<W_{a}, W_{b}> = {g}");
         }
@@ -226,19 +323,77 @@ fn bad_parameters_are_rejected_before_work() {
     let shape = Shape::parse("box:2,1,1", &ShapeOptions::default()).unwrap();
     let base = small_opts(150, 4, 8000);
     for (opts, needle) in [
-        (BasisOptions { modes: 149, ..base.clone() }, "modes"),
-        (BasisOptions { modes: 0, ..base.clone() }, "modes"),
-        (BasisOptions { resolution: Some(Resolution::Count(100)), ..base.clone() }, "points"),
-        (BasisOptions { material: Material { youngs: -1.0, ..Material::default() }, ..base.clone() }, "youngs"),
-        (BasisOptions { material: Material { poisson: 0.5, ..Material::default() }, ..base.clone() }, "poisson"),
-        (BasisOptions { tol: 0.0, ..base.clone() }, "tol"),
-        (BasisOptions { support: freeform::rkpm::SupportOptions { factor: 0.0, neighbor: 4 }, ..base.clone() }, "support"),
+        (
+            BasisOptions {
+                modes: 149,
+                ..base.clone()
+            },
+            "modes",
+        ),
+        (
+            BasisOptions {
+                modes: 0,
+                ..base.clone()
+            },
+            "modes",
+        ),
+        (
+            BasisOptions {
+                resolution: Some(Resolution::Count(100)),
+                ..base.clone()
+            },
+            "points",
+        ),
+        (
+            BasisOptions {
+                material: Material {
+                    youngs: -1.0,
+                    ..Material::default()
+                },
+                ..base.clone()
+            },
+            "youngs",
+        ),
+        (
+            BasisOptions {
+                material: Material {
+                    poisson: 0.5,
+                    ..Material::default()
+                },
+                ..base.clone()
+            },
+            "poisson",
+        ),
+        (
+            BasisOptions {
+                tol: 0.0,
+                ..base.clone()
+            },
+            "tol",
+        ),
+        (
+            BasisOptions {
+                support: freeform::rkpm::SupportOptions {
+                    factor: 0.0,
+                    neighbor: 4,
+                },
+                ..base.clone()
+            },
+            "support",
+        ),
     ] {
         let e = build_basis(&shape, &opts, &Silent).unwrap_err().to_string();
         assert!(e.contains(needle), "expected `{needle}` in: {e}");
     }
     // A support too small to cover the points: a coverage error naming the place.
-    let tiny = BasisOptions { support: freeform::rkpm::SupportOptions { factor: 0.3, neighbor: 1 }, coverage_repair_rounds: 0, ..base };
+    let tiny = BasisOptions {
+        support: freeform::rkpm::SupportOptions {
+            factor: 0.3,
+            neighbor: 1,
+        },
+        coverage_repair_rounds: 0,
+        ..base
+    };
     let e = build_basis(&shape, &tiny, &Silent).unwrap_err().to_string();
     assert!(e.contains("not covered") && e.contains("position"), "{e}");
 }
@@ -260,7 +415,10 @@ fn mesh_files_and_point_clouds_run_through_the_pipeline() {
         let ev1 = run.report.eigenvalues[1] / c_weight();
         // Icosphere (5,120 faces) volume is 0.3 % below the ball's; with K = 300 the
         // discretization adds a few per cent: 5 % around the ball's eigenvalue.
-        assert!((ev1 / exact - 1.0).abs() < 0.05, "{path:?}: {ev1} vs {exact}");
+        assert!(
+            (ev1 / exact - 1.0).abs() < 0.05,
+            "{path:?}: {ev1} vs {exact}"
+        );
         // The render points (mesh vertices, on the surface) are covered: weights evaluate.
         let w = run.basis.weights(shape.render_points().unwrap()).unwrap();
         assert!(w.values.iter().all(|x| x.is_finite()));
@@ -271,7 +429,11 @@ fn mesh_files_and_point_clouds_run_through_the_pipeline() {
     for i in 0..30 {
         for j in 0..30 {
             for k in 0..30 {
-                let p = [-1.0 + (i as f64 + rng.next()) / 15.0, -1.0 + (j as f64 + rng.next()) / 15.0, -1.0 + (k as f64 + rng.next()) / 15.0];
+                let p = [
+                    -1.0 + (i as f64 + rng.next()) / 15.0,
+                    -1.0 + (j as f64 + rng.next()) / 15.0,
+                    -1.0 + (k as f64 + rng.next()) / 15.0,
+                ];
                 if p[0] * p[0] + p[1] * p[1] + p[2] * p[2] < 1.0 {
                     pts.push(p);
                 }
@@ -280,11 +442,28 @@ fn mesh_files_and_point_clouds_run_through_the_pipeline() {
     }
     let opacity = vec![0.5; pts.len()];
     let ply = dir.path().join("splats.ply");
-    freeform::io::ply::write_ply_points(&ply, &pts, &[("opacity", &opacity), ("scale_0", &opacity)]).unwrap();
+    freeform::io::ply::write_ply_points(
+        &ply,
+        &pts,
+        &[("opacity", &opacity), ("scale_0", &opacity)],
+    )
+    .unwrap();
     let shape = Shape::parse(ply.to_str().unwrap(), &ShapeOptions::default()).unwrap();
-    let run = build_basis(&shape, &BasisOptions { resolution: None, ..opts.clone() }, &Silent).unwrap();
+    let run = build_basis(
+        &shape,
+        &BasisOptions {
+            resolution: None,
+            ..opts.clone()
+        },
+        &Silent,
+    )
+    .unwrap();
     // Voxel-occupancy volume of a jittered ball sampling: within 10 % of 4/3 pi.
-    assert!((run.report.volume / (4.0 / 3.0 * PI) - 1.0).abs() < 0.1, "volume {}", run.report.volume);
+    assert!(
+        (run.report.volume / (4.0 / 3.0 * PI) - 1.0).abs() < 0.1,
+        "volume {}",
+        run.report.volume
+    );
     let ev1 = run.report.eigenvalues[1] / c_weight();
     assert!((ev1 / exact - 1.0).abs() < 0.1, "cloud: {ev1} vs {exact}");
     assert_eq!(run.points.len(), pts.len());

@@ -79,11 +79,7 @@ pub fn read_obj_raw(path: &Path) -> Result<(Vec<Point3>, Vec<[u32; 3]>), Geometr
     for model in &models {
         let mesh = &model.mesh;
         let base = vertices.len();
-        vertices.extend(
-            mesh.positions
-                .chunks_exact(3)
-                .map(|p| [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])]),
-        );
+        vertices.extend(mesh.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
         for t in mesh.indices.chunks_exact(3) {
             let t = [t[0], t[1], t[2]].map(|i| i as usize + base);
             if t.iter()

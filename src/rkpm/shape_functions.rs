@@ -145,7 +145,7 @@ pub fn evaluate_on(
             stats.min_rcond = r.rcond;
             stats.min_rcond_point = i;
         }
-        if !(r.rcond >= opts.min_rcond) {
+        if r.rcond.is_nan() || r.rcond < opts.min_rcond {
             stats.failed.push(i);
         }
     }
@@ -217,7 +217,7 @@ fn point_shape(
         }
     }
     let rcond = 1.0 / (norm1(&m) * norm1(&minv));
-    if !(rcond >= min_rcond) {
+    if rcond.is_nan() || rcond < min_rcond {
         phi.fill(0.0);
         grad.fill([0.0; 3]);
         return PointResult {
@@ -299,7 +299,7 @@ fn cholesky4(m: &[[f64; 4]; 4]) -> Option<[[f64; 4]; 4]> {
         for k in 0..j {
             d -= l[j][k] * l[j][k];
         }
-        if !(d > 0.0) {
+        if d.is_nan() || d <= 0.0 {
             return None;
         }
         let djj = d.sqrt();
