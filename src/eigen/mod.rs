@@ -11,9 +11,10 @@
 
 pub mod dense;
 pub mod lobpcg;
+pub mod testing;
 
 use crate::progress::Progress;
-use crate::sparse::SparseMatrix;
+use crate::sparse::{self, SparseMatrix};
 use faer::Mat;
 
 /// What the caller asks of an eigensolver.
@@ -31,7 +32,11 @@ impl Default for EigenRequest {
     fn default() -> Self {
         // tol 1e-8: eigenvalues converge quadratically in the residual, so ~1e-14 relative
         // eigenvalue accuracy; far below the discretization error of the modes themselves.
-        Self { nev: 17, tol: 1e-8, max_iter: 1000 }
+        Self {
+            nev: 17,
+            tol: 1e-8,
+            max_iter: 1000,
+        }
     }
 }
 
@@ -134,7 +139,198 @@ pub trait Eigensolver {
 
 /// Recompute per-pair relative residuals and the M-orthonormality error of `vectors`
 /// (K x nev) independently of any solver, and store them into `info`.
-pub fn check_solution(h: &SparseMatrix, m: &SparseMatrix, values: &[f64], vectors: &Mat<f64>, info: &mut EigenInfo) {
-    let _ = (h, m, values, vectors, info);
-    todo!("implemented by the eigen work")
+///
+/// - `info.residuals[j] = ||H x_j - lambda_j M x_j||_2 / ((||H||_1 + |lambda_j| ||M||_1)
+///   ||x_j||_2)`, with the exact 1-norms of [`crate::sparse::norm_1`] (an upper bound of the
+///   2-norms, within a factor ~2 for Laplacian- and mass-like matrices). A zero denominator
+///   gives 0 for a zero residual and +inf otherwise; NaN becomes +inf.
+/// - `info.max_relative_residual`: the largest of them (0 for no pairs).
+/// - `info.orthonormality_error = max_ij |(X^T M X - I)_ij|`.
+///
+/// H and M are only read; costs two sparse block products and one K x nev x nev product.
+///
+/// # Panics
+/// If the shapes do not match (`vectors.nrows() != K` or `values.len() != vectors.ncols()`),
+/// a caller bug.
+pub fn check_solution(
+    h: &SparseMatrix,
+    m: &SparseMatrix,
+    values: &[f64],
+    vectors: &Mat<f64>,
+    info: &mut EigenInfo,
+) {
+    let k = h.nrows();
+    let nev = vectors.ncols();
+    assert!(
+        vectors.nrows() == k && m.nrows() == k && values.len() == nev,
+        "check_solution: shape mismatch"
+    );
+    let norm_h = sparse::norm_1(h);
+    let norm_m = sparse::norm_1(m);
+    let mut hx = Mat::<f64>::zeros(k, nev);
+    let mut mx = Mat::<f64>::zeros(k, nev);
+    sparse::sym_mul_block(h, vectors.as_ref(), hx.as_mut());
+    sparse::sym_mul_block(m, vectors.as_ref(), mx.as_mut());
+    info.residuals = (0..nev)
+        .map(|j| {
+            let lambda = values[j];
+            let r: Vec<f64> = (0..k).map(|i| hx[(i, j)] - lambda * mx[(i, j)]).collect();
+            let x: Vec<f64> = (0..k).map(|i| vectors[(i, j)]).collect();
+            relative_residual(sparse::norm2(&r), lambda, norm_h, norm_m, sparse::norm2(&x))
+        })
+        .collect();
+    info.max_relative_residual = info.residuals.iter().copied().fold(0.0, f64::max);
+    let mut gram = Mat::<f64>::zeros(nev, nev);
+    faer::linalg::matmul::matmul(
+        gram.as_mut(),
+        faer::Accum::Replace,
+        vectors.transpose(),
+        mx.as_ref(),
+        1.0,
+        faer::Par::rayon(0),
+    );
+    let mut err = 0.0f64;
+    for j in 0..nev {
+        for i in 0..nev {
+            let e = (gram[(i, j)] - if i == j { 1.0 } else { 0.0 }).abs();
+            err = if e.is_nan() {
+                f64::INFINITY
+            } else {
+                err.max(e)
+            };
+        }
+    }
+    info.orthonormality_error = err;
+}
+
+/// The relative residual of one pair, as defined on [`EigenRequest::tol`]:
+/// `r_norm / ((norm_h + |lambda| norm_m) x_norm)`; 0/0 is 0, x/0 is +inf, NaN is +inf.
+pub fn relative_residual(r_norm: f64, lambda: f64, norm_h: f64, norm_m: f64, x_norm: f64) -> f64 {
+    let denom = (norm_h + lambda.abs() * norm_m) * x_norm;
+    let rel = if r_norm == 0.0 {
+        0.0
+    } else if denom > 0.0 {
+        r_norm / denom
+    } else {
+        f64::INFINITY
+    };
+    if rel.is_nan() {
+        f64::INFINITY
+    } else {
+        rel
+    }
+}
+
+/// Check a problem and a request before solving; shared by every solver.
+///
+/// Accepted: H and M square, same size K; `1 <= nev <= K - 2` (that is, m = nev - 1 <= K - 3
+/// non-constant modes: the non-constant pairs live in the (K - 1)-dimensional M-orthogonal
+/// complement of the constant vector, and at least one of its eigenpairs must stay outside the
+/// returned set so the cut between the last returned eigenvalue and the next one is defined);
+/// `tol` finite and > 0; all stored entries finite; both matrices symmetric to within 1e-10 of
+/// their 1-norm (assembly round-off is ~1e-16 of it; the product kernels rely on symmetry).
+///
+/// # Errors
+/// [`EigenError::InvalidRequest`] for shapes, `nev`, `tol` or asymmetry;
+/// [`EigenError::NonFinite`] for a NaN or infinite entry.
+pub fn validate_problem(
+    h: &SparseMatrix,
+    m: &SparseMatrix,
+    request: &EigenRequest,
+) -> Result<(), EigenError> {
+    let k = h.nrows();
+    if h.ncols() != k || m.nrows() != k || m.ncols() != k {
+        return Err(EigenError::InvalidRequest(format!(
+            "H is {} x {} and M is {} x {}; both must be K x K",
+            h.nrows(),
+            h.ncols(),
+            m.nrows(),
+            m.ncols()
+        )));
+    }
+    if request.nev == 0 || request.nev + 2 > k {
+        return Err(EigenError::InvalidRequest(format!(
+            "nev = {} pairs (m = nev - 1 modes plus the constant one) requested for K = {k}: need \
+             1 <= nev <= K - 2 (m <= K - 3)",
+            request.nev
+        )));
+    }
+    if !(request.tol.is_finite() && request.tol > 0.0) {
+        return Err(EigenError::InvalidRequest(format!(
+            "tol = {} must be finite and > 0",
+            request.tol
+        )));
+    }
+    for (name, a) in [("H", h), ("M", m)] {
+        if let Some((i, j)) = sparse::first_non_finite(a) {
+            return Err(EigenError::NonFinite(format!(
+                "{name}[{i}, {j}] = {}",
+                entry(a, i, j)
+            )));
+        }
+        let defect = sparse::symmetry_defect(a);
+        let scale = sparse::norm_1(a);
+        if defect > 1e-10 * scale {
+            return Err(EigenError::InvalidRequest(format!(
+                "{name} is not symmetric: max |a_ij - a_ji| = {defect:.3e} (||{name}||_1 = {scale:.3e})"
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Value stored at (i, j) (sum of duplicates; 0 if absent). Diagnostic use only.
+fn entry(a: &SparseMatrix, i: usize, j: usize) -> f64 {
+    let range = a.symbolic().col_range(j);
+    a.symbolic().row_idx()[range.clone()]
+        .iter()
+        .zip(&a.val()[range])
+        .filter(|(&r, _)| r == i)
+        .map(|(_, &v)| v)
+        .sum()
+}
+
+/// The M-normalized constant vector y0 = 1 / sqrt(1^T M 1) (length K), the exact null vector
+/// of H that every solver returns as the first pair with eigenvalue 0.
+///
+/// # Errors
+/// [`EigenError::NotPositiveDefinite`] if 1^T M 1 <= 0 (M cannot be SPD then).
+pub fn constant_mode(m: &SparseMatrix) -> Result<Vec<f64>, EigenError> {
+    let k = m.nrows();
+    let total: f64 = m.val().iter().sum();
+    if total.is_nan() || total <= 0.0 || !total.is_finite() {
+        return Err(EigenError::NotPositiveDefinite {
+            what: "M",
+            detail: format!("1^T M 1 = {total:e} <= 0"),
+        });
+    }
+    Ok(vec![1.0 / total.sqrt(); k])
+}
+
+/// A small deterministic pseudo-random generator (splitmix64), for start vectors and
+/// synthetic test data: same seed, same sequence on every platform.
+#[derive(Debug, Clone)]
+pub struct SplitMix64 {
+    state: u64,
+}
+
+impl SplitMix64 {
+    /// A generator seeded with `seed`.
+    pub fn new(seed: u64) -> Self {
+        Self { state: seed }
+    }
+
+    /// Next 64 random bits.
+    pub fn next_u64(&mut self) -> u64 {
+        self.state = self.state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in [0, 1) with 53 random bits.
+    pub fn next_f64(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+    }
 }
