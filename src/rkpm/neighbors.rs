@@ -1,5 +1,5 @@
 //! Which kernels cover which query points (|X - p_k| < a_k), found with a k-d tree over the
-//! centres.
+//! query points.
 
 use super::Kernels;
 use crate::Point3;
@@ -31,56 +31,51 @@ impl CoverPattern {
     }
 }
 
-/// For every query point (N x 3, metres), the kernels whose support contains it.
-/// Runs in parallel over query points; the result is deterministic.
+/// For every query point (N x 3, metres), the kernels whose support contains it
+/// (|X - p_k| < a_k, strictly).
+///
+/// Kernel-centric: one radius query per kernel (with its own radius) in a k-d tree over the
+/// query points, in parallel, then a counting-sort transpose into per-point rows. Visiting
+/// kernels in ascending order makes every row sorted. Deterministic for any thread count.
 pub fn covering_kernels(kernels: &Kernels, queries: &[Point3]) -> CoverPattern {
-    if kernels.is_empty() {
-        return CoverPattern {
-            ptr: vec![0; queries.len() + 1],
-            kernels: Vec::new(),
-        };
+    let empty = || CoverPattern { ptr: vec![0; queries.len() + 1], kernels: Vec::new() };
+    if kernels.is_empty() || queries.is_empty() {
+        return empty();
     }
-    let tree: ImmutableKdTree<f64, 3> = match ImmutableKdTree::new_from_slice(&kernels.centers) {
-        Ok(t) => t,
-        // Construction only fails on empty input, handled above.
-        Err(_) => {
-            return CoverPattern {
-                ptr: vec![0; queries.len() + 1],
-                kernels: Vec::new(),
-            }
-        }
+    let Ok(tree) = ImmutableKdTree::<f64, 3>::new_from_slice(queries) else {
+        return empty();
     };
-    let a_max = kernels.radii.iter().copied().fold(0.0, f64::max);
-    let rows: Vec<Vec<u32>> = queries
-        .par_iter()
-        .map(|x| {
-            let found = tree
-                .query(x)
-                .within::<SquaredEuclidean<f64>>(a_max * a_max)
+    let lists: Vec<Vec<u32>> = (0..kernels.len())
+        .into_par_iter()
+        .map(|k| {
+            let (p, a) = (kernels.centers[k], kernels.radii[k]);
+            let a2 = a * a;
+            tree.query(&p)
+                .within::<SquaredEuclidean<f64>>(a2)
                 .unsorted()
-                .execute();
-            let mut row: Vec<u32> = found
+                .execute()
                 .iter()
-                .filter_map(|r| {
-                    let k = r.item as usize;
-                    let a = kernels.radii[k];
-                    (r.distance < a * a).then_some(k as u32)
-                })
-                .collect();
-            row.sort_unstable();
-            row
+                .filter(|r| r.distance < a2)
+                .map(|r| r.item as u32)
+                .collect()
         })
         .collect();
-    let mut ptr = Vec::with_capacity(rows.len() + 1);
-    ptr.push(0);
-    let mut total = 0;
-    for r in &rows {
-        total += r.len();
-        ptr.push(total);
+    let mut ptr = vec![0usize; queries.len() + 1];
+    for list in &lists {
+        for &q in list {
+            ptr[q as usize + 1] += 1;
+        }
     }
-    let mut flat = Vec::with_capacity(total);
-    for r in rows {
-        flat.extend_from_slice(&r);
+    for i in 0..queries.len() {
+        ptr[i + 1] += ptr[i];
+    }
+    let mut next = ptr.clone();
+    let mut flat = vec![0u32; ptr[queries.len()]];
+    for (k, list) in lists.iter().enumerate() {
+        for &q in list {
+            flat[next[q as usize]] = k as u32;
+            next[q as usize] += 1;
+        }
     }
     CoverPattern { ptr, kernels: flat }
 }
