@@ -1,10 +1,11 @@
 //! Kernel centres by farthest point sampling (FPS) over the integration points.
 //!
-//! [`farthest_point_sampling`] is exact FPS accelerated with a k-d tree and a max-heap: after a
-//! new centre c is picked at squared distance d_max from the others, only points within
-//! sqrt(d_max) of c can get closer, so only those are visited. It returns exactly the sequence of
-//! the brute-force O(N K) algorithm ([`farthest_point_sampling_brute`]) — same start, same
-//! tie-breaking (lowest index) — at a cost of about O(N log N) for well-spread points.
+//! [`farthest_point_sampling`] is exact FPS accelerated with a grid of cells and a max-heap over
+//! cells: after a new centre c is picked at squared distance d_max from the others, only points
+//! within sqrt(d_max) of c can get closer, so only the cells meeting that ball are visited. It
+//! returns exactly the sequence of the brute-force O(N K) algorithm
+//! ([`farthest_point_sampling_brute`]) — same start, same tie-breaking (lowest index) — at a
+//! cost of about O(N log K) for well-spread points.
 
 use crate::{Error, Point3, Result};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
@@ -61,35 +62,130 @@ fn too_few_distinct(k: usize, found: usize) -> Error {
     )
 }
 
+/// Points bucketed into a uniform grid of cells (about [`POINTS_PER_CELL`] points per
+/// occupied cell), CSR by cell.
+struct CellGrid {
+    lo: Point3,
+    size: f64,
+    dims: [usize; 3],
+    /// Cell c holds `order[start[c]..start[c + 1]]` (point indices, ascending).
+    start: Vec<usize>,
+    order: Vec<u32>,
+}
+
+/// Target mean number of points per cell of the FPS grid.
+const POINTS_PER_CELL: f64 = 32.0;
+
+impl CellGrid {
+    fn new(points: &[Point3]) -> Self {
+        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        for p in points {
+            for d in 0..3 {
+                lo[d] = lo[d].min(p[d]);
+                hi[d] = hi[d].max(p[d]);
+            }
+        }
+        let ext: Vec<f64> = (0..3).map(|d| hi[d] - lo[d]).collect();
+        let max_ext = ext.iter().copied().fold(0.0, f64::max);
+        // Cell edge from the bounding-box volume (flat axes count as 1e-3 of the largest);
+        // at most ~N cells in all.
+        let vol: f64 = ext.iter().map(|e| e.max(1e-3 * max_ext)).product();
+        let mut size = (vol * POINTS_PER_CELL / points.len() as f64).cbrt();
+        if !(size.is_finite() && size > 0.0) {
+            size = 1.0;
+        }
+        let dims_for = |size: f64| -> [usize; 3] {
+            [0, 1, 2].map(|d| ((ext[d] / size) as usize + 1).min(1 << 20))
+        };
+        let mut dims = dims_for(size);
+        while dims.iter().product::<usize>() > 4 * points.len() + 8 {
+            size *= 1.5;
+            dims = dims_for(size);
+        }
+        let mut grid = CellGrid {
+            lo,
+            size,
+            dims,
+            start: Vec::new(),
+            order: Vec::new(),
+        };
+        let ncell = dims.iter().product::<usize>();
+        let cell_of: Vec<usize> = points.iter().map(|p| grid.cell(p)).collect();
+        let mut start = vec![0usize; ncell + 1];
+        for &c in &cell_of {
+            start[c + 1] += 1;
+        }
+        for c in 0..ncell {
+            start[c + 1] += start[c];
+        }
+        let mut next = start.clone();
+        let mut order = vec![0u32; points.len()];
+        for (i, &c) in cell_of.iter().enumerate() {
+            order[next[c]] = i as u32;
+            next[c] += 1;
+        }
+        grid.start = start;
+        grid.order = order;
+        grid
+    }
+
+    fn coord(&self, p: &Point3, d: usize) -> usize {
+        (((p[d] - self.lo[d]) / self.size) as usize).min(self.dims[d] - 1)
+    }
+
+    fn cell(&self, p: &Point3) -> usize {
+        self.coord(p, 0) + self.dims[0] * (self.coord(p, 1) + self.dims[1] * self.coord(p, 2))
+    }
+
+    fn points(&self, c: usize) -> &[u32] {
+        &self.order[self.start[c]..self.start[c + 1]]
+    }
+}
+
+/// The farthest point of a cell: (squared distance bits, lowest index attaining it).
+fn cell_max(grid: &CellGrid, dist: &[f64], c: usize) -> (u64, u32) {
+    let mut best = (0u64, u32::MAX);
+    for &i in grid.points(c) {
+        let b = dist[i as usize].to_bits();
+        if b > best.0 || (b == best.0 && i < best.1) {
+            best = (b, i);
+        }
+    }
+    best
+}
+
 /// Indices of `k` centres chosen by exact farthest point sampling from `points` (N x 3).
 /// Errors if k is 0, exceeds N, or exceeds the number of distinct points.
+///
+/// Points are bucketed into grid cells; a max-heap over cells holds each cell's farthest
+/// point. A new centre at squared distance d_max can only bring closer the points within
+/// sqrt(d_max) of it, so only the cells meeting that ball are visited and rescanned. Heap keys
+/// are (squared distance bits, lowest index), so the sequence is exactly that of the brute
+/// force, ties included.
 pub fn farthest_point_sampling(points: &[Point3], k: usize) -> Result<Vec<usize>> {
     check(points, k)?;
-    let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(points).map_err(|e| {
-        Error::param(
-            "integration points",
-            points.len(),
-            format!("k-d tree: {e:?}"),
-        )
-    })?;
+    let grid = CellGrid::new(points);
     let s0 = start_index(points);
     let mut dist: Vec<f64> = points.iter().map(|p| dist2(p, &points[s0])).collect();
-    // Heap entries (squared distance bits, Reverse(index)): non-negative f64 bit patterns order
-    // like the numbers, and Reverse makes the lowest index win ties, as in the brute force.
-    let mut heap: BinaryHeap<(u64, Reverse<u32>)> = dist
+    let ncell = grid.start.len() - 1;
+    let mut best: Vec<(u64, u32)> = (0..ncell).map(|c| cell_max(&grid, &dist, c)).collect();
+    // Non-negative f64 bit patterns order like the numbers; Reverse makes the lowest index
+    // win ties, as in the brute force.
+    let mut heap: BinaryHeap<(u64, Reverse<u32>, u32)> = best
         .iter()
         .enumerate()
-        .map(|(i, d)| (d.to_bits(), Reverse(i as u32)))
+        .filter(|(_, b)| b.1 != u32::MAX)
+        .map(|(c, &(bits, i))| (bits, Reverse(i), c as u32))
         .collect();
     let mut chosen = Vec::with_capacity(k);
     chosen.push(s0);
     while chosen.len() < k {
         let (bits, idx) = loop {
             match heap.pop() {
-                Some((bits, Reverse(i))) if bits == dist[i as usize].to_bits() => {
+                Some((bits, Reverse(i), c)) if best[c as usize] == (bits, i) => {
                     break (bits, i as usize)
                 }
-                Some(_) => continue, // stale entry: the point got closer since it was pushed
+                Some(_) => continue, // stale: the cell's farthest point changed since
                 None => return Err(too_few_distinct(k, chosen.len())),
             }
         };
@@ -99,18 +195,28 @@ pub fn farthest_point_sampling(points: &[Point3], k: usize) -> Result<Vec<usize>
         }
         chosen.push(idx);
         let c = points[idx];
-        for r in tree
-            .query(&c)
-            .within::<SquaredEuclidean<f64>>(d_max)
-            .unsorted()
-            .execute()
-            .iter()
-        {
-            let j = r.item as usize;
-            let d = dist2(&points[j], &c);
-            if d < dist[j] {
-                dist[j] = d;
-                heap.push((d.to_bits(), Reverse(j as u32)));
+        let r = d_max.sqrt();
+        let lo = [0, 1, 2].map(|d| grid.coord(&[c[0] - r, c[1] - r, c[2] - r], d));
+        let hi = [0, 1, 2].map(|d| grid.coord(&[c[0] + r, c[1] + r, c[2] + r], d));
+        for z in lo[2]..=hi[2] {
+            for y in lo[1]..=hi[1] {
+                for x in lo[0]..=hi[0] {
+                    let cell = x + grid.dims[0] * (y + grid.dims[1] * z);
+                    let mut changed = false;
+                    for &i in grid.points(cell) {
+                        let i = i as usize;
+                        let d = dist2(&points[i], &c);
+                        if d < dist[i] {
+                            dist[i] = d;
+                            changed = true;
+                        }
+                    }
+                    if changed {
+                        let b = cell_max(&grid, &dist, cell);
+                        best[cell] = b;
+                        heap.push((b.0, Reverse(b.1), cell as u32));
+                    }
+                }
             }
         }
     }
@@ -258,6 +364,29 @@ mod tests {
         assert_eq!(idx[0], 0);
         assert_eq!(idx[1], 1); // x bit first
         assert_eq!(idx[2], 4); // then y
+    }
+
+    #[test]
+    fn tree_fps_equals_brute_force_on_flat_clustered_and_duplicated_sets() {
+        // A flat plate (zero extent in z), a dense cluster inside a sparse cloud, duplicates.
+        let plate: Vec<Point3> = cloud(4000, 21)
+            .into_iter()
+            .map(|p| [p[0], p[1], 0.0])
+            .collect();
+        let mut clustered = cloud(2000, 22);
+        clustered.extend(
+            cloud(3000, 23)
+                .into_iter()
+                .map(|p| [1.0 + 1e-3 * p[0], 0.5 + 1e-3 * p[1], 0.5 + 1e-3 * p[2]]),
+        );
+        let mut dup = cloud(1500, 24);
+        dup.extend_from_within(..1500);
+        for pts in [plate, clustered, dup] {
+            assert_eq!(
+                farthest_point_sampling(&pts, 300).unwrap(),
+                farthest_point_sampling_brute(&pts, 300).unwrap()
+            );
+        }
     }
 
     #[test]

@@ -106,6 +106,16 @@ struct ModesArgs {
     threads: Option<usize>,
 }
 
+/// Write to standard output; a closed pipe (`freeform ... | head`) is not an error.
+fn emit(text: &str) -> std::io::Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|_| out.flush()) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        other => other,
+    }
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -193,33 +203,33 @@ fn run_modes(args: ModesArgs) -> Result<(), Box<dyn std::error::Error>> {
         let mut value = serde_json::to_value(r)?;
         value["shape"] = serde_json::Value::String(args.shape.clone());
         value["basis_file"] = serde_json::Value::String(args.out.display().to_string());
-        println!("{}", serde_json::to_string_pretty(&value)?);
+        emit(&(serde_json::to_string_pretty(&value)? + "\n"))?;
     } else {
-        let t = &r.timings_s;
-        println!("freeform modes {}", args.shape);
-        println!(
-            "  kernels {}  integration points {}  volume {:.6} m^3",
-            r.kernels, r.points, r.volume
-        );
-        println!(
-            "  modes {} (+ constant)  solver {}  H_w nnz {}  M nnz {}",
-            r.modes, r.solver, r.nnz_hessian, r.nnz_mass
-        );
-        let ev: Vec<String> = r.eigenvalues.iter().map(|v| format!("{v:.6e}")).collect();
-        println!("  eigenvalues [Pa/m^2]: {}", ev.join(" "));
-        println!(
-            "  max relative residual {:.2e}  orthonormality error {:.2e}  reproducing error {:.2e}",
-            r.max_relative_residual, r.orthonormality_error, r.reproducing_error
-        );
-        println!(
-            "  time [s]: sampling {:.3}  centers {:.3}  neighbors {:.3}  shape functions {:.3}  assembly {:.3}  eigensolve {:.3}  total {:.3}",
-            t.sampling, t.centers, t.neighbors, t.shape_functions, t.assembly, t.eigensolve, t.total
-        );
-        println!("  peak memory {:.1} MB", r.peak_memory_bytes as f64 / 1e6);
-        for w in &r.warnings {
-            println!("  warning: {w}");
-        }
-        println!("  basis written to {}", args.out.display());
+        emit(&summary(r, &args))?;
     }
     Ok(())
+}
+
+/// The human-readable summary of a `modes` run.
+fn summary(r: &freeform::pipeline::ModesReport, args: &ModesArgs) -> String {
+    let t = &r.timings_s;
+    let ev: Vec<String> = r.eigenvalues.iter().map(|v| format!("{v:.6e}")).collect();
+    let mut lines = vec![
+        format!("freeform modes {}", args.shape),
+        format!("  kernels {}  integration points {}  volume {:.6} m^3", r.kernels, r.points, r.volume),
+        format!("  modes {} (+ constant)  solver {}  H_w nnz {}  M nnz {}", r.modes, r.solver, r.nnz_hessian, r.nnz_mass),
+        format!("  eigenvalues [Pa/m^2]: {}", ev.join(" ")),
+        format!(
+            "  max relative residual {:.2e}  orthonormality error {:.2e}  reproducing error {:.2e}",
+            r.max_relative_residual, r.orthonormality_error, r.reproducing_error
+        ),
+        format!(
+            "  time [s]: sampling {:.3}  centers {:.3}  neighbors {:.3}  shape functions {:.3}  assembly {:.3}  eigensolve {:.3}  total {:.3}",
+            t.sampling, t.centers, t.neighbors, t.shape_functions, t.assembly, t.eigensolve, t.total
+        ),
+        format!("  peak memory {:.1} MB", r.peak_memory_bytes as f64 / 1e6),
+    ];
+    lines.extend(r.warnings.iter().map(|w| format!("  warning: {w}")));
+    lines.push(format!("  basis written to {}", args.out.display()));
+    lines.join("\n") + "\n"
 }
