@@ -9,6 +9,7 @@
 
 use crate::{Error, Point3, Result};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use rayon::prelude::*;
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
@@ -284,7 +285,11 @@ pub fn morton_order(points: &[Point3], indices: &mut [usize]) {
         let q = |d: usize| ((points[i][d] - lo[d]) * scale) as u64;
         spread3(q(0)) | (spread3(q(1)) << 1) | (spread3(q(2)) << 2)
     };
-    indices.sort_by_key(|&i| (code(i), i));
+    let mut keyed: Vec<(u64, usize)> = indices.par_iter().map(|&i| (code(i), i)).collect();
+    keyed.par_sort_unstable();
+    for (slot, (_, i)) in indices.iter_mut().zip(keyed) {
+        *slot = i;
+    }
 }
 
 /// Spacing quality of a centre set: nearest-neighbour distances between centres

@@ -381,13 +381,37 @@ pub fn build_basis_from_points(
     progress.finish();
     timings.centers = clock.lap();
 
+    // Shape functions and assembly run on the points in Morton order: the points of one
+    // kernel's support are then close in memory, which speeds assembly up severalfold at
+    // large N. Only the order of the sums changes; the caller's point order is untouched.
+    let mut order: Vec<usize> = (0..n).collect();
+    morton_order(&points.points, &mut order);
+    let sorted: Vec<Point3> = order.iter().map(|&i| points.points[i]).collect();
     progress.begin("shape functions", None);
     let (sf, stats, enlarged, neighbor_time) =
-        shape_functions_with_repair(&mut kernels, &points.points, opts)?;
+        shape_functions_with_repair(&mut kernels, &sorted, opts).map_err(|e| match e {
+            // Report the caller's point index, not the sorted one.
+            Error::Coverage {
+                count,
+                index,
+                position,
+                covering,
+                rcond,
+                min_rcond,
+            } => Error::Coverage {
+                count,
+                index: order[index],
+                position,
+                covering,
+                rcond,
+                min_rcond,
+            },
+            other => other,
+        })?;
     progress.finish();
     timings.neighbors = neighbor_time;
     timings.shape_functions = clock.lap() - neighbor_time;
-    let repro = rkpm::reproducing_error(&kernels, &points.points, &sf);
+    let repro = rkpm::reproducing_error(&kernels, &sorted, &sf);
     if enlarged > 0 {
         warnings.push(format!(
             "{enlarged} kernel supports were enlarged to cover badly conditioned points"
@@ -395,14 +419,12 @@ pub fn build_basis_from_points(
     }
 
     progress.begin("assembly", None);
-    let assembled = assemble(
-        &sf,
-        &points.volumes,
-        &material.hessian_weights(),
-        kernels.len(),
-    )?;
+    let all_weights = material.hessian_weights();
+    let volumes: Vec<f64> = order.iter().map(|&i| points.volumes[i]).collect();
+    let weights: Vec<f64> = order.iter().map(|&i| all_weights[i]).collect();
+    let assembled = assemble(&sf, &volumes, &weights, kernels.len())?;
     let sf_bytes = sf.memory_bytes();
-    drop(sf);
+    drop((sf, sorted, volumes, weights, all_weights));
     progress.finish();
     timings.assembly = clock.lap();
 
