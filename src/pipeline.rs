@@ -6,7 +6,9 @@
 
 use crate::assembly::assemble;
 use crate::centers::{farthest_point_sampling, morton_order};
-use crate::eigen::{dense::DenseSolver, EigenRequest, Eigensolver};
+use crate::eigen::dense::DenseSolver;
+use crate::eigen::lobpcg::{Lobpcg, LobpcgOptions};
+use crate::eigen::{EigenRequest, Eigensolver};
 use crate::geometry::Shape;
 use crate::material::{Material, MaterialField, MaterialOverride};
 use crate::progress::Progress;
@@ -434,7 +436,7 @@ pub fn build_basis_from_points(
         max_iter: opts.max_iter,
     };
     let solver: Box<dyn Eigensolver> = match opts.solver {
-        SolverChoice::Lobpcg => Box::new(DenseSolver), // FIXME(lobpcg): switch when it lands
+        SolverChoice::Lobpcg => Box::new(Lobpcg::new(LobpcgOptions::default())),
         SolverChoice::Dense => Box::new(DenseSolver),
     };
     let solution = solver.solve(&assembled.hessian, &assembled.mass, &request, progress)?;
