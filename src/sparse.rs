@@ -96,6 +96,84 @@ pub fn sym_mul_row_major(
         });
 }
 
+/// `true` if `a` and `b` have the same shape and identical stored patterns (column ranges and
+/// row indices), so one pass over the indices can serve both (see
+/// [`sym_mul_pair_row_major`]). O(nnz).
+pub fn same_pattern(a: &SparseMatrix, b: &SparseMatrix) -> bool {
+    let (sa, sb) = (a.symbolic(), b.symbolic());
+    a.nrows() == b.nrows()
+        && a.ncols() == b.ncols()
+        && (0..a.ncols()).all(|j| {
+            let (ra, rb) = (sa.col_range(j), sb.col_range(j));
+            sa.row_idx()[ra] == sb.row_idx()[rb]
+        })
+}
+
+/// YA = A X and YB = B X in one pass when A and B share their pattern (one read of the
+/// indices and one gather of each X row feed both products); otherwise two calls of
+/// [`sym_mul_row_major`]. Same layout rules and determinism as [`sym_mul_row_major`].
+#[allow(clippy::too_many_arguments)]
+pub fn sym_mul_pair_row_major(
+    a: &SparseMatrix,
+    b: &SparseMatrix,
+    x: &[f64],
+    ldx: usize,
+    ya: &mut [f64],
+    yb: &mut [f64],
+    ldy: usize,
+    ncols: usize,
+) {
+    let n = a.nrows();
+    if n == 0 || ncols == 0 {
+        return;
+    }
+    if !same_pattern(a, b) {
+        sym_mul_row_major(a, x, ldx, ya, ldy, ncols);
+        sym_mul_row_major(b, x, ldx, yb, ldy, ncols);
+        return;
+    }
+    assert!(
+        ncols <= ldx && ncols <= ldy,
+        "sym_mul_pair_row_major: ncols exceeds a stride"
+    );
+    assert!(
+        x.len() >= (n - 1) * ldx + ncols,
+        "sym_mul_pair_row_major: x too short"
+    );
+    assert!(
+        ya.len() >= (n - 1) * ldy + ncols && yb.len() >= (n - 1) * ldy + ncols,
+        "sym_mul_pair_row_major: y too short"
+    );
+    let sym = a.symbolic();
+    let idx = sym.row_idx();
+    let sb = b.symbolic();
+    let (va, vb) = (a.val(), b.val());
+    let len = (n - 1) * ldy + ncols;
+    ya[..len]
+        .par_chunks_mut(ldy * ROWS_PER_TASK)
+        .zip(yb[..len].par_chunks_mut(ldy * ROWS_PER_TASK))
+        .enumerate()
+        .for_each(|(task, (ca, cb))| {
+            let r0 = task * ROWS_PER_TASK;
+            for (lr, (rowa, rowb)) in ca.chunks_mut(ldy).zip(cb.chunks_mut(ldy)).enumerate() {
+                let i = r0 + lr;
+                let (rowa, rowb) = (&mut rowa[..ncols], &mut rowb[..ncols]);
+                rowa.fill(0.0);
+                rowb.fill(0.0);
+                let range = sym.col_range(i);
+                let offset_b = sb.col_range(i).start;
+                for (t, &j) in idx[range.clone()].iter().enumerate() {
+                    let (ai, bi) = (va[range.start + t], vb[offset_b + t]);
+                    let xrow = &x[j * ldx..j * ldx + ncols];
+                    for ((ua, ub), &xv) in rowa.iter_mut().zip(rowb.iter_mut()).zip(xrow) {
+                        *ua += ai * xv;
+                        *ub += bi * xv;
+                    }
+                }
+            }
+        });
+}
+
 /// Y = A X for symmetric `a` (K x K) and any dense layout of X, Y (K x b).
 ///
 /// Row-major views (column stride 1) go straight to [`sym_mul_row_major`]; column-major views
@@ -519,6 +597,38 @@ mod tests {
         sym_mul_block(&a, x.as_ref().reverse_rows(), y2.as_mut());
         let expected = &ad * x.as_ref().reverse_rows();
         assert!((&y2 - &expected).norm_max() < 1e-12);
+    }
+
+    #[test]
+    fn pair_product_matches_single_products() {
+        let n = 257;
+        let a = small(n);
+        let mut b = a.clone();
+        b.val_mut()
+            .iter_mut()
+            .enumerate()
+            .for_each(|(i, v)| *v = 0.5 * *v + (i % 3) as f64);
+        assert!(same_pattern(&a, &b));
+        let (ld, w) = (5, 3);
+        let x: Vec<f64> = (0..n * ld).map(|i| ((i * 37) % 11) as f64 - 5.0).collect();
+        let (mut ya, mut yb) = (vec![0.0; n * ld], vec![0.0; n * ld]);
+        sym_mul_pair_row_major(&a, &b, &x[1..], ld, &mut ya[2..], &mut yb[2..], ld, w);
+        let (mut za, mut zb) = (vec![0.0; n * ld], vec![0.0; n * ld]);
+        sym_mul_row_major(&a, &x[1..], ld, &mut za[2..], ld, w);
+        sym_mul_row_major(&b, &x[1..], ld, &mut zb[2..], ld, w);
+        // Same summation order: bit-identical.
+        assert_eq!(ya, za);
+        assert_eq!(yb, zb);
+        // A different pattern falls back to two products.
+        let eye = from_compressed(n, (0..=n).collect(), (0..n).collect(), vec![2.0; n]);
+        assert!(!same_pattern(&a, &eye));
+        sym_mul_pair_row_major(&a, &eye, &x[1..], ld, &mut ya[2..], &mut yb[2..], ld, w);
+        assert_eq!(ya, za);
+        for i in 0..n {
+            for c in 0..w {
+                assert_eq!(yb[2 + i * ld + c], 2.0 * x[1 + i * ld + c]);
+            }
+        }
     }
 
     #[test]

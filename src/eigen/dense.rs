@@ -188,7 +188,7 @@ mod tests {
         assert!(sol.info.max_relative_residual < 1e-13);
         assert!(sol.info.orthonormality_error < 1e-12);
         // The first vector is the M-normalized constant.
-        let y0 = 1.0 / m.val().iter().sum::<f64>().sqrt();
+        let y0 = 1.0 / crate::eigen::compensated_sum(m.val().iter().copied()).sqrt();
         assert!((0..m.nrows()).all(|i| sol.vectors[(i, 0)] == y0));
     }
 

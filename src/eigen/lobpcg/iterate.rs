@@ -17,7 +17,7 @@
 use super::orthogonalize::{ortho_against_basis, project_constant, svqb, Small};
 use super::precondition::Preconditioner;
 use super::rayleigh_ritz::{next_p, solve_projected, Projected, RrScratch};
-use super::workspace::{gemm, symmetrize, Block, ROW_CHUNK};
+use super::workspace::{inner, transform, Block, ROW_CHUNK};
 use super::LobpcgOptions;
 use crate::eigen::{relative_residual, SplitMix64};
 use crate::progress::Progress;
@@ -25,6 +25,7 @@ use crate::sparse::{self, SparseMatrix};
 use faer::{Mat, MatRef, Par};
 use rayon::prelude::*;
 use std::fmt::Write as _;
+use std::time::Instant;
 
 /// How the iteration ended.
 #[derive(Debug)]
@@ -48,6 +49,13 @@ pub(super) struct Counters {
     pub restarts: usize,
     pub matvecs: usize,
     pub explicit_checks: usize,
+    /// Wall-clock seconds in the preconditioner, the sparse products, the orthogonalization
+    /// and the Rayleigh-Ritz step with the block update (Gram matrices, small eigenproblems,
+    /// S C products).
+    pub seconds_precondition: f64,
+    pub seconds_spmm: f64,
+    pub seconds_ortho: f64,
+    pub seconds_rayleigh_ritz: f64,
 }
 
 /// The whole state of one run; allocated once.
@@ -65,8 +73,8 @@ pub(super) struct State<'a> {
     hs: Block,
     ms: Block,
     tmp: Block,
-    y0: Mat<f64>,
-    my0: Mat<f64>,
+    y0: Block,
+    my0: Block,
     norm_h: f64,
     norm_m: f64,
     gram_h: Mat<f64>,
@@ -98,9 +106,13 @@ impl<'a> State<'a> {
         let k = h.nrows();
         let ld = 3 * nx;
         let par = Par::rayon(0);
-        let y0m = Mat::from_fn(k, 1, |i, _| y0[i]);
-        let mut my0 = Mat::zeros(k, 1);
-        sparse::sym_mul_block(m, y0m.as_ref(), my0.as_mut());
+        let y0b = Block {
+            data: y0.to_vec(),
+            rows: k,
+            ld: 1,
+        };
+        let mut my0 = Block::new(k, 1);
+        sparse::sym_mul_row_major(m, y0, 1, &mut my0.data, 1, 1);
         let nchunks = k.div_ceil(ROW_CHUNK);
         Self {
             h,
@@ -113,14 +125,14 @@ impl<'a> State<'a> {
             hs: Block::new(k, ld),
             ms: Block::new(k, ld),
             tmp: Block::new(k, 2 * nx),
-            y0: y0m,
+            y0: y0b,
             my0,
             norm_h: sparse::norm_1(h),
             norm_m: sparse::norm_1(m),
             gram_h: Mat::zeros(ld, ld),
             gram_m: Mat::zeros(ld, ld),
             coef: Mat::zeros(ld, ld),
-            small: Small::new(ld),
+            small: Small::new(k, ld),
             rr: RrScratch::new(ld),
             theta: vec![0.0; nx],
             residuals: vec![f64::INFINITY; nx],
@@ -137,6 +149,7 @@ impl<'a> State<'a> {
         if w == 0 {
             return;
         }
+        let t0 = Instant::now();
         let (a, out) = match which {
             Which::H => (self.h, &mut self.hs),
             Which::M => (self.m, &mut self.ms),
@@ -150,6 +163,27 @@ impl<'a> State<'a> {
             w,
         );
         self.counters.matvecs += w;
+        self.counters.seconds_spmm += t0.elapsed().as_secs_f64();
+    }
+
+    /// H S and M S for the columns `c0..c0 + w`, in one pass when the patterns agree.
+    fn spmm_both(&mut self, c0: usize, w: usize) {
+        if w == 0 {
+            return;
+        }
+        let t0 = Instant::now();
+        sparse::sym_mul_pair_row_major(
+            self.h,
+            self.m,
+            &self.s.data[c0..],
+            self.s.ld,
+            &mut self.hs.data[c0..],
+            &mut self.ms.data[c0..],
+            self.hs.ld,
+            w,
+        );
+        self.counters.matvecs += 2 * w;
+        self.counters.seconds_spmm += t0.elapsed().as_secs_f64();
     }
 
     /// Random start block (fixed seed), constant mode removed, M-orthonormalized, Rayleigh-Ritz.
@@ -161,34 +195,24 @@ impl<'a> State<'a> {
                 self.s.data[i * ld + j] = 2.0 * rng.next_f64() - 1.0;
             }
         }
-        project_constant(
-            &mut self.s,
-            0,
-            nx,
-            self.y0.as_ref(),
-            self.my0.as_ref(),
-            &mut self.coef,
-            self.par,
-        );
-        self.spmm(Which::M, 0, nx);
+        project_constant(&mut self.s, 0, nx, &self.y0, &self.my0, &mut self.small);
+        self.spmm_both(0, nx);
         let r = svqb(
             &mut self.s,
             &mut self.ms,
-            None,
+            Some(&mut self.hs),
             0,
             nx,
             0.0,
             opts.svqb_drop,
             &mut self.small,
             &mut self.tmp,
-            self.par,
         );
         if r < nx {
             return Err(Stop::Breakdown(format!(
                 "random start block has rank {r} < {nx}"
             )));
         }
-        self.spmm(Which::H, 0, nx);
         self.np = 0;
         self.rayleigh_ritz_x(opts)
     }
@@ -220,39 +244,30 @@ impl<'a> State<'a> {
         self.theta.copy_from_slice(&self.rr.theta[..nx]);
         let c = self.rr.ritz.as_ref().submatrix(0, 0, nx, nx);
         for blk in [&mut self.s, &mut self.hs, &mut self.ms] {
-            gemm(
-                self.tmp.cols_mut(0, nx),
-                false,
-                blk.cols(0, nx),
-                c,
-                1.0,
-                self.par,
-            );
-            blk.copy_cols_from(0, &self.tmp, 0, nx);
+            transform(blk, 0, c, 0, &mut self.tmp);
         }
         Ok(())
     }
 
     /// Gram matrices of the first n columns of S: gram_h = S^T H S, gram_m = S^T M S.
     fn gram(&mut self, n: usize) {
-        gemm(
-            self.gram_h.as_mut().submatrix_mut(0, 0, n, n),
-            false,
-            self.s.cols(0, n).transpose(),
-            self.hs.cols(0, n),
-            1.0,
-            self.par,
-        );
-        gemm(
-            self.gram_m.as_mut().submatrix_mut(0, 0, n, n),
-            false,
-            self.s.cols(0, n).transpose(),
-            self.ms.cols(0, n),
-            1.0,
-            self.par,
-        );
-        symmetrize(&mut self.gram_h, n);
-        symmetrize(&mut self.gram_m, n);
+        // Lower triangles only (half the flops of a full product), then mirrored.
+        for (g, other) in [(&mut self.gram_h, &self.hs), (&mut self.gram_m, &self.ms)] {
+            inner(
+                g.as_mut().submatrix_mut(0, 0, n, n),
+                &self.s,
+                0,
+                other,
+                0,
+                &mut self.small.parts,
+                true,
+            );
+            for j in 0..n {
+                for i in j + 1..n {
+                    g[(j, i)] = g[(i, j)];
+                }
+            }
+        }
     }
 
     /// Relative residuals of the current X into `self.residuals` (row chunks summed in order).
@@ -298,17 +313,8 @@ impl<'a> State<'a> {
     /// Explicit check: H X, M X recomputed, Rayleigh-Ritz on X, residuals recomputed.
     fn explicit_refresh(&mut self, opts: &LobpcgOptions) -> Result<(), Stop> {
         let nb = self.nx + self.np;
-        project_constant(
-            &mut self.s,
-            0,
-            nb,
-            self.y0.as_ref(),
-            self.my0.as_ref(),
-            &mut self.coef,
-            self.par,
-        );
-        self.spmm(Which::H, 0, nb);
-        self.spmm(Which::M, 0, nb);
+        project_constant(&mut self.s, 0, nb, &self.y0, &self.my0, &mut self.small);
+        self.spmm_both(0, nb);
         self.rayleigh_ritz_x(opts)?;
         self.residual_norms();
         Ok(())
@@ -374,17 +380,12 @@ impl<'a> State<'a> {
                         }
                     });
             }
-            pre.apply(&mut self.s, w0, nw, self.par);
-            project_constant(
-                &mut self.s,
-                w0,
-                nw,
-                self.y0.as_ref(),
-                self.my0.as_ref(),
-                &mut self.coef,
-                self.par,
-            );
+            let t0 = Instant::now();
+            pre.apply(&mut self.s, w0, nw, &mut self.tmp, self.par);
+            self.counters.seconds_precondition += t0.elapsed().as_secs_f64();
+            project_constant(&mut self.s, w0, nw, &self.y0, &self.my0, &mut self.small);
             self.spmm(Which::M, w0, nw);
+            let t0 = Instant::now();
             nw = ortho_against_basis(
                 &mut self.s,
                 &mut self.ms,
@@ -396,7 +397,6 @@ impl<'a> State<'a> {
                 3,
                 &mut self.small,
                 &mut self.tmp,
-                self.par,
             );
             if nw == 0 {
                 // Nothing new to add: verify explicitly; if still not converged, stop.
@@ -408,7 +408,9 @@ impl<'a> State<'a> {
                 }
                 return Stop::Stagnated;
             }
+            self.counters.seconds_ortho += t0.elapsed().as_secs_f64();
             self.spmm(Which::H, w0, nw);
+            let t0 = Instant::now();
 
             // 3. Rayleigh-Ritz on [X | P | W].
             let ns = w0 + nw;
@@ -476,34 +478,18 @@ impl<'a> State<'a> {
             }
             let c = self.coef.as_ref().submatrix(0, 0, ns, nout);
             for blk in [&mut self.s, &mut self.hs, &mut self.ms] {
-                gemm(
-                    self.tmp.cols_mut(0, nout),
-                    false,
-                    blk.cols(0, ns),
-                    c,
-                    1.0,
-                    self.par,
-                );
-                blk.copy_cols_from(0, &self.tmp, 0, nout);
+                transform(blk, 0, c, 0, &mut self.tmp);
             }
             self.np = np_new;
             self.theta.copy_from_slice(&self.rr.theta[..nx]);
+            self.counters.seconds_rayleigh_ritz += t0.elapsed().as_secs_f64();
 
             since_refresh += 1;
             if since_refresh >= opts.recompute_every {
                 since_refresh = 0;
                 let nb = nx + self.np;
-                project_constant(
-                    &mut self.s,
-                    0,
-                    nb,
-                    self.y0.as_ref(),
-                    self.my0.as_ref(),
-                    &mut self.coef,
-                    self.par,
-                );
-                self.spmm(Which::H, 0, nb);
-                self.spmm(Which::M, 0, nb);
+                project_constant(&mut self.s, 0, nb, &self.y0, &self.my0, &mut self.small);
+                self.spmm_both(0, nb);
             }
             self.residual_norms();
             if !self

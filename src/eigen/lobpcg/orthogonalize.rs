@@ -6,12 +6,15 @@
 //! transforms, so no extra sparse product is needed; the drop tolerances bound how much these
 //! implicit updates can amplify round-off.
 
-use super::workspace::{gemm, Block, SmallEig};
-use faer::prelude::{Reborrow, ReborrowMut};
-use faer::{Mat, MatRef, Par};
+use super::workspace::{
+    inner, subtract_product, subtract_rank1, transform, Block, Partials, SmallEig, ROW_CHUNK,
+};
+use faer::Mat;
+use rayon::prelude::*;
 
 /// Small dense scratch shared by the orthogonalization and Rayleigh-Ritz steps, sized for the
-/// largest basis (n x n with n = 3 x block size).
+/// largest basis (n x n with n = 3 x block size), plus the per-chunk partial products of the
+/// K-long inner products.
 #[derive(Debug)]
 pub(super) struct Small {
     pub g: Mat<f64>,
@@ -21,10 +24,11 @@ pub(super) struct Small {
     pub eig: SmallEig,
     pub keep: Vec<usize>,
     pub scale: Vec<f64>,
+    pub parts: Partials,
 }
 
 impl Small {
-    pub fn new(nmax: usize) -> Self {
+    pub fn new(rows: usize, nmax: usize) -> Self {
         Self {
             g: Mat::zeros(nmax, nmax),
             a: Mat::zeros(nmax, nmax),
@@ -33,51 +37,30 @@ impl Small {
             eig: SmallEig::new(nmax),
             keep: Vec::with_capacity(nmax),
             scale: vec![0.0; nmax],
+            parts: Partials::new(rows, nmax),
         }
     }
 }
 
 /// W <- W - y0 (M y0)^T W for the columns `c0..c0 + w` of `s`: removes the component along the
-/// constant mode in the M-inner product (y0^T M y0 = 1). `y0` and `my0` are K x 1.
+/// constant mode in the M-inner product (y0^T M y0 = 1). `y0` and `my0` are K x 1 blocks.
 pub(super) fn project_constant(
     s: &mut Block,
     c0: usize,
     w: usize,
-    y0: MatRef<'_, f64>,
-    my0: MatRef<'_, f64>,
-    coef: &mut Mat<f64>,
-    par: Par,
+    y0: &Block,
+    my0: &Block,
+    small: &mut Small,
 ) {
     if w == 0 {
         return;
     }
-    let mut row = coef.as_mut().submatrix_mut(0, 0, 1, w);
-    gemm(
-        row.rb_mut(),
-        false,
-        my0.transpose(),
-        s.cols(c0, w),
-        1.0,
-        par,
-    );
-    gemm(s.cols_mut(c0, w), true, y0, row.rb(), -1.0, par);
-}
-
-/// Apply the w x r transform `t` to columns `c0..c0 + w` of each block in `blocks`, in place:
-/// columns `c0..c0 + r` become (old columns) * t. `tmp` must have at least r columns.
-pub(super) fn transform_cols(
-    blocks: &mut [&mut Block],
-    c0: usize,
-    w: usize,
-    t: MatRef<'_, f64>,
-    tmp: &mut Block,
-    par: Par,
-) {
-    let r = t.ncols();
-    for b in blocks.iter_mut() {
-        gemm(tmp.cols_mut(0, r), false, b.cols(c0, w), t, 1.0, par);
-        b.copy_cols_from(c0, tmp, 0, r);
+    let mut row = small.c.as_mut().submatrix_mut(0, 0, 1, w);
+    inner(row.as_mut(), my0, 0, s, c0, &mut small.parts, false);
+    for j in 0..w {
+        small.scale[j] = row[(0, j)];
     }
+    subtract_rank1(s, c0, &y0.data, &small.scale[..w]);
 }
 
 /// SVQB M-orthonormalization of columns `c0..c0 + w` of `s` with M S in `ms` (and H S in `hs`,
@@ -100,7 +83,6 @@ pub(super) fn svqb(
     svqb_drop: f64,
     small: &mut Small,
     tmp: &mut Block,
-    par: Par,
 ) -> usize {
     if w == 0 {
         return 0;
@@ -112,15 +94,17 @@ pub(super) fn svqb(
         keep,
         scale,
         eig,
+        parts,
         ..
     } = small;
-    gemm(
+    inner(
         g.as_mut().submatrix_mut(0, 0, w, w),
+        s,
+        c0,
+        ms,
+        c0,
+        parts,
         false,
-        s.cols(c0, w).transpose(),
-        ms.cols(c0, w),
-        1.0,
-        par,
     );
     keep.clear();
     for j in 0..w {
@@ -160,9 +144,10 @@ pub(super) fn svqb(
         }
     }
     let tv = t.as_ref().submatrix(0, 0, w, r);
-    match hs {
-        Some(hs) => transform_cols(&mut [s, ms, hs], c0, w, tv, tmp, par),
-        None => transform_cols(&mut [s, ms], c0, w, tv, tmp, par),
+    transform(s, c0, tv, c0, tmp);
+    transform(ms, c0, tv, c0, tmp);
+    if let Some(hs) = hs {
+        transform(hs, c0, tv, c0, tmp);
     }
     r
 }
@@ -170,10 +155,10 @@ pub(super) fn svqb(
 /// Make columns `w0..w0 + w` of `s` (W, with M W in `ms`) M-orthonormal and M-orthogonal to
 /// columns `0..nb` (the basis B = [X | P], assumed M-orthonormal, with M B in `ms`).
 ///
-/// Duersch et al.'s ortho: an SVQB first (unit columns), then up to `passes` rounds of
+/// Duersch et al.'s ortho: columns scaled to unit M-norm, then up to `passes` rounds of
 /// W <- W - B (B^T M W) followed by SVQB. In the first round columns that lost all but a
 /// fraction `ortho_drop` of their M-norm to the projection are dropped (what is left is
-/// mostly round-off); rounds stop early once max |B^T M W| <= 1e-14 (already orthogonal).
+/// mostly round-off); later rounds are skipped once max |B^T M W| <= 1e-12.
 /// Returns the number of columns kept (moved to the front of the W range).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn ortho_against_basis(
@@ -187,64 +172,81 @@ pub(super) fn ortho_against_basis(
     passes: usize,
     small: &mut Small,
     tmp: &mut Block,
-    par: Par,
 ) -> usize {
-    let mut w = svqb(s, ms, None, w0, w, 0.0, svqb_drop, small, tmp, par);
+    if w == 0 {
+        return 0;
+    }
+    // Unit M-norm columns first, so the squared norm left after the projection is the
+    // fraction of the column outside span(B). (A diagonal scaling: linear dependence among
+    // the W columns is left to the SVQB after the projection.)
+    inner(
+        small.g.as_mut().submatrix_mut(0, 0, w, w),
+        s,
+        w0,
+        ms,
+        w0,
+        &mut small.parts,
+        false,
+    );
+    for j in 0..w {
+        let d = small.g[(j, j)];
+        small.scale[j] = if d.is_finite() && d > 0.0 {
+            1.0 / d.sqrt()
+        } else {
+            0.0
+        };
+    }
+    scale_cols(&mut [&mut *s, &mut *ms], w0, &small.scale[..w]);
+    let mut w = w;
     for pass in 0..passes {
         if w == 0 || nb == 0 {
             break;
         }
-        let mut c = small.c.as_mut().submatrix_mut(0, 0, nb, w);
-        gemm(
-            c.rb_mut(),
+        inner(
+            small.c.as_mut().submatrix_mut(0, 0, nb, w),
+            s,
+            0,
+            ms,
+            w0,
+            &mut small.parts,
             false,
-            s.cols(0, nb).transpose(),
-            ms.cols(w0, w),
-            1.0,
-            par,
         );
-        let mut cmax = 0.0f64;
-        for j in 0..w {
-            for i in 0..nb {
-                cmax = cmax.max(c[(i, j)].abs());
-            }
-        }
-        if pass > 0 && cmax <= 1e-14 {
+        let c = small.c.as_ref().submatrix(0, 0, nb, w);
+        let cmax = (0..w)
+            .flat_map(|j| (0..nb).map(move |i| (i, j)))
+            .fold(0.0f64, |m, (i, j)| m.max(c[(i, j)].abs()));
+        if pass > 0 && cmax <= ORTHO_DONE {
             break;
         }
-        let c = small.c.as_ref().submatrix(0, 0, nb, w);
-        // s and ms are distinct blocks: subtract B C from W and (M B) C from M W. The W
-        // columns do not overlap the basis columns (w0 >= nb), so each gemm reads columns
-        // 0..nb and writes columns w0..w0 + w of the same buffer through a temporary.
-        for blk in [&mut *s, &mut *ms] {
-            gemm(tmp.cols_mut(0, w), false, blk.cols(0, nb), c, 1.0, par);
-            subtract_cols(blk, w0, tmp, w);
-        }
+        subtract_product(s, c, w0, tmp);
+        subtract_product(ms, c, w0, tmp);
         let col_drop = if pass == 0 {
             ortho_drop * ortho_drop
         } else {
             0.0
         };
-        w = svqb(s, ms, None, w0, w, col_drop, svqb_drop, small, tmp, par);
+        w = svqb(s, ms, None, w0, w, col_drop, svqb_drop, small, tmp);
     }
     w
 }
 
-/// blk[:, c0..c0 + w] -= tmp[:, 0..w].
-fn subtract_cols(blk: &mut Block, c0: usize, tmp: &Block, w: usize) {
-    use super::workspace::ROW_CHUNK;
-    use rayon::prelude::*;
-    let (ld, tld) = (blk.ld, tmp.ld);
-    blk.data
-        .par_chunks_mut(ld * ROW_CHUNK)
-        .zip(tmp.data.par_chunks(tld * ROW_CHUNK))
-        .for_each(|(d, t)| {
-            for (drow, trow) in d.chunks_mut(ld).zip(t.chunks(tld)) {
-                for (x, y) in drow[c0..c0 + w].iter_mut().zip(&trow[..w]) {
-                    *x -= *y;
+/// Largest |B^T M W| entry (cosines: B and W have unit M-norm columns) at which the repeated
+/// projection stops: ~10^4 eps, the level one projection reaches when W is not nearly inside
+/// span(B).
+const ORTHO_DONE: f64 = 1e-12;
+
+/// Multiply column `c0 + j` of each block by `scale[j]`.
+fn scale_cols(blocks: &mut [&mut Block], c0: usize, scale: &[f64]) {
+    for b in blocks.iter_mut() {
+        let ld = b.ld;
+        b.data.par_chunks_mut(ld * ROW_CHUNK).for_each(|d| {
+            for row in d.chunks_mut(ld) {
+                for (x, f) in row[c0..c0 + scale.len()].iter_mut().zip(scale) {
+                    *x *= f;
                 }
             }
         });
+    }
 }
 
 #[cfg(test)]
@@ -263,19 +265,10 @@ mod tests {
                 ms.data[i * ld + 2 + j] = s.data[i * ld + 2 + j];
             }
         }
-        let mut small = Small::new(ld);
+        let mut small = Small::new(k, ld);
         let mut tmp = Block::new(k, 6);
         let r = svqb(
-            &mut s,
-            &mut ms,
-            None,
-            2,
-            w,
-            0.0,
-            1e-14,
-            &mut small,
-            &mut tmp,
-            Par::Seq,
+            &mut s, &mut ms, None, 2, w, 0.0, 1e-14, &mut small, &mut tmp,
         );
         assert_eq!(r, w);
         let g = s.cols(2, w).transpose() * ms.cols(2, w);

@@ -3,12 +3,16 @@
 //!
 //! - Cholesky: one sparse Cholesky factorization of H + sigma M (faer supernodal/simplicial,
 //!   AMD ordering), applied by two triangular solves on all columns at once.
+//! - IC(0): zero-fill incomplete Cholesky of H + sigma M ([`super::incomplete_cholesky`]),
+//!   the shallow-fill option when the exact factor is too large.
 //! - Jacobi: diag(H + sigma M)^-1.
 //! - Identity: no preconditioning.
 //!
 //! Fallbacks (recorded in the notes): a failed Cholesky is retried with sigma x 100, then
-//! replaced by Jacobi.
+//! replaced by Jacobi; an IC(0) breakdown is retried with growing diagonal shifts, then
+//! replaced by Jacobi; `Auto` over its fill budget uses IC(0).
 
+use super::incomplete_cholesky::{Breakdown, IncompleteCholesky};
 use super::workspace::{Block, ROW_CHUNK};
 use super::{LobpcgOptions, PreconditionerKind};
 use crate::eigen::EigenError;
@@ -24,6 +28,7 @@ use std::time::Instant;
 /// A built preconditioner.
 pub(super) enum Preconditioner {
     Cholesky(Box<Factor>),
+    Incomplete(Box<IncompleteCholesky>),
     Jacobi { inv_diag: Vec<f64> },
     Identity,
 }
@@ -39,6 +44,7 @@ impl std::fmt::Debug for Preconditioner {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Self::Cholesky(factor) => write!(f, "Cholesky({} factor entries)", factor.values.len()),
+            Self::Incomplete(ic) => write!(f, "IC(0)({} factor entries)", ic.entries()),
             Self::Jacobi { .. } => write!(f, "Jacobi"),
             Self::Identity => write!(f, "Identity"),
         }
@@ -92,41 +98,57 @@ pub(super) fn build(
         report.notes.push("preconditioner: none (identity)".into());
         return Ok((Preconditioner::Identity, report));
     }
+    let mut try_incomplete = kind == PreconditionerKind::IncompleteCholesky;
     if matches!(
         kind,
         PreconditionerKind::Cholesky | PreconditionerKind::Auto
     ) {
         let budget = if kind == PreconditionerKind::Auto {
-            opts.max_factor_entries
+            Budget {
+                entries: opts.max_factor_entries,
+                fill_ratio: opts.max_fill_ratio,
+            }
         } else {
-            usize::MAX
+            Budget {
+                entries: usize::MAX,
+                fill_ratio: f64::INFINITY,
+            }
         };
         for attempt in 0..2 {
             match cholesky(h, m, report.sigma, budget, max_cols, par, &mut report) {
                 Ok(pre) => return Ok((pre, report)),
-                Err(CholeskyFailure::OverBudget(entries)) => {
+                Err(CholeskyFailure::OverBudget { entries, ratio }) => {
                     report.notes.push(format!(
-                        "preconditioner: Cholesky factor of H + sigma M would hold {entries} entries \
-                         (> max_factor_entries = {budget}); using Jacobi instead"
+                        "preconditioner: the Cholesky factor of H + sigma M would hold {entries} entries, \
+                         {ratio:.1}x the lower triangle (Auto limits: {} entries, {}x; symbolic analysis \
+                         {:.2} s); using IC(0) instead",
+                        budget.entries, budget.fill_ratio, report.symbolic_seconds
                     ));
+                    try_incomplete = true;
                     break;
                 }
                 Err(CholeskyFailure::Failed(why)) => {
                     if attempt == 0 {
                         report.notes.push(format!(
-                            "preconditioner: Cholesky of H + sigma M failed with sigma = {:.3e} ({why}); retrying \
-                             with sigma x 100",
+                            "preconditioner: Cholesky of H + sigma M failed with sigma = {:.3e} ({why}); \
+                             retrying with sigma x 100",
                             report.sigma
                         ));
                         report.sigma *= 100.0;
                     } else {
                         report.notes.push(format!(
-                            "preconditioner: Cholesky failed again with sigma = {:.3e} ({why}); falling back to Jacobi",
+                            "preconditioner: Cholesky failed again with sigma = {:.3e} ({why}); falling \
+                             back to Jacobi",
                             report.sigma
                         ));
                     }
                 }
             }
+        }
+    }
+    if try_incomplete {
+        if let Some(ic) = incomplete(h, m, report.sigma, &mut report) {
+            return Ok((Preconditioner::Incomplete(Box::new(ic)), report));
         }
     }
     let inv_diag = jacobi(h, m, report.sigma)?;
@@ -137,8 +159,51 @@ pub(super) fn build(
     Ok((Preconditioner::Jacobi { inv_diag }, report))
 }
 
+/// IC(0) of H + sigma M, with Manteuffel's diagonal shift alpha = 0, 1e-3, 1e-2, 1e-1, 1 on
+/// breakdown; `None` (with a note) if every attempt breaks down.
+fn incomplete(
+    h: &SparseMatrix,
+    m: &SparseMatrix,
+    sigma: f64,
+    report: &mut SetupReport,
+) -> Option<IncompleteCholesky> {
+    let a = sparse::add_scaled(1.0, h, sigma, m);
+    let t0 = Instant::now();
+    for alpha in [0.0, 1e-3, 1e-2, 1e-1, 1.0] {
+        match IncompleteCholesky::factor(&a, alpha) {
+            Ok(ic) => {
+                report.numeric_seconds = t0.elapsed().as_secs_f64();
+                report.factor_entries = ic.entries();
+                report.notes.push(format!(
+                    "preconditioner: IC(0) of H + sigma M (sigma = {sigma:.3e}, diagonal shift alpha = {alpha:e}): \
+                     {} factor entries, {:.2} s",
+                    ic.entries(),
+                    report.numeric_seconds
+                ));
+                return Some(ic);
+            }
+            Err(Breakdown { row }) => {
+                report.notes.push(format!(
+                    "preconditioner: IC(0) broke down at row {row} with diagonal shift alpha = {alpha:e}"
+                ));
+            }
+        }
+    }
+    report.notes.push(
+        "preconditioner: IC(0) failed for every diagonal shift; falling back to Jacobi".into(),
+    );
+    None
+}
+
+/// Limits on the exact factor for `Auto`.
+#[derive(Debug, Clone, Copy)]
+struct Budget {
+    entries: usize,
+    fill_ratio: f64,
+}
+
 enum CholeskyFailure {
-    OverBudget(usize),
+    OverBudget { entries: usize, ratio: f64 },
     Failed(String),
 }
 
@@ -146,7 +211,7 @@ fn cholesky(
     h: &SparseMatrix,
     m: &SparseMatrix,
     sigma: f64,
-    budget: usize,
+    budget: Budget,
     max_cols: usize,
     par: Par,
     report: &mut SetupReport,
@@ -163,8 +228,10 @@ fn cholesky(
     report.symbolic_seconds = t0.elapsed().as_secs_f64();
     let entries = symbolic.len_val();
     report.factor_entries = entries;
-    if entries > budget {
-        return Err(CholeskyFailure::OverBudget(entries));
+    let lower = (a.val().len() + a.nrows()) / 2;
+    let ratio = entries as f64 / lower.max(1) as f64;
+    if entries > budget.entries || ratio > budget.fill_ratio {
+        return Err(CholeskyFailure::OverBudget { entries, ratio });
     }
     let mut values = Vec::new();
     values
@@ -236,7 +303,7 @@ fn jacobi(h: &SparseMatrix, m: &SparseMatrix, sigma: f64) -> Result<Vec<f64>, Ei
 
 impl Preconditioner {
     /// Replace columns `c0..c0 + w` of `s` by T applied to them.
-    pub fn apply(&mut self, s: &mut Block, c0: usize, w: usize, par: Par) {
+    pub fn apply(&mut self, s: &mut Block, c0: usize, w: usize, tmp: &mut Block, par: Par) {
         if w == 0 {
             return;
         }
@@ -250,6 +317,7 @@ impl Preconditioner {
                 let llt = LltRef::new(symbolic, values);
                 llt.solve_in_place_with_conj(Conj::No, s.cols_mut(c0, w), par, MemStack::new(mem));
             }
+            Self::Incomplete(ic) => ic.solve_in_place(s, c0, w, tmp),
             Self::Jacobi { inv_diag } => {
                 let ld = s.ld;
                 s.data
