@@ -88,11 +88,36 @@ impl Eigensolver for DenseSolver {
             }
         }
         drop(c);
-        let evd = cp.self_adjoint_eigen(Side::Lower).map_err(|e| {
-            EigenError::NonFinite(format!("dense eigendecomposition did not converge: {e:?}"))
-        })?;
-        let s = evd.S().column_vector();
-        let u = evd.U();
+        // faer's default switches to divide and conquer, which is inaccurate on our graded
+        // spectra: force the QR algorithm (see `accurate_evd_params`).
+        let mut u = Mat::<f64>::zeros(k, k);
+        let mut s = Mat::<f64>::zeros(k, 1);
+        {
+            use faer::dyn_stack::{MemBuffer, MemStack};
+            use faer::linalg::evd::{
+                self_adjoint_evd, self_adjoint_evd_scratch, ComputeEigenvectors,
+            };
+            let params = super::accurate_evd_params();
+            let mut mem = MemBuffer::new(self_adjoint_evd_scratch::<f64>(
+                k,
+                ComputeEigenvectors::Yes,
+                par,
+                params,
+            ));
+            self_adjoint_evd(
+                cp.as_ref(),
+                s.col_mut(0).as_diagonal_mut(),
+                Some(u.as_mut()),
+                par,
+                MemStack::new(&mut mem),
+                params,
+            )
+            .map_err(|e| {
+                EigenError::NonFinite(format!("dense eigendecomposition did not converge: {e:?}"))
+            })?;
+        }
+        let s = s.col(0);
+        let u = u.as_ref();
         // Eigenvalues ascending; index 0 is the deflated constant mode (-1), the rest >= -eps.
         let mut values = Vec::with_capacity(nev);
         values.push(0.0);

@@ -229,7 +229,7 @@ impl SmallEig {
             nmax.max(1),
             ComputeEigenvectors::Yes,
             Par::Seq,
-            Default::default(),
+            crate::eigen::accurate_evd_params(),
         );
         Self {
             mem: MemBuffer::new(req),
@@ -255,7 +255,15 @@ impl SmallEig {
             .col_mut(0)
             .as_diagonal_mut();
         let u = self.vectors.as_mut().submatrix_mut(0, 0, n, n);
-        let ok = self_adjoint_evd(a, diag, Some(u), Par::Seq, stack, Default::default()).is_ok();
+        let ok = self_adjoint_evd(
+            a,
+            diag,
+            Some(u),
+            Par::Seq,
+            stack,
+            crate::eigen::accurate_evd_params(),
+        )
+        .is_ok();
         for i in 0..n {
             self.values[i] = self.values_diag[(i, 0)];
         }
