@@ -22,7 +22,7 @@ use super::LobpcgOptions;
 use crate::eigen::{relative_residual, SplitMix64};
 use crate::progress::Progress;
 use crate::sparse::{self, SparseMatrix};
-use faer::{Mat, MatRef, Par};
+use faer::{Mat, Par};
 use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::time::Instant;
@@ -526,12 +526,6 @@ impl<'a> State<'a> {
     /// Current width of X plus P (for the final report).
     pub fn p_width(&self) -> usize {
         self.np
-    }
-
-    /// View of X.
-    #[allow(dead_code)]
-    pub fn x(&self) -> MatRef<'_, f64> {
-        self.s.cols(0, self.nx)
     }
 
     /// Refresh explicitly (used to build a consistent partial result).

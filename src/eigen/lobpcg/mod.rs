@@ -81,6 +81,13 @@ pub struct LobpcgOptions {
     /// Cholesky 1.6 s vs IC(0) 1.9 s; K = 10,000 (8.9x) 5.6 s vs 5.7 s; K = 50,000 (24.8x)
     /// 56 s vs 34 s; 3D grid K = 10,648 (31x) 3.2 s vs 2.1 s.
     pub max_fill_ratio: f64,
+    /// For [`PreconditionerKind::Auto`] runs that chose IC(0): after this many iterations
+    /// without convergence, switch to the exact Cholesky if its factor holds at most
+    /// `max_factor_entries` entries (ignoring `max_fill_ratio`). Default `Some(60)`: IC(0)
+    /// converges in 16-26 iterations on well-conditioned problems but degrades when M is
+    /// ill-conditioned (RKPM beam, K = 2,000, support factor 4, cond(M) = 7.8e6: IC(0) 255
+    /// iterations, 34 s; exact Cholesky 15 iterations, 1.8 s). `None` never switches.
+    pub escalate_after: Option<usize>,
     /// Recompute H X, M X, H P, M P explicitly every this many iterations (the implicit
     /// updates accumulate round-off). Default 10.
     pub recompute_every: usize,
@@ -106,6 +113,7 @@ impl Default for LobpcgOptions {
             shift_factor: 1e-4,
             max_factor_entries: 1 << 27,
             max_fill_ratio: 8.0,
+            escalate_after: Some(60),
             recompute_every: 10,
             restart_tol: 1e-10,
             ortho_drop: 1e-10,
@@ -183,7 +191,13 @@ impl Eigensolver for Lobpcg {
         let nx = (nwant + guard).min(k - 1);
         let par = Par::rayon(0);
         progress.begin("eigen (lobpcg)", Some(request.max_iter as u64));
-        let (mut pre, report) = precondition::build(h, m, opts, nx, par)?;
+        let (mut pre, mut report) = match precondition::build(h, m, opts, nx, par) {
+            Ok(built) => built,
+            Err(e) => {
+                progress.finish();
+                return Err(e);
+            }
+        };
         info.notes.extend(report.notes.iter().cloned());
         info.notes.push(format!(
             "block: {nwant} wanted + {} guard = {nx} columns; constant mode deflated; seed {:#x}",
@@ -192,10 +206,33 @@ impl Eigensolver for Lobpcg {
         ));
 
         let mut state = State::new(h, m, &y0, nwant, nx);
-        let stop = match state.start(opts.seed, opts) {
-            Ok(()) => state.run(request.tol, request.max_iter, opts, &mut pre, progress),
+        // Auto with IC(0) may switch to the exact factor after `escalate_after` iterations if
+        // that factor fits in `max_factor_entries` (IC(0) degrades when M is ill-conditioned).
+        let can_escalate = opts.preconditioner == PreconditionerKind::Auto
+            && matches!(pre, precondition::Preconditioner::Incomplete(_))
+            && report
+                .exact_entries
+                .is_some_and(|e| e <= opts.max_factor_entries);
+        let first_cap = match (can_escalate, opts.escalate_after) {
+            (true, Some(after)) => after.min(request.max_iter),
+            _ => request.max_iter,
+        };
+        let mut stop = match state.start(opts.seed, opts) {
+            Ok(()) => state.run(request.tol, first_cap, opts, &mut pre, progress),
             Err(stop) => stop,
         };
+        if matches!(stop, Stop::MaxIter) && first_cap < request.max_iter {
+            let notes_before = report.notes.len();
+            if let Some(exact) = precondition::escalate(h, m, opts, nx, par, &mut report) {
+                pre = exact;
+                info.notes.push(format!(
+                    "preconditioner: IC(0) not converged after {first_cap} iterations; switched to the exact Cholesky"
+                ));
+            }
+            info.notes
+                .extend(report.notes[notes_before..].iter().cloned());
+            stop = state.run(request.tol, request.max_iter, opts, &mut pre, progress);
+        }
         progress.finish();
         // Make the returned vectors consistent with explicitly computed products.
         let stop = match stop {

@@ -56,8 +56,10 @@ impl std::fmt::Debug for Preconditioner {
 pub(super) struct SetupReport {
     /// The shift sigma used (0 for Identity).
     pub sigma: f64,
-    /// Stored entries of the Cholesky factor (0 if none).
+    /// Stored entries of the factor in use (0 if none).
     pub factor_entries: usize,
+    /// Entries the exact Cholesky factor would have, when its symbolic analysis was run.
+    pub exact_entries: Option<usize>,
     /// Seconds spent in the symbolic and numeric factorization.
     pub symbolic_seconds: f64,
     pub numeric_seconds: f64,
@@ -159,6 +161,38 @@ pub(super) fn build(
     Ok((Preconditioner::Jacobi { inv_diag }, report))
 }
 
+/// The exact Cholesky preconditioner with the shift already in `report`, for an `Auto` run
+/// that chose IC(0) and then converged too slowly; `None` (with a note) if the factor does
+/// not fit in `max_factor_entries` or fails.
+pub(super) fn escalate(
+    h: &SparseMatrix,
+    m: &SparseMatrix,
+    opts: &LobpcgOptions,
+    max_cols: usize,
+    par: Par,
+    report: &mut SetupReport,
+) -> Option<Preconditioner> {
+    let budget = Budget {
+        entries: opts.max_factor_entries,
+        fill_ratio: f64::INFINITY,
+    };
+    match cholesky(h, m, report.sigma, budget, max_cols, par, report) {
+        Ok(pre) => Some(pre),
+        Err(CholeskyFailure::OverBudget { entries, .. }) => {
+            report.notes.push(format!(
+                "preconditioner: not switching to Cholesky: {entries} entries > max_factor_entries"
+            ));
+            None
+        }
+        Err(CholeskyFailure::Failed(why)) => {
+            report.notes.push(format!(
+                "preconditioner: switch to Cholesky failed ({why}); keeping IC(0)"
+            ));
+            None
+        }
+    }
+}
+
 /// IC(0) of H + sigma M, with Manteuffel's diagonal shift alpha = 0, 1e-3, 1e-2, 1e-1, 1 on
 /// breakdown; `None` (with a note) if every attempt breaks down.
 fn incomplete(
@@ -228,6 +262,7 @@ fn cholesky(
     report.symbolic_seconds = t0.elapsed().as_secs_f64();
     let entries = symbolic.len_val();
     report.factor_entries = entries;
+    report.exact_entries = Some(entries);
     let lower = (a.val().len() + a.nrows()) / 2;
     let ratio = entries as f64 / lower.max(1) as f64;
     if entries > budget.entries || ratio > budget.fill_ratio {

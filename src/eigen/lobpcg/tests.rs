@@ -409,6 +409,96 @@ fn lobpcg_every_preconditioner_converges() {
 }
 
 #[test]
+fn lobpcg_restarts_and_recomputes_still_converge() {
+    // restart_tol = 1 makes every Rayleigh-Ritz step with a P block restart without it, and
+    // recompute_every = 1 recomputes H X, M X, H P, M P every iteration: the same answer.
+    let n = [7, 6, 5];
+    let h = testing::grid_laplacian(n, 1.5);
+    let m = testing::kernel_mass(n, 1.5, 0.05, 0.5, 8);
+    let tol = 1e-10;
+    let opts = LobpcgOptions {
+        restart_tol: 1.0,
+        recompute_every: 1,
+        ..LobpcgOptions::default()
+    };
+    let lob = Lobpcg::new(opts)
+        .solve(&h, &m, &request(9, tol), &Silent)
+        .unwrap();
+    assert_solution_quality(&lob, tol);
+    assert!(lob.info.restarts > 0 && lob.info.restarts <= lob.info.iterations);
+    let reference = Lobpcg::default()
+        .solve(&h, &m, &request(9, tol), &Silent)
+        .unwrap();
+    for (a, b) in lob.values.iter().zip(&reference.values) {
+        // Both to residual 1e-10: eigenvalues agree far below 1e-9 relative.
+        assert!((a - b).abs() <= 1e-9 * b.abs());
+    }
+}
+
+#[test]
+fn lobpcg_largest_request_fills_the_space() {
+    // nev = K - 2 (the largest accepted): the block is clipped to the K - 1 dimensional
+    // complement of the constant, every new direction is dropped, and the explicit check
+    // confirms the exact Rayleigh-Ritz answer.
+    let n = [3, 3, 3];
+    let h = testing::grid_laplacian(n, 1.0);
+    let m = testing::identity(27);
+    let tol = 1e-10;
+    let lob = Lobpcg::default()
+        .solve(&h, &m, &request(25, tol), &Silent)
+        .unwrap();
+    assert_solution_quality(&lob, tol);
+    let exact = testing::grid_laplacian_eigenvalues(n, 25);
+    for (a, b) in lob.values.iter().zip(&exact) {
+        assert!((a - b).abs() <= 1e-12 * b.max(1.0), "{a} vs {b}");
+    }
+}
+
+#[test]
+fn auto_switches_from_ic0_to_cholesky_when_slow() {
+    // max_fill_ratio = 0 forces Auto onto IC(0); after 2 iterations it must switch to the
+    // exact factor (which fits in max_factor_entries) and converge to the same pairs.
+    let n = [6, 6, 6];
+    let h = testing::grid_laplacian(n, 2.0);
+    let m = testing::kernel_mass(n, 2.0, 0.05, 0.5, 12);
+    let tol = 1e-10;
+    let opts = LobpcgOptions {
+        max_fill_ratio: 0.0,
+        escalate_after: Some(2),
+        ..LobpcgOptions::default()
+    };
+    let sol = Lobpcg::new(opts)
+        .solve(&h, &m, &request(9, tol), &Silent)
+        .unwrap();
+    assert_solution_quality(&sol, tol);
+    assert!(
+        sol.info
+            .notes
+            .iter()
+            .any(|n| n.contains("using IC(0) instead")),
+        "{:?}",
+        sol.info.notes
+    );
+    assert!(
+        sol.info
+            .notes
+            .iter()
+            .any(|n| n.contains("switched to the exact Cholesky")),
+        "{:?}",
+        sol.info.notes
+    );
+    assert!(sol
+        .info
+        .notes
+        .iter()
+        .any(|n| n.starts_with("preconditioner: sparse Cholesky")));
+    let reference = DenseSolver
+        .solve(&h, &m, &request(12, tol), &Silent)
+        .unwrap();
+    compare_with_dense(&m, &sol, &reference, 1e-8, 1e-6);
+}
+
+#[test]
 fn lobpcg_incomplete_cholesky_matches_dense() {
     // IC(0) on a wide stencil (radius 2.5: 81 entries per row) with a non-trivial mass.
     let n = [8, 8, 7];
