@@ -38,7 +38,10 @@ impl CoverPattern {
 /// query points, in parallel, then a counting-sort transpose into per-point rows. Visiting
 /// kernels in ascending order makes every row sorted. Deterministic for any thread count.
 pub fn covering_kernels(kernels: &Kernels, queries: &[Point3]) -> CoverPattern {
-    let empty = || CoverPattern { ptr: vec![0; queries.len() + 1], kernels: Vec::new() };
+    let empty = || CoverPattern {
+        ptr: vec![0; queries.len() + 1],
+        kernels: Vec::new(),
+    };
     if kernels.is_empty() || queries.is_empty() {
         return empty();
     }
