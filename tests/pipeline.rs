@@ -468,3 +468,70 @@ fn mesh_files_and_point_clouds_run_through_the_pipeline() {
     assert!((ev1 / exact - 1.0).abs() < 0.1, "cloud: {ev1} vs {exact}");
     assert_eq!(run.points.len(), pts.len());
 }
+
+#[test]
+fn lobpcg_matches_the_dense_solver_on_rkpm_matrices() {
+    use freeform::eigen::lobpcg::{Lobpcg, LobpcgOptions};
+    // A heterogeneous box (contrast 100) so the matrices are not a scaled Laplacian.
+    let ip = box_points([2.0, 1.0, 1.0], 0.0625);
+    let kernels = kernels_for(&ip, 400, KernelType::Cubic);
+    let (sf, stats) = evaluate(&kernels, &ip.points, &ShapeFunctionOptions::default());
+    assert!(stats.failed.is_empty());
+    let stiff = MaterialOverride {
+        region: Region::Sphere {
+            center: [1.0, 0.5, 0.5],
+            radius: 0.3,
+        },
+        material: Material {
+            youngs: 5e8,
+            ..Material::default()
+        },
+    };
+    let mat = MaterialField::from_regions(&ip.points, &Material::default(), &[stiff]).unwrap();
+    let a = assemble(&sf, &ip.volumes, &mat.hessian_weights(), kernels.len()).unwrap();
+    let req = EigenRequest {
+        nev: 17,
+        tol: 1e-10,
+        max_iter: 500,
+    };
+    let d = DenseSolver
+        .solve(&a.hessian, &a.mass, &req, &Silent)
+        .unwrap();
+    let l = Lobpcg::new(LobpcgOptions::default())
+        .solve(&a.hessian, &a.mass, &req, &Silent)
+        .unwrap();
+    // Residual tol 1e-10 bounds the eigenvalue error by ~ tol^2 * ||H|| / gap: far below 1e-8.
+    for j in 1..17 {
+        assert!(
+            (l.values[j] / d.values[j] - 1.0).abs() < 1e-8,
+            "pair {j}: {} vs {}",
+            l.values[j],
+            d.values[j]
+        );
+    }
+    assert!(l.info.max_relative_residual < 1e-10 && d.info.max_relative_residual < 1e-12);
+    assert!(l.info.orthonormality_error < 1e-10);
+    // Eigenspaces: the M-projection of each LOBPCG vector onto the dense span keeps its norm
+    // (sin of the largest principal angle < 1e-6), for the 16 modes as one subspace.
+    let mx = {
+        let mut out = faer::Mat::<f64>::zeros(kernels.len(), 17);
+        for j in 0..17 {
+            for c in 0..kernels.len() {
+                let (rows, vals) = (a.mass.row_idx_of_col_raw(c), a.mass.val_of_col(c));
+                for (r, v) in rows.iter().zip(vals) {
+                    out[(*r, j)] += v * d.vectors[(c, j)];
+                }
+            }
+        }
+        out
+    };
+    let coeff = l.vectors.transpose() * &mx; // 17 x 17: <l_i, d_j>_M
+    for i in 0..17 {
+        let kept: f64 = (0..17).map(|j| coeff[(i, j)].powi(2)).sum();
+        assert!(
+            (1.0 - kept).max(0.0).sqrt() < 1e-6,
+            "vector {i}: sin angle {}",
+            (1.0 - kept).max(0.0).sqrt()
+        );
+    }
+}
