@@ -200,16 +200,7 @@ pub fn write_obj(
     vertices: &[Point3],
     triangles: &[[u32; 3]],
 ) -> Result<(), GeometryError> {
-    if let Some((f, t)) = triangles
-        .iter()
-        .enumerate()
-        .find(|(_, t)| t.iter().any(|&i| i as usize >= vertices.len()))
-    {
-        return Err(GeometryError::InvalidInput(format!(
-            "triangle {f} = {t:?} refers past the {} vertices",
-            vertices.len()
-        )));
-    }
+    super::check_triangle_indices(vertices.len(), triangles)?;
     let mut w = create(path)?;
     let mut write = |s: String| w.write_all(s.as_bytes()).map_err(|e| io_error(path, e));
     write(format!(

@@ -348,15 +348,7 @@ pub fn write_ply_mesh(
     triangles: &[[u32; 3]],
     opts: PlyWriteOptions,
 ) -> Result<(), GeometryError> {
-    if let Some((f, t)) = triangles.iter().enumerate().find(|(_, t)| {
-        t.iter()
-            .any(|&i| i as usize >= vertices.len() || i > i32::MAX as u32)
-    }) {
-        return Err(GeometryError::InvalidInput(format!(
-            "triangle {f} = {t:?} refers past the {} vertices",
-            vertices.len()
-        )));
-    }
+    super::check_triangle_indices(vertices.len(), triangles)?;
     let mut header = header_start(opts, vertices.len());
     let ty = scalar_name(opts.scalar);
     for n in ["x", "y", "z"] {

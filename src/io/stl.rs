@@ -155,16 +155,7 @@ pub fn write_stl(
     triangles: &[[u32; 3]],
     format: StlFormat,
 ) -> Result<(), GeometryError> {
-    if let Some((f, t)) = triangles
-        .iter()
-        .enumerate()
-        .find(|(_, t)| t.iter().any(|&i| i as usize >= vertices.len()))
-    {
-        return Err(GeometryError::InvalidInput(format!(
-            "triangle {f} = {t:?} refers past the {} vertices",
-            vertices.len()
-        )));
-    }
+    super::check_triangle_indices(vertices.len(), triangles)?;
     let tris = triangles.iter().map(|t| {
         let [a, b, c] = t.map(|i| vertices[i as usize]);
         let n = crate::geometry::winding::unit_normal(&a, &b, &c);
