@@ -59,7 +59,7 @@ pub fn covering_kernels(kernels: &Kernels, queries: &[Point3]) -> CoverPattern {
                 .execute()
                 .iter()
                 .filter(|r| r.distance < a2)
-                .map(|r| r.item as u32)
+                .map(|r| r.item)
                 .collect()
         })
         .collect();
