@@ -5,6 +5,8 @@
 //!
 //! Run: `cargo run --release --example support_study` (numbers in docs/math.md).
 
+#![allow(clippy::needless_range_loop)] // index loops mirror the formulas
+
 use freeform::assembly::assemble;
 use freeform::centers::farthest_point_sampling;
 use freeform::eigen::dense::DenseSolver;

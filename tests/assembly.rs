@@ -1,6 +1,8 @@
 //! H_w (Prop. 1) and M: against finite differences of the stable Neo-Hookean energy with an
 //! RKPM displacement field, and their structural identities.
 
+#![allow(clippy::needless_range_loop)] // index loops mirror the formulas
+
 mod common;
 use common::{box_points, kernels_for};
 use freeform::assembly::assemble;

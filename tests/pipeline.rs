@@ -3,6 +3,8 @@
 //! motions, the predicted scaling under uniform scaling, heterogeneous materials,
 //! determinism, and the basis file.
 
+#![allow(clippy::needless_range_loop)] // index loops mirror the formulas
+
 mod common;
 use common::{box_points, kernels_for};
 use freeform::assembly::assemble;

@@ -1,6 +1,8 @@
 //! RKPM shape functions: reproducing identities to round-off, analytic gradients against
 //! finite differences, coverage failures, unit invariance.
 
+#![allow(clippy::needless_range_loop)] // index loops mirror the formulas
+
 mod common;
 use common::{box_points, kernels_for, Rng};
 use freeform::rkpm::{evaluate, reproducing_error, KernelType, Kernels, ShapeFunctionOptions};
