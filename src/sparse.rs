@@ -9,7 +9,9 @@
 //!   parallel over rows. faer 0.24's sparse x dense product ignores its parallelism argument;
 //!   this kernel is the one the eigensolvers use. The fast layout is **row-major** X and Y
 //!   (each row of the block contiguous): every stored entry a_ij is read once and multiplies a
-//!   contiguous row of b values (see `benches/eigen.rs` and the eigen module notes for numbers).
+//!   contiguous row of b values. `benches/eigen.rs`, K = 10,648, 105 entries per row, b = 40:
+//!   row-major 7.2 ms, column-major (same rayon split, one column at a time) 24.6 ms, faer's
+//!   `sparse_dense_matmul` 42.5 ms.
 //! - [`diagonal`], [`norm_1`], [`norm_2_estimate`], [`first_non_finite`],
 //!   [`symmetry_defect`], [`add_scaled`].
 //!

@@ -1,6 +1,6 @@
 //! Preallocated storage of one LOBPCG run: the tall row-major blocks S = [X | P | W], H S and
 //! M S, a tall temporary, and the small dense matrices of the Rayleigh-Ritz step. Everything
-//! is allocated once in [`Workspace::new`]; the iteration only takes views.
+//! is allocated once (in `State::new`, iterate.rs); the iteration only takes views.
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::evd::{self_adjoint_evd, self_adjoint_evd_scratch, ComputeEigenvectors};
