@@ -208,6 +208,9 @@ impl<'a> State<'a> {
             &mut self.small,
             &mut self.tmp,
         );
+        if let Some(v) = self.small.indefinite.take() {
+            return Err(indefinite_block(v));
+        }
         if r < nx {
             return Err(Stop::Breakdown(format!(
                 "random start block has rank {r} < {nx}"
@@ -398,6 +401,9 @@ impl<'a> State<'a> {
                 &mut self.small,
                 &mut self.tmp,
             );
+            if let Some(v) = self.small.indefinite.take() {
+                return indefinite_block(v);
+            }
             if nw == 0 {
                 // Nothing new to add: verify explicitly; if still not converged, stop.
                 if let Err(stop) = self.explicit_refresh(opts) {
@@ -538,6 +544,13 @@ impl<'a> State<'a> {
 enum Which {
     H,
     M,
+}
+
+fn indefinite_block(relative: f64) -> Stop {
+    Stop::Indefinite(format!(
+        "a block of the search space has an M-Gram eigenvalue or diagonal entry {relative:.3e} times the largest: \
+         x^T M x < 0 for some x"
+    ))
 }
 
 fn indefinite(g_min: f64, g_max: f64) -> Stop {

@@ -25,6 +25,9 @@ pub(super) struct Small {
     pub keep: Vec<usize>,
     pub scale: Vec<f64>,
     pub parts: Partials,
+    /// Set by [`svqb`] when the M-Gram matrix of a block has a clearly negative diagonal entry
+    /// or eigenvalue (value relative to the largest): M is not positive definite.
+    pub indefinite: Option<f64>,
 }
 
 impl Small {
@@ -38,6 +41,7 @@ impl Small {
             keep: Vec::with_capacity(nmax),
             scale: vec![0.0; nmax],
             parts: Partials::new(rows, nmax),
+            indefinite: None,
         }
     }
 }
@@ -95,6 +99,7 @@ pub(super) fn svqb(
         scale,
         eig,
         parts,
+        indefinite,
         ..
     } = small;
     inner(
@@ -107,11 +112,14 @@ pub(super) fn svqb(
         false,
     );
     keep.clear();
+    let dmax = (0..w).map(|j| g[(j, j)].abs()).fold(0.0f64, f64::max);
     for j in 0..w {
         let d = g[(j, j)];
         if d.is_finite() && d > col_drop && d > 0.0 {
             keep.push(j);
             scale[j] = 1.0 / d.sqrt();
+        } else if d < -1e-10 * dmax {
+            *indefinite = Some(d / dmax);
         }
     }
     let nk = keep.len();
@@ -129,6 +137,9 @@ pub(super) fn svqb(
     let mu_max = eig.values[nk - 1];
     if mu_max.is_nan() || mu_max <= 0.0 {
         return 0;
+    }
+    if eig.values[0] < -1e-8 * mu_max {
+        *indefinite = Some(eig.values[0] / mu_max);
     }
     // Eigenvalues ascending: keep the trailing ones above the threshold.
     let first = (0..nk)

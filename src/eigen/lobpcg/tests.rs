@@ -348,6 +348,23 @@ fn lobpcg_rejects_invalid_input() {
         solver.solve(&h, &neg, &request(4, 1e-8), &Silent),
         Err(EigenError::NotPositiveDefinite { what: "M", .. })
     ));
+    // M with a positive diagonal but indefinite: I + 0.5 A (A the 7-point adjacency, whose
+    // eigenvalues reach -6 on a bipartite grid, so M has eigenvalues down to about -2).
+    let mut indef = h.clone();
+    for j in 0..indef.ncols() {
+        let range = indef.symbolic().col_range(j);
+        let rows: Vec<usize> = indef.symbolic().row_idx()[range.clone()].to_vec();
+        for (p, i) in range.zip(rows) {
+            indef.val_mut()[p] = if i == j { 1.0 } else { 0.5 };
+        }
+    }
+    let err = solver
+        .solve(&h, &indef, &request(4, 1e-8), &Silent)
+        .unwrap_err();
+    assert!(
+        matches!(err, EigenError::NotPositiveDefinite { what: "M", .. }),
+        "{err}"
+    );
     // Shape mismatch.
     assert!(matches!(
         solver.solve(&h, &testing::identity(63), &request(4, 1e-8), &Silent),
