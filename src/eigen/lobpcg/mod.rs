@@ -334,6 +334,12 @@ impl Eigensolver for Lobpcg {
             |i, j| if j == 0 { y0[i] } else { wanted[(i, j - 1)] },
         );
         check_solution(h, m, &values, &vectors, &mut info);
+        if info.residuals[0] > request.tol {
+            info.notes.push(format!(
+                "the constant vector is not in the null space of H to the tolerance: relative residual {:.3e}",
+                info.residuals[0]
+            ));
+        }
         let converged = info.residuals.iter().filter(|&&r| r <= request.tol).count();
         let solution = EigenSolution {
             values,
