@@ -34,16 +34,23 @@ fn small_opts(k: usize, m: usize, n: usize) -> BasisOptions {
     }
 }
 
-#[test]
-fn box_eigenvalues_match_the_neumann_laplacian() {
-    let shape = Shape::parse("box:2,1,1", &ShapeOptions::default()).unwrap();
-    let run = build_basis(&shape, &small_opts(600, 6, 30_000), &Silent).unwrap();
-    let ev: Vec<f64> = run
+/// Basis of a shape spec (K kernels, m modes, 30,000 points, dense solver) and its
+/// eigenvalues divided by lambda + 4 mu: the Neumann Laplacian eigenvalue approximations.
+fn laplacian_spectrum(spec: &str, k: usize, m: usize) -> (freeform::pipeline::BasisRun, Vec<f64>) {
+    let shape = Shape::parse(spec, &ShapeOptions::default()).unwrap();
+    let run = build_basis(&shape, &small_opts(k, m, 30_000), &Silent).unwrap();
+    let ev = run
         .report
         .eigenvalues
         .iter()
         .map(|v| v / c_weight())
         .collect();
+    (run, ev)
+}
+
+#[test]
+fn box_eigenvalues_match_the_neumann_laplacian() {
+    let (run, ev) = laplacian_spectrum("box:2,1,1", 600, 6);
     // Neumann eigenvalues of [0,2]x[0,1]x[0,1]: pi^2 (i^2/4 + j^2 + k^2):
     // 0, pi^2/4, pi^2 (x3: i=2, j=1, k=1), 5 pi^2/4 (x2), ...
     let exact = [
@@ -80,14 +87,7 @@ fn box_eigenvalues_match_the_neumann_laplacian() {
 
 #[test]
 fn sphere_eigenvalues_match_the_neumann_laplacian() {
-    let shape = Shape::parse("sphere:1", &ShapeOptions::default()).unwrap();
-    let run = build_basis(&shape, &small_opts(500, 4, 30_000), &Silent).unwrap();
-    let ev: Vec<f64> = run
-        .report
-        .eigenvalues
-        .iter()
-        .map(|v| v / c_weight())
-        .collect();
+    let (run, ev) = laplacian_spectrum("sphere:1", 500, 4);
     // First non-zero Neumann eigenvalue of the unit ball: (first zero of j_1')^2 with
     // j_1'(x) = 0 at x = 2.0815759778, triple (l = 1, three orientations).
     let exact = 2.081_575_977_8f64.powi(2);
