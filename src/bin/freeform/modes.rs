@@ -1,6 +1,7 @@
-//! The `freeform` command-line tool. `freeform modes --help` lists every option.
+//! `freeform modes`: compute skinning eigenmodes and write a basis file.
 
-use clap::{Args, Parser, Subcommand, ValueEnum};
+use crate::{emit, set_threads, CliResult};
+use clap::{Args, ValueEnum};
 use freeform::geometry::{Shape, ShapeOptions};
 use freeform::material::Material;
 use freeform::pipeline::{build_basis, BasisOptions, SolverChoice};
@@ -9,24 +10,6 @@ use freeform::rkpm::{KernelType, SupportOptions};
 use freeform::sampling::{CloudVolumeOptions, Resolution};
 use std::io::IsTerminal;
 use std::path::PathBuf;
-use std::process::ExitCode;
-
-#[derive(Parser)]
-#[command(
-    name = "freeform",
-    version,
-    about = "Mesh-free reduced-order elastic simulation from RKPM skinning eigenmodes"
-)]
-struct Cli {
-    #[command(subcommand)]
-    command: Command,
-}
-
-#[derive(Subcommand)]
-enum Command {
-    /// Compute skinning eigenmodes of a shape and write them to a basis file (.npz).
-    Modes(ModesArgs),
-}
 
 #[derive(Clone, Copy, ValueEnum)]
 enum KernelArg {
@@ -43,7 +26,7 @@ enum SolverArg {
 
 #[derive(Args)]
 #[command(allow_negative_numbers = true)]
-struct ModesArgs {
+pub struct ModesArgs {
     /// The shape: box:LX,LY,LZ (corner at the origin), sphere:R (centred at the origin), or a
     /// .obj / .stl / .ply file (a PLY without faces is a point cloud, e.g. Gaussian splats).
     shape: String,
@@ -106,39 +89,8 @@ struct ModesArgs {
     threads: Option<usize>,
 }
 
-/// Write to standard output; a closed pipe (`freeform ... | head`) is not an error.
-fn emit(text: &str) -> std::io::Result<()> {
-    use std::io::Write;
-    let mut out = std::io::stdout().lock();
-    match out.write_all(text.as_bytes()).and_then(|_| out.flush()) {
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
-        other => other,
-    }
-}
-
-fn main() -> ExitCode {
-    let cli = Cli::parse();
-    let result = match cli.command {
-        Command::Modes(args) => run_modes(args),
-    };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e}");
-            ExitCode::FAILURE
-        }
-    }
-}
-
-fn run_modes(args: ModesArgs) -> Result<(), Box<dyn std::error::Error>> {
-    if let Some(t) = args.threads {
-        if t == 0 {
-            return Err("--threads must be at least 1".into());
-        }
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(t)
-            .build_global()?;
-    }
+pub fn run(args: ModesArgs) -> CliResult {
+    set_threads(args.threads)?;
     let opts = BasisOptions {
         kernels: args.kernels,
         modes: args.modes,
