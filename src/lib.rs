@@ -26,6 +26,7 @@ pub mod elasticity;
 pub mod error;
 pub mod geometry;
 pub mod io;
+pub mod linalg3;
 pub mod material;
 pub mod pipeline;
 pub mod progress;
