@@ -8,7 +8,7 @@
 //! - [`element`]: per-tet shape-function gradients, volumes, materials; energy, forces and
 //!   Hessians of the same stable Neo-Hookean energy as the reduced model.
 //! - [`solver`]: backward Euler as minimisation of the incremental potential, Newton with
-//!   backtracking line search, PSD-projected element Hessians, faer sparse Cholesky with a
+//!   backtracking line search, exact or PSD-projected element Hessians, faer sparse Cholesky with a
 //!   symbolic factorization reused across iterations and steps; Dirichlet nodes (held or
 //!   prescribed motion) and the one-sided plane penalty.
 //! - [`ordering`]: fill-reducing orderings (faer's AMD or a geometric nested dissection).
@@ -32,7 +32,7 @@ pub use element::{Elements, TetMaterials};
 pub use metric::{trajectory_error, TrajectoryError};
 pub use ordering::OrderingKind;
 pub use readers::read_tet_mesh;
-pub use solver::{FemParams, FemSolver, PlanePenalty, StepInfo};
+pub use solver::{FemParams, FemSolver, HessianMode, PlanePenalty, StepInfo};
 pub use tetmesh::TetMesh;
 pub use voxel::{voxel_tet_mesh, VoxelMesh};
 
