@@ -3,8 +3,9 @@
 
 use freeform::fem::readers::{gmsh, medit, read_tet_mesh, tetgen};
 use freeform::fem::{
-    run_beam_reference, trajectory_error, voxel_tet_mesh, BeamTest, CacheStatus, FemBeamConfig,
-    FemError, FemParams, FemSolver, HessianMode, PlanePenalty, TetMaterials, TetMesh,
+    fe_nodes, run_beam_reference, trajectory_error, voxel_tet_mesh, BeamTest, CacheStatus,
+    ElementOrder, FemBeamConfig, FemError, FemParams, FemSolver, HessianMode, PlanePenalty,
+    TetMaterials, TetMesh,
 };
 use freeform::geometry::{generate, ShapeOptions, TriMesh};
 use freeform::material::Material;
@@ -45,12 +46,19 @@ fn data(name: &str) -> std::path::PathBuf {
 
 #[test]
 fn energy_gradient_and_hessian_match_finite_differences() {
+    for order in [ElementOrder::Linear, ElementOrder::Quadratic] {
+        derivatives_match_finite_differences(order);
+    }
+}
+
+fn derivatives_match_finite_differences(order: ElementOrder) {
     let mesh = TetMesh::structured_box([0.0; 3], [2.0, 1.0, 1.0], [2, 1, 1]).unwrap();
     let mats = TetMaterials::homogeneous(&mesh, &rubber()).unwrap();
     // A floor that the perturbed nodes at y ~ 0 penetrate (by 0.05-0.25 m, away from the
     // penalty's kink at zero depth), gravity on, exact Hessian (no PSD projection).
     let params = FemParams {
         hessian: HessianMode::Exact,
+        order,
         plane: Some(PlanePenalty {
             normal: [0.0, 2.0, 0.0],
             offset: 0.15,
@@ -60,7 +68,7 @@ fn energy_gradient_and_hessian_match_finite_differences() {
     };
     let fixed = [0usize];
     let mut solver = FemSolver::new(&mesh, &mats, &fixed, params).unwrap();
-    let rest = mesh.nodes().to_vec();
+    let rest = solver.rest_positions().to_vec();
     let x = perturbed(&rest, 0.1, 7);
     let x_pred = perturbed(&rest, 0.05, 11);
     let e = |x: &[Point3]| solver.incremental_potential(x, &x_pred);
@@ -155,6 +163,12 @@ fn projected_hessian_is_positive_semidefinite_far_from_rest() {
 
 #[test]
 fn patch_test_reproduces_homogeneous_deformation() {
+    for order in [ElementOrder::Linear, ElementOrder::Quadratic] {
+        patch_test(order);
+    }
+}
+
+fn patch_test(order: ElementOrder) {
     // 3 x 3 x 3 cells with jiggled interior nodes (irregular tets); the boundary nodes follow
     // x = A X + b; the interior must follow it too, for a finite (non-small) A.
     let mesh0 = TetMesh::structured_box([0.0; 3], [1.0; 3], [3, 3, 3]).unwrap();
@@ -176,10 +190,12 @@ fn patch_test_reproduces_homogeneous_deformation() {
         .collect();
     let mesh = TetMesh::new(nodes, mesh0.tets().to_vec()).unwrap();
     let mats = TetMaterials::homogeneous(&mesh, &rubber()).unwrap();
-    let fixed = mesh.select_nodes(boundary);
+    let (fe, _) = fe_nodes(&mesh, order);
+    let fixed: Vec<usize> = (0..fe.len()).filter(|&i| boundary(&fe[i])).collect();
     let params = FemParams {
         gravity: [0.0; 3],
         tolerance: 1e-12,
+        order,
         ..FemParams::default()
     };
     let mut solver = FemSolver::new(&mesh, &mats, &fixed, params).unwrap();
@@ -187,17 +203,14 @@ fn patch_test_reproduces_homogeneous_deformation() {
     let a = [[1.2, 0.3, 0.0], [-0.2, 0.9, 0.1], [0.05, 0.0, 1.1]];
     let b = [0.3, -0.1, 0.2];
     let map = |p: &Point3| [0, 1, 2].map(|r| b[r] + (0..3).map(|c| a[r][c] * p[c]).sum::<f64>());
-    let targets: Vec<Point3> = solver
-        .fixed_nodes()
-        .iter()
-        .map(|&i| map(&mesh.nodes()[i]))
-        .collect();
+    let targets: Vec<Point3> = solver.fixed_nodes().iter().map(|&i| map(&fe[i])).collect();
     solver.set_targets(&targets).unwrap();
     let info = solver.solve_static().unwrap();
     // Newton converged to 1e-12 x D; the exact answer is a minimiser with a well-conditioned
     // Hessian, so the position error is at that level (1e-10 leaves room for round-off of
     // the stiffness ~1e7 Pa in the residual).
-    for (p, x) in mesh.nodes().iter().zip(solver.positions()) {
+    assert_eq!(solver.positions().len(), fe.len());
+    for (p, x) in fe.iter().zip(solver.positions()) {
         let want = map(p);
         for r in 0..3 {
             assert!(
@@ -211,7 +224,7 @@ fn patch_test_reproduces_homogeneous_deformation() {
 // ---------------------------------------------------------------- cantilever
 
 /// Static tip deflection of a clamped beam [0, L] x [0, 1] x [0, 1] under its own weight.
-fn cantilever_tip(cells_per_m: usize, length: f64, e: f64, rho_g: f64) -> f64 {
+fn cantilever_tip(cells_per_m: usize, length: f64, e: f64, rho_g: f64, order: ElementOrder) -> f64 {
     let cells = [(length as usize) * cells_per_m, cells_per_m, cells_per_m];
     let mesh = TetMesh::structured_box([0.0; 3], [length, 1.0, 1.0], cells).unwrap();
     let mat = Material {
@@ -220,13 +233,18 @@ fn cantilever_tip(cells_per_m: usize, length: f64, e: f64, rho_g: f64) -> f64 {
         density: rho_g / 9.81,
     };
     let mats = TetMaterials::homogeneous(&mesh, &mat).unwrap();
-    let fixed = mesh.select_nodes(|p| p[0] < 1e-9);
-    let mut solver = FemSolver::new(&mesh, &mats, &fixed, FemParams::default()).unwrap();
+    let (fe, _) = fe_nodes(&mesh, order);
+    let fixed: Vec<usize> = (0..fe.len()).filter(|&i| fe[i][0] < 1e-9).collect();
+    let params = FemParams {
+        order,
+        ..FemParams::default()
+    };
+    let mut solver = FemSolver::new(&mesh, &mats, &fixed, params).unwrap();
     solver.solve_static().unwrap();
-    // Mean vertical displacement of the tip face.
+    // Mean vertical displacement of the tip face's corner nodes.
     let tip = mesh.select_nodes(|p| (p[0] - length).abs() < 1e-9);
     tip.iter()
-        .map(|&i| mesh.nodes()[i][1] - solver.positions()[i][1])
+        .map(|&i| fe[i][1] - solver.positions()[i][1])
         .sum::<f64>()
         / tip.len() as f64
 }
@@ -240,8 +258,15 @@ fn cantilever_matches_beam_theory() {
     let (len, e, q): (f64, f64, f64) = (10.0, 1e7, 10.0);
     let w_eb = q * len.powi(4) / (8.0 * e / 12.0);
     let w_t = w_eb + q * len * len / (2.0 * (5.0 / 6.0) * (e / 2.0));
-    let coarse = cantilever_tip(4, len, e, q);
-    let fine = cantilever_tip(8, len, e, q);
+    let coarse = cantilever_tip(4, len, e, q, ElementOrder::Linear);
+    let fine = cantilever_tip(8, len, e, q, ElementOrder::Linear);
+    let q1 = cantilever_tip(1, len, e, q, ElementOrder::Quadratic);
+    let q2 = cantilever_tip(2, len, e, q, ElementOrder::Quadratic);
+    eprintln!(
+        "quadratic: r=1 {:+.4}, r=2 {:+.4}",
+        (q1 - w_t) / w_t,
+        (q2 - w_t) / w_t
+    );
     // Linear tets are too stiff in bending (shear locking), so the error is one-sided and
     // falls as O(h^2): measured -17.5% at 4 cells per metre, -5.1% at 8 (ratio 3.4). The
     // test asks for: within 7% at r = 8; a ratio > 3 (observed order > 1.58); and the
@@ -258,6 +283,14 @@ fn cantilever_matches_beam_theory() {
     assert!(ef.abs() < 0.07, "{msg}");
     assert!(ec.abs() > 3.0 * ef.abs(), "{msg}");
     assert!(ee.abs() < 0.02, "{msg}");
+    // Quadratic tets do not lock: measured -0.12% with one cube through the thickness and
+    // -0.00% with two. Timoshenko theory itself is good to a fraction of a percent at
+    // L/h = 10, so: within 1% at r = 1 and 0.5% at r = 2.
+    let (e1, e2) = ((q1 - w_t) / w_t, (q2 - w_t) / w_t);
+    assert!(
+        e1.abs() < 0.01 && e2.abs() < 0.005,
+        "quadratic: {e1:+.4}, {e2:+.4}"
+    );
     assert!(
         fine < w_t * 1.01,
         "FEM must not be softer than beam theory: {msg}"
@@ -472,9 +505,18 @@ fn voxel_mesher_fills_box_exactly_and_sphere_approximately() {
     let sphere = TriMesh::new(v, t, &opts).unwrap();
     let coarse = voxel_tet_mesh(&sphere, 0.25).unwrap();
     let fine = voxel_tet_mesh(&sphere, 0.125).unwrap();
-    // Staircase: volume error O(spacing); it shrinks under refinement and is a few % here.
-    assert!(coarse.volume_error.abs() < 0.15, "{}", coarse.volume_error);
-    assert!(fine.volume_error.abs() < 0.08, "{}", fine.volume_error);
+    eprintln!(
+        "voxel sphere volume error: spacing 0.25 {:+.4}, 0.125 {:+.4}",
+        coarse.volume_error, fine.volume_error
+    );
+    // Staircase: volume error O(spacing). Measured +5.3% at 0.25, +2.3% at 0.125 (cube
+    // centres inside decide, so the sign is not fixed); bounds leave ~50% room.
+    assert!(coarse.volume_error.abs() < 0.08, "{}", coarse.volume_error);
+    assert!(
+        fine.volume_error.abs() < 0.04 && fine.volume_error.abs() < coarse.volume_error.abs(),
+        "{}",
+        fine.volume_error
+    );
     // Every node lies within sqrt(3) spacings of the sphere's surface or inside.
     assert!(fine
         .mesh

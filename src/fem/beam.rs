@@ -17,6 +17,7 @@
 //! ends with a checksum; a file that is short, fails the checksum or holds another key is
 //! recomputed and rewritten, and the reason is reported in [`CacheStatus::Recomputed`].
 
+use super::element::fe_nodes;
 use super::metric::{trajectory_error, TrajectoryError};
 use super::solver::{FemParams, FemSolver};
 use super::{FemError, TetMaterials, TetMesh};
@@ -137,9 +138,11 @@ pub enum CacheStatus {
 pub struct BeamReference {
     /// The definition it was computed from.
     pub config: FemBeamConfig,
-    /// Node rest positions, N x 3, metres.
+    /// FE node rest positions, N x 3, metres: the mesh nodes, then (quadratic elements)
+    /// the edge-midpoint nodes. The reduced map is evaluated at these.
     pub rest: Vec<Point3>,
-    /// Tets, T x 4 node indices.
+    /// The mesh's tets, T x 4 indices into the first nodes of `rest` (the corners; for
+    /// quadratic elements the edge nodes follow from [`super::element::fe_nodes`]).
     pub tets: Vec<[u32; 4]>,
     /// Node positions after each step, steps x N x 3, metres.
     pub frames: Vec<Vec<Point3>>,
@@ -221,17 +224,19 @@ fn compute(config: &FemBeamConfig, progress: &dyn Progress) -> crate::Result<Bea
     let mesh = config.mesh()?;
     let materials = TetMaterials::homogeneous(&mesh, &config.material)?;
     let eps = 1e-9 * config.size[0];
-    let held = mesh.select_nodes(|p| p[0] <= config.held_length + eps);
+    let (fe, _) = fe_nodes(&mesh, config.solver.order);
+    let select = |f: &dyn Fn(&Point3) -> bool| -> Vec<usize> {
+        (0..fe.len()).filter(|&i| f(&fe[i])).collect()
+    };
+    let held = select(&|p| p[0] <= config.held_length + eps);
     let turned = match config.test {
         BeamTest::Bend => Vec::new(),
-        BeamTest::Twist => {
-            mesh.select_nodes(|p| p[0] >= config.size[0] - config.twist_length - eps)
-        }
+        BeamTest::Twist => select(&|p| p[0] >= config.size[0] - config.twist_length - eps),
     };
     let mut fixed = held.clone();
     fixed.extend(&turned);
     let mut solver = FemSolver::new(&mesh, &materials, &fixed, config.solver.clone())?;
-    let rest = mesh.nodes().to_vec();
+    let rest = solver.rest_positions().to_vec();
     let (cy, cz) = (0.5 * config.size[1], 0.5 * config.size[2]);
     let is_turned: Vec<bool> = {
         let mut v = vec![false; rest.len()];

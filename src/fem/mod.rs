@@ -28,7 +28,7 @@ pub mod voxel;
 pub use beam::{
     nested_difference, run_beam_reference, BeamReference, BeamTest, CacheStatus, FemBeamConfig,
 };
-pub use element::{Elements, TetMaterials};
+pub use element::{fe_nodes, ElementOrder, Elements, TetMaterials};
 pub use metric::{trajectory_error, TrajectoryError};
 pub use ordering::OrderingKind;
 pub use readers::read_tet_mesh;

@@ -27,7 +27,7 @@
 //! without it, [`FemError::NotConverged`] is returned (the state holds the last iterate);
 //! a NaN anywhere gives [`FemError::NonFinite`]. Nothing non-finite is ever returned as a state.
 
-use super::element::Elements;
+use super::element::{ElementOrder, Elements};
 use super::ordering::{nested_dissection, OrderingKind};
 use super::tetmesh::TetMesh;
 use super::{FemError, TetMaterials};
@@ -76,6 +76,8 @@ pub struct FemParams {
     pub ordering: OrderingKind,
     /// Optional floor penalty. Default none.
     pub plane: Option<PlanePenalty>,
+    /// Element order. Default linear (see docs/accuracy.md for what quadratic buys).
+    pub order: ElementOrder,
 }
 
 impl Default for FemParams {
@@ -88,6 +90,7 @@ impl Default for FemParams {
             hessian: HessianMode::ExactFirst,
             ordering: OrderingKind::NestedDissection,
             plane: None,
+            order: ElementOrder::Linear,
         }
     }
 }
@@ -145,7 +148,8 @@ pub struct FemSolver {
     col_ptr: Vec<usize>,
     row_idx: Vec<usize>,
     values: Vec<f64>,
-    /// Per tet, 144 positions into `values` (NONE: constrained DoF or upper triangle).
+    /// Per element, (3 npe)^2 positions into `values` (NONE: constrained DoF or upper
+    /// triangle).
     scatter: Vec<u32>,
     symbolic: SymbolicCholesky<usize>,
     l_values: Vec<f64>,
@@ -170,9 +174,11 @@ impl std::fmt::Debug for FemSolver {
 }
 
 impl FemSolver {
-    /// Set up a solver at rest (x = rest positions, v = 0) with the nodes in `fixed`
+    /// Set up a solver at rest (x = rest positions, v = 0) with the FE nodes in `fixed`
     /// (indices, any order, duplicates ignored) held at their rest positions until
-    /// [`FemSolver::set_targets`] moves them.
+    /// [`FemSolver::set_targets`] moves them. FE nodes are the mesh nodes (same indices)
+    /// followed, for quadratic elements, by the edge nodes ([`super::element::fe_nodes`]
+    /// lists them all, to select Dirichlet nodes by position).
     ///
     /// # Errors
     /// [`crate::Error::InvalidParameter`] for a non-positive or non-finite `dt`, `tolerance`,
@@ -210,8 +216,8 @@ impl FemSolver {
             }
             None => None,
         };
-        let n = mesh.num_nodes();
-        let elements = Elements::new(mesh, materials)?;
+        let elements = Elements::new(mesh, materials, params.order)?;
+        let n = elements.rest_nodes().len();
         let mut is_fixed = vec![false; n];
         for &i in fixed {
             if i >= n {
@@ -221,16 +227,23 @@ impl FemSolver {
             }
             is_fixed[i] = true;
         }
+        if let Some(i) = (0..n).find(|&i| !is_fixed[i] && elements.masses()[i] <= 0.0) {
+            return Err(FemError::Mesh(format!(
+                "node {i} belongs to no element (no mass, no stiffness); remove it or hold it"
+            ))
+            .into());
+        }
         let fixed_nodes: Vec<usize> = (0..n).filter(|&i| is_fixed[i]).collect();
-        let rest = mesh.nodes().to_vec();
+        let rest = elements.rest_nodes().to_vec();
         let targets = fixed_nodes.iter().map(|&i| rest[i]).collect();
 
         // Node adjacency over free nodes (including each node itself).
         let free_nodes: Vec<usize> = (0..n).filter(|&i| !is_fixed[i]).collect();
         let mut adjacency = vec![Vec::new(); n];
-        for tet in mesh.tets() {
-            for &a in tet {
-                for &b in tet {
+        for e in 0..elements.len() {
+            let conn = elements.connectivity(e);
+            for &a in conn {
+                for &b in conn {
                     if a != b && !is_fixed[a as usize] && !is_fixed[b as usize] {
                         adjacency[a as usize].push(b as usize);
                     }
@@ -276,7 +289,7 @@ impl FemSolver {
                 FemError::Mesh("system matrix too large for u32 scatter indices".into()).into(),
             );
         }
-        let scatter = build_scatter(mesh.tets(), &free_rank, &col_ptr, &row_idx);
+        let scatter = build_scatter(&elements, &free_rank, &col_ptr, &row_idx);
 
         let t0 = Instant::now();
         let sym = SymbolicSparseColMatRef::new_checked(ndof, ndof, &col_ptr, None, &row_idx);
@@ -570,23 +583,21 @@ impl FemSolver {
     /// Fill `values` with the free-DoF Newton matrix at `x`.
     fn assemble(&mut self, x: &[Point3], w: f64, project: bool) {
         self.values.fill(0.0);
-        const CHUNK: usize = 4096;
+        const CHUNK: usize = 1024;
         let nt = self.elements.len();
+        let nn = (3 * self.elements.nodes_per_element()).pow(2);
         for start in (0..nt).step_by(CHUNK) {
             let end = (start + CHUNK).min(nt);
             let elements = &self.elements;
-            let local: Vec<_> = (start..end)
+            let local: Vec<Vec<f64>> = (start..end)
                 .into_par_iter()
-                .map(|t| elements.tet_hessian(t, x, project))
+                .map(|e| elements.element_hessian(e, x, project))
                 .collect();
-            for (t, k) in (start..end).zip(&local) {
-                let sc = &self.scatter[144 * t..144 * t + 144];
-                for i in 0..12 {
-                    for j in 0..12 {
-                        let p = sc[12 * i + j];
-                        if p != NONE {
-                            self.values[p as usize] += k[i][j];
-                        }
+            for (e, k) in (start..end).zip(&local) {
+                let sc = &self.scatter[nn * e..nn * (e + 1)];
+                for (&p, &v) in sc.iter().zip(k) {
+                    if p != NONE {
+                        self.values[p as usize] += v;
                     }
                 }
             }
@@ -831,31 +842,34 @@ fn apply(x: &mut [Point3], free_rank: &[u32], dx: &[f64], alpha: f64) {
     }
 }
 
-/// Per tet, 144 positions (local i, j -> 12 i + j) into the lower-triangular CSC values.
+/// Per element, (3 npe)^2 positions (local i, j -> 3 npe i + j) into the lower-triangular
+/// CSC values.
 fn build_scatter(
-    tets: &[[u32; 4]],
+    elements: &Elements,
     free_rank: &[u32],
     col_ptr: &[usize],
     row_idx: &[usize],
 ) -> Vec<u32> {
-    let mut scatter = vec![NONE; 144 * tets.len()];
+    let nl = 3 * elements.nodes_per_element();
+    let mut scatter = vec![NONE; nl * nl * elements.len()];
     scatter
-        .par_chunks_mut(144)
-        .zip(tets.par_iter())
-        .for_each(|(sc, tet)| {
+        .par_chunks_mut(nl * nl)
+        .enumerate()
+        .for_each(|(e, sc)| {
+            let conn = elements.connectivity(e);
             let dof = |l: usize| {
-                let r = free_rank[tet[l / 3] as usize];
+                let r = free_rank[conn[l / 3] as usize];
                 (r != NONE).then(|| 3 * r as usize + l % 3)
             };
-            for i in 0..12 {
-                for j in 0..12 {
+            for i in 0..nl {
+                for j in 0..nl {
                     if let (Some(gi), Some(gj)) = (dof(i), dof(j)) {
                         if gi >= gj {
                             let col = &row_idx[col_ptr[gj]..col_ptr[gj + 1]];
                             let k = col
                                 .binary_search(&gi)
                                 .expect("pattern contains every element coupling");
-                            sc[12 * i + j] = (col_ptr[gj] + k) as u32;
+                            sc[nl * i + j] = (col_ptr[gj] + k) as u32;
                         }
                     }
                 }
