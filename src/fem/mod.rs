@@ -5,15 +5,17 @@
 //!   builds the conforming 6-tets-per-cube mesh of a box.
 //! - [`readers`]: TetGen `.node/.ele`, Gmsh `.msh` (v4.1 ASCII) and MEDIT `.mesh`.
 //! - [`voxel`]: a voxel tet mesher for watertight triangle meshes (staircase boundary).
-//! - [`element`]: per-tet shape-function gradients, volumes, materials; energy, forces and
-//!   Hessians of the same stable Neo-Hookean energy as the reduced model.
+//! - [`element`]: linear (4-node) or quadratic (10-node) tets: shape-function gradients,
+//!   quadrature, lumped masses, materials; energy, forces and Hessians of the same stable
+//!   Neo-Hookean energy as the reduced model.
 //! - [`solver`]: backward Euler as minimisation of the incremental potential, Newton with
 //!   backtracking line search, exact or PSD-projected element Hessians, faer sparse Cholesky with a
 //!   symbolic factorization reused across iterations and steps; Dirichlet nodes (held or
 //!   prescribed motion) and the one-sided plane penalty.
 //! - [`ordering`]: fill-reducing orderings (faer's AMD or a geometric nested dissection).
 //! - [`beam`]: the standard beam bend/twist reference runs (design.md section 3), cached on
-//!   disk keyed by every parameter.
+//!   disk keyed by every parameter; [`FemBeamConfig::reference`] is the recommended
+//!   reference (quadratic tets, 4 cubes per metre; docs/accuracy.md says why).
 //! - [`metric`]: the error metric between any trajectory and a reference trajectory.
 
 pub mod beam;
