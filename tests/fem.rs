@@ -3,9 +3,9 @@
 
 use freeform::fem::readers::{gmsh, medit, read_tet_mesh, tetgen};
 use freeform::fem::{
-    fe_nodes, run_beam_reference, trajectory_error, voxel_tet_mesh, BeamTest, CacheStatus,
-    ElementOrder, FemBeamConfig, FemError, FemParams, FemSolver, HessianMode, PlanePenalty,
-    TetMaterials, TetMesh,
+    fe_nodes, nested_difference, run_beam_reference, trajectory_error, voxel_tet_mesh, BeamTest,
+    CacheStatus, ElementOrder, FemBeamConfig, FemError, FemParams, FemSolver, HessianMode,
+    PlanePenalty, TetMaterials, TetMesh,
 };
 use freeform::geometry::{generate, ShapeOptions, TriMesh};
 use freeform::material::Material;
@@ -645,4 +645,23 @@ fn twist_turns_the_end_about_the_axis() {
             assert_eq!(r.frames[2][a], *p);
         }
     }
+}
+
+#[test]
+fn nested_levels_compare_on_the_coarse_nodes() {
+    let coarse = run_beam_reference(&tiny(BeamTest::Bend), None, &Silent).unwrap();
+    let mut fine_cfg = tiny(BeamTest::Bend);
+    fine_cfg.solver.order = ElementOrder::Quadratic;
+    let fine = run_beam_reference(&fine_cfg, None, &Silent).unwrap();
+    // Quadratic at r = 1 has the nodes of linear at r = 2: 11 x 3 x 3.
+    assert_eq!(fine.rest.len(), 99);
+    assert_eq!(
+        nested_difference(&coarse, &coarse).unwrap().normalized_mse,
+        0.0
+    );
+    let d = nested_difference(&coarse, &fine).unwrap();
+    assert!(d.normalized_mse > 0.0 && d.normalized_mse.is_finite());
+    assert_eq!(d.nodes, coarse.rest.len());
+    // The other way round, fine nodes are missing from the coarse mesh.
+    assert!(nested_difference(&fine, &coarse).is_err());
 }
