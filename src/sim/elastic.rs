@@ -10,8 +10,9 @@
 //! 9 x 12(m + 1) blocks; the Hessian is assembled per 3 x 3 block pair (r, s) by dense
 //! matrix products over chunks of points.
 
-use crate::elasticity::{energy_density, first_piola, hessian, hessian_psd, Mat3};
+use crate::elasticity::{hessian, hessian_psd, Mat3};
 use crate::sim::cubature::Cubature;
+use crate::sim::lanes::{LaneData, Partial, LANES};
 use crate::skinning::SkinningWeights;
 use crate::{Error, Point3, Result};
 use faer::{Accum, Mat, Par};
@@ -64,6 +65,8 @@ pub struct ElasticTerm {
     w: Vec<f64>,
     /// grad W_j at point c.
     gw: Vec<[f64; 3]>,
+    /// The same data in SIMD-friendly blocks for the energy and gradient.
+    lanes: LaneData,
 }
 
 /// Per-call statistics of an energy evaluation.
@@ -93,6 +96,15 @@ impl ElasticTerm {
             volumes: cubature.volumes.clone(),
             lambda: cubature.lambda.clone(),
             mu: cubature.mu.clone(),
+            lanes: LaneData::new(
+                &cubature.points,
+                &cubature.volumes,
+                &cubature.lambda,
+                &cubature.mu,
+                &weights.values,
+                &weights.gradients,
+                weights.modes,
+            ),
             w: weights.values.clone(),
             gw: weights.gradients.clone(),
         })
@@ -136,69 +148,53 @@ impl ElasticTerm {
 
     /// Elastic energy sum_c v_c Psi(F_c), J, and inversion statistics.
     pub fn energy(&self, z: &[f64]) -> (f64, ElasticStats) {
-        let parts: Vec<(f64, ElasticStats)> = (0..self.len().div_ceil(CHUNK))
-            .into_par_iter()
-            .map(|k| {
-                let mut e = 0.0;
-                let mut st = ElasticStats {
-                    min_det: f64::INFINITY,
-                    inverted: 0,
-                };
-                for c in k * CHUNK..((k + 1) * CHUNK).min(self.len()) {
-                    let f = self.deformation_gradient(c, z);
-                    track(&mut st, &f);
-                    e += self.volumes[c] * energy_density(&f, self.lambda[c], self.mu[c]);
-                }
-                (e, st)
-            })
-            .collect();
-        combine(parts.into_iter().map(|(e, s)| (e, s, None)))
-            .map(|(e, s, _)| (e, s))
-            .unwrap_or((0.0, ElasticStats::default()))
+        self.evaluate(z, None)
     }
 
     /// Energy (J) and its gradient dE/dz, written to `grad` (length 12 (m + 1)).
     pub fn energy_gradient(&self, z: &[f64], grad: &mut [f64]) -> (f64, ElasticStats) {
-        let nh = self.layout.handles;
-        let n4 = self.layout.row_len();
-        let parts: Vec<(f64, ElasticStats, Option<Vec<f64>>)> = (0..self.len().div_ceil(CHUNK))
+        self.evaluate(z, Some(grad))
+    }
+
+    fn evaluate(&self, z: &[f64], grad: Option<&mut [f64]>) -> (f64, ElasticStats) {
+        let nb = self.lanes.blocks();
+        let per = CHUNK / LANES;
+        let with_grad = grad.is_some();
+        let dofs = self.layout.dofs();
+        let parts: Vec<(Partial, Vec<f64>)> = (0..nb.div_ceil(per))
             .into_par_iter()
             .map(|k| {
-                let mut e = 0.0;
-                let mut st = ElasticStats {
-                    min_det: f64::INFINITY,
-                    inverted: 0,
+                let range = k * per..((k + 1) * per).min(nb);
+                let mut g = if with_grad {
+                    vec![0.0; dofs]
+                } else {
+                    Vec::new()
                 };
-                let mut g = vec![0.0; self.layout.dofs()];
-                for c in k * CHUNK..((k + 1) * CHUNK).min(self.len()) {
-                    let f = self.deformation_gradient(c, z);
-                    track(&mut st, &f);
-                    let (l, m, v) = (self.lambda[c], self.mu[c], self.volumes[c]);
-                    e += v * energy_density(&f, l, m);
-                    let p = first_piola(&f, l, m);
-                    let x = self.points[c];
-                    for j in 0..nh {
-                        let wj = v * self.w[c * nh + j];
-                        let gw = self.gw[c * nh + j];
-                        for (r, pr) in p.iter().enumerate() {
-                            let pj = v * (pr[0] * gw[0] + pr[1] * gw[1] + pr[2] * gw[2]);
-                            let o = r * n4 + 4 * j;
-                            g[o] += pj * x[0] + wj * pr[0];
-                            g[o + 1] += pj * x[1] + wj * pr[1];
-                            g[o + 2] += pj * x[2] + wj * pr[2];
-                            g[o + 3] += pj;
-                        }
-                    }
-                }
-                (e, st, Some(g))
+                let part = self
+                    .lanes
+                    .eval(range, z, with_grad.then_some(g.as_mut_slice()));
+                (part, g)
             })
             .collect();
-        grad.fill(0.0);
-        let Some((e, st, g)) = combine(parts.into_iter()) else {
-            return (0.0, ElasticStats::default());
+        // Sum in chunk order: deterministic for any thread count.
+        let mut e = 0.0;
+        let mut st = ElasticStats {
+            min_det: f64::INFINITY,
+            inverted: 0,
         };
-        if let Some(g) = g {
-            grad.copy_from_slice(&g);
+        if let Some(grad) = grad {
+            grad.fill(0.0);
+            for (_, g) in &parts {
+                grad.iter_mut().zip(g).for_each(|(a, b)| *a += b);
+            }
+        }
+        for (p, _) in &parts {
+            e += p.energy;
+            st.min_det = st.min_det.min(p.min_det);
+            st.inverted += p.inverted;
+        }
+        if parts.is_empty() {
+            st.min_det = 1.0;
         }
         (e, st)
     }
@@ -295,34 +291,3 @@ impl ElasticTerm {
 
 /// The (r, s) block pairs with r <= s.
 const BLOCKS: [(usize, usize); 6] = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
-
-fn track(st: &mut ElasticStats, f: &Mat3) {
-    let det = crate::elasticity::det3(f);
-    st.min_det = st.min_det.min(det);
-    if det <= 0.0 {
-        st.inverted += 1;
-    }
-}
-
-/// Sum chunk results in chunk order (deterministic).
-fn combine(
-    parts: impl Iterator<Item = (f64, ElasticStats, Option<Vec<f64>>)>,
-) -> Option<(f64, ElasticStats, Option<Vec<f64>>)> {
-    parts.reduce(|(e1, s1, g1), (e2, s2, g2)| {
-        let g = match (g1, g2) {
-            (Some(mut a), Some(b)) => {
-                a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
-                Some(a)
-            }
-            (a, b) => a.or(b),
-        };
-        (
-            e1 + e2,
-            ElasticStats {
-                min_det: s1.min_det.min(s2.min_det),
-                inverted: s1.inverted + s2.inverted,
-            },
-            g,
-        )
-    })
-}

@@ -12,6 +12,7 @@
 
 pub mod cubature;
 pub mod elastic;
+mod lanes;
 pub mod motion;
 pub mod newton;
 pub mod object;

@@ -137,6 +137,7 @@ pub struct ReducedSim {
     pub time: f64,
     /// Steps taken.
     pub steps: usize,
+    history: newton::QuasiNewtonState,
 }
 
 fn positive(name: &'static str, v: f64, what: &str) -> Result<()> {
@@ -274,6 +275,7 @@ impl ReducedSim {
             zdot: vec![0.0; layout.dofs()],
             time: 0.0,
             steps: 0,
+            history: Default::default(),
         };
         sim.place(&opts.placement, &placement)?;
         Ok(sim)
@@ -371,6 +373,7 @@ impl ReducedSim {
             .map(|(z, v)| z + self.dt * v)
             .collect();
         let mut z = zpred.clone();
+        let mut history = std::mem::take(&mut self.history);
         let pot = StepPotential {
             sim: self,
             zpred: &zpred,
@@ -391,7 +394,8 @@ impl ReducedSim {
             measure: &measure,
             options: &self.options,
         };
-        let solve = newton::minimize(&pot, &mut z, &ctx);
+        let solve = newton::minimize(&pot, &mut z, &ctx, &mut history);
+        self.history = history;
         for i in 0..z.len() {
             self.zdot[i] = (z[i] - self.z[i]) / self.dt;
         }
@@ -539,8 +543,12 @@ impl Potential for StepPotential<'_> {
                 }
             }
         }
+        // Rounding of E: a few ulps of the summed magnitudes (n4 terms per dot product).
+        let mut scale = e.abs();
         for b in &s.boundaries {
-            e += b.energy_gradient(l, self.t, z, grad);
+            let (eb, sb) = b.energy_gradient(l, self.t, z, grad);
+            e += eb;
+            scale += sb;
         }
         let mut contacts = 0;
         if let Some(c) = &s.contacts {
@@ -554,6 +562,7 @@ impl Potential for StepPotential<'_> {
                 min_det: st.min_det,
                 inverted: st.inverted,
                 contacts,
+                rounding: scale * 1e-16 * (l.row_len() as f64).sqrt() * 4.0,
             },
         )
     }

@@ -165,12 +165,20 @@ impl BoundaryTerm {
         })
     }
 
-    /// Energy (J) at time `t`, gradient added to `grad`.
-    pub fn energy_gradient(&self, layout: Layout, t: f64, z: &[f64], grad: &mut [f64]) -> f64 {
+    /// Energy (J) at time `t`, gradient added to `grad`, and the size of the summed terms
+    /// before cancellation (J; a bound on E's rounding error is ~ n eps times it).
+    pub fn energy_gradient(
+        &self,
+        layout: Layout,
+        t: f64,
+        z: &[f64],
+        grad: &mut [f64],
+    ) -> (f64, f64) {
         let n4 = layout.row_len();
         let g = self.offset(t);
         let m = &self.moments;
         let mut e = 0.0;
+        let mut scale = 0.0;
         for r in 0..3 {
             let zr = &z[r * n4..(r + 1) * n4];
             // q = bx G_r^T, the linear coefficient.
@@ -178,11 +186,13 @@ impl BoundaryTerm {
                 .map(|i| (0..4).map(|a| m.bx[(i, a)] * g[r][a]).sum())
                 .collect();
             let mut pz = vec![0.0; n4];
+            let mut pz_abs = vec![0.0; n4];
             for (j, zj) in zr.iter().enumerate() {
                 if *zj != 0.0 {
                     let col = m.bb.col(j);
                     for (i, p) in pz.iter_mut().enumerate() {
                         *p += col[i] * zj;
+                        pz_abs[i] += (col[i] * zj).abs();
                     }
                 }
             }
@@ -194,11 +204,13 @@ impl BoundaryTerm {
             }
             for i in 0..n4 {
                 e += 0.5 * zr[i] * pz[i] - zr[i] * q[i];
+                scale += 0.5 * zr[i].abs() * pz_abs[i] + (zr[i] * q[i]).abs();
                 grad[r * n4 + i] += pz[i] - q[i];
             }
             e += 0.5 * c;
+            scale += 0.5 * c.abs();
         }
-        e
+        (e, scale)
     }
 
     /// The target transform of rest positions at time `t`: motion(t) after the placement.
