@@ -194,7 +194,7 @@ impl LaneData {
         &self,
         range: std::ops::Range<usize>,
         z: &[f64],
-        mut grad: Option<&mut [f64]>,
+        grad: Option<&mut [f64]>,
     ) -> Partial {
         let nh = self.handles;
         let mut out = Partial {
