@@ -33,6 +33,7 @@ pub mod progress;
 pub mod report;
 pub mod rkpm;
 pub mod sampling;
+pub mod scene;
 pub mod sim;
 pub mod skinning;
 pub mod sparse;

@@ -48,7 +48,6 @@ fn fixed() -> Motion {
 #[serde(deny_unknown_fields)]
 pub struct Collider {
     /// The obstacle.
-    #[serde(flatten)]
     pub shape: ColliderShape,
     /// Penalty stiffness, Pa/m^2 (default as for [`Boundary`]).
     #[serde(default)]
@@ -294,6 +293,22 @@ impl ReducedSim {
     /// The boundary terms (with their penalty stiffness and point sets).
     pub fn boundaries(&self) -> &[BoundaryTerm] {
         &self.boundaries
+    }
+
+    /// The terms of the incremental potential that were built, in evaluation order
+    /// (terms the setup did not ask for are neither built nor evaluated).
+    pub fn terms(&self) -> Vec<String> {
+        let mut t = vec!["inertia".to_string(), "elastic".to_string()];
+        if self.gravity.is_some() {
+            t.push("gravity".into());
+        }
+        for (i, b) in self.boundaries.iter().enumerate() {
+            t.push(format!("boundary {i} ({} points)", b.points.len()));
+        }
+        if let Some(c) = &self.contacts {
+            t.push(format!("colliders ({})", c.shapes.len()));
+        }
+        t
     }
 
     /// Rest bounding-box diagonal D, metres.
