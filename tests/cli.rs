@@ -188,7 +188,13 @@ fn run_writes_frames_and_a_json_summary_and_rejects_bad_scenes() {
     }
     let steps = obj["steps"].as_array().unwrap();
     assert_eq!(steps.len(), 4);
-    for key in ["wall_ms", "iterations", "energy", "line_search_failed", "converged"] {
+    for key in [
+        "wall_ms",
+        "iterations",
+        "energy",
+        "line_search_failed",
+        "converged",
+    ] {
         assert!(!steps[0][key].is_null(), "missing step key {key}");
     }
     assert!(out.join("bar.pvd").exists() && out.join("bar/bar_000004.vtp").exists());
@@ -201,7 +207,12 @@ fn run_writes_frames_and_a_json_summary_and_rejects_bad_scenes() {
     let bad = dir.path().join("bad.toml");
     std::fs::write(&bad, "[simulation]\ndt = 0.01\nsteps = 4\nsubsteps = 2\n").unwrap();
     let out2 = dir.path().join("frames2");
-    let o = freeform(&["run", bad.to_str().unwrap(), "--out", out2.to_str().unwrap()]);
+    let o = freeform(&[
+        "run",
+        bad.to_str().unwrap(),
+        "--out",
+        out2.to_str().unwrap(),
+    ]);
     assert_eq!(o.status.code(), Some(1));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("line 4") && err.contains("substeps"), "{err}");

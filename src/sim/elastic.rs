@@ -22,6 +22,10 @@ use rayon::prelude::*;
 /// the same order on any machine: results are bit-identical across thread counts.
 const CHUNK: usize = 128;
 
+/// Points per dense product in the Hessian assembly: large enough for efficient matrix
+/// products (the inner dimension is 3 x HESSIAN_CHUNK), small enough to split over threads.
+const HESSIAN_CHUNK: usize = 1024;
+
 /// Index arithmetic for the reduced coordinates z (12 (m + 1) entries).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Layout {
@@ -204,24 +208,26 @@ impl ElasticTerm {
     pub fn hessian(&self, z: &[f64], projection: Projection) -> Mat<f64> {
         let n4 = self.layout.row_len();
         let nh = self.layout.handles;
-        let parts: Vec<[Mat<f64>; 6]> = (0..self.len().div_ceil(CHUNK))
+        let parts: Vec<[Mat<f64>; 6]> = (0..self.len().div_ceil(HESSIAN_CHUNK))
             .into_par_iter()
             .map(|k| {
-                let range = k * CHUNK..((k + 1) * CHUNK).min(self.len());
+                let range = k * HESSIAN_CHUNK..((k + 1) * HESSIAN_CHUNK).min(self.len());
                 let cols = 3 * range.len();
-                // A: the vectors a_c of each point; T^(rs): sum_c v H[rc][sd] a_c.
-                let mut a = Mat::<f64>::zeros(n4, cols);
+                // A: the vectors a_c of each point (column 3 p + c), column-major in a plain
+                // buffer so the T loop below runs over contiguous slices;
+                // T^(rs): column 3 p + d = sum_c v H[3r + c][3s + d] a_(3p + c).
+                let mut a = vec![0.0; n4 * cols];
                 let mut h9 = Vec::with_capacity(range.len());
                 for (p, c) in range.clone().enumerate() {
                     let x = self.points[c];
                     let xh = [x[0], x[1], x[2], 1.0];
-                    for j in 0..nh {
-                        let wj = self.w[c * nh + j];
-                        let g = self.gw[c * nh + j];
-                        for col in 0..3 {
+                    for col in 0..3 {
+                        let ac = &mut a[(3 * p + col) * n4..(3 * p + col + 1) * n4];
+                        for j in 0..nh {
+                            let wj = self.w[c * nh + j];
+                            let g = self.gw[c * nh + j][col];
                             for (q, xq) in xh.iter().enumerate() {
-                                a[(4 * j + q, 3 * p + col)] =
-                                    g[col] * xq + if q == col { wj } else { 0.0 };
+                                ac[4 * j + q] = g * xq + if q == col { wj } else { 0.0 };
                             }
                         }
                     }
@@ -233,28 +239,29 @@ impl ElasticTerm {
                     };
                     h9.push((self.volumes[c], h));
                 }
+                let a_ref = faer::MatRef::from_column_major_slice(&a, n4, cols);
                 let mut blocks: [Mat<f64>; 6] = std::array::from_fn(|_| Mat::zeros(n4, n4));
-                let mut t = Mat::<f64>::zeros(n4, cols);
+                let mut t = vec![0.0; n4 * cols];
                 for (b, (r, s)) in BLOCKS.iter().enumerate() {
                     for (p, (v, h)) in h9.iter().enumerate() {
+                        let ap = &a[3 * p * n4..(3 * p + 3) * n4];
+                        let (a0, rest) = ap.split_at(n4);
+                        let (a1, a2) = rest.split_at(n4);
                         for d in 0..3 {
-                            let coef = [
-                                v * h[3 * r][3 * s + d],
-                                v * h[3 * r + 1][3 * s + d],
-                                v * h[3 * r + 2][3 * s + d],
-                            ];
+                            let c0 = v * h[3 * r][3 * s + d];
+                            let c1 = v * h[3 * r + 1][3 * s + d];
+                            let c2 = v * h[3 * r + 2][3 * s + d];
+                            let td = &mut t[(3 * p + d) * n4..(3 * p + d + 1) * n4];
                             for i in 0..n4 {
-                                t[(i, 3 * p + d)] = coef[0] * a[(i, 3 * p)]
-                                    + coef[1] * a[(i, 3 * p + 1)]
-                                    + coef[2] * a[(i, 3 * p + 2)];
+                                td[i] = c0 * a0[i] + c1 * a1[i] + c2 * a2[i];
                             }
                         }
                     }
                     faer::linalg::matmul::matmul(
                         blocks[b].as_mut(),
                         Accum::Replace,
-                        t.as_ref(),
-                        a.transpose(),
+                        faer::MatRef::from_column_major_slice(&t, n4, cols),
+                        a_ref.transpose(),
                         1.0,
                         Par::Seq,
                     );
