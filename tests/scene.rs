@@ -318,3 +318,88 @@ fn frames_are_written_for_paraview_and_a_ball_rests_on_the_floor() {
         "the ball must have reached the floor: {min_y}"
     );
 }
+
+#[test]
+fn mesh_and_point_cloud_objects_write_deformed_meshes_and_points() {
+    use freeform::geometry::generate::icosphere;
+    let dir = tempfile::tempdir().unwrap();
+    let (v, t) = icosphere(0.3, 2);
+    freeform::io::obj::write_obj(&dir.path().join("ball.obj"), &v, &t).unwrap();
+    // A point cloud: a jittered grid inside a 0.6 m cube.
+    let mut cloud = Vec::new();
+    for i in 0..12 {
+        for j in 0..12 {
+            for k in 0..12 {
+                cloud.push([i as f64 * 0.05, j as f64 * 0.05, k as f64 * 0.05]);
+            }
+        }
+    }
+    freeform::io::ply::write_ply_points(&dir.path().join("cloud.ply"), &cloud, &[]).unwrap();
+    let held = |x: f64| Region::HalfSpace {
+        point: [x, 0.0, 0.0],
+        normal: [-1.0, 0.0, 0.0],
+    };
+    let scene = SceneBuilder::new(0.01, 4)
+        .gravity([0.0, -9.81, 0.0])
+        .cubature(400)
+        .cache(no_cache())
+        .output(OutputSettings {
+            every: 4,
+            formats: vec![Format::Vtk, Format::Ply],
+        })
+        .object(
+            ObjectSpec::new("ball", "ball.obj")
+                .kernels(80)
+                .modes(4)
+                .points(4000)
+                .hold(held(-0.2)),
+        )
+        .object(
+            ObjectSpec::new("cloud", "cloud.ply")
+                .kernels(80)
+                .modes(4)
+                .hold(held(0.1)),
+        )
+        .build()
+        .unwrap();
+    let out = dir.path().join("out");
+    let s = run(
+        &scene,
+        &RunSettings {
+            base_dir: dir.path().to_path_buf(),
+            out: Some(out.clone()),
+        },
+        &Silent,
+    )
+    .unwrap();
+    // Render points: the mesh's vertices, the cloud's points.
+    assert_eq!(s.objects[0].render_points, v.len());
+    assert_eq!(s.objects[1].render_points, cloud.len());
+    // The deformed mesh keeps its triangles in both formats.
+    let vtp = std::fs::read(out.join("ball/ball_000004.vtp")).unwrap();
+    let head = String::from_utf8_lossy(&vtp[..600.min(vtp.len())]).to_string();
+    assert!(
+        head.contains(&format!("NumberOfPolys=\"{}\"", t.len())),
+        "{head}"
+    );
+    let mesh = freeform::geometry::Shape::parse(
+        out.join("ball/ball_000004.ply").to_str().unwrap(),
+        &Default::default(),
+    )
+    .unwrap();
+    let freeform::geometry::Shape::Mesh(m) = mesh else {
+        panic!("the ball's PLY must be a mesh");
+    };
+    assert_eq!(m.triangles().len(), t.len());
+    // The mesh moved (gravity, held only at its far left).
+    let moved = m
+        .vertices()
+        .iter()
+        .zip(&v)
+        .map(|(a, b)| (a[1] - b[1]).abs())
+        .fold(0.0, f64::max);
+    assert!(moved > 1e-4, "{moved}");
+    let vtp = std::fs::read(out.join("cloud/cloud_000004.vtp")).unwrap();
+    let head = String::from_utf8_lossy(&vtp[..600]).to_string();
+    assert!(head.contains(&format!("NumberOfVerts=\"{}\"", cloud.len())));
+}
