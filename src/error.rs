@@ -80,6 +80,12 @@ pub enum Error {
         /// Underlying error.
         source: std::io::Error,
     },
+    /// A scene description is malformed or inconsistent.
+    #[error("scene: {message}")]
+    Scene {
+        /// What is wrong, with the line and column for parse errors.
+        message: String,
+    },
     /// A basis file is malformed or from an incompatible version.
     #[error("{path}: not a valid freeform basis file: {reason}")]
     BasisFile {

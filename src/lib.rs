@@ -34,6 +34,8 @@ pub mod progress;
 pub mod report;
 pub mod rkpm;
 pub mod sampling;
+pub mod scene;
+pub mod sim;
 pub mod skinning;
 pub mod sparse;
 

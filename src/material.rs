@@ -11,9 +11,9 @@
 use crate::{Error, Point3, Result};
 use serde::{Deserialize, Serialize};
 
-/// One isotropic material.
+/// One isotropic material. In scene files a missing field takes the default's value.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct Material {
     /// Young's modulus E, Pa (> 0).
     pub youngs: f64,

@@ -149,3 +149,75 @@ fn bad_input_gives_a_clear_error() {
         assert_fails(&args, needle, &out);
     }
 }
+
+#[test]
+fn run_writes_frames_and_a_json_summary_and_rejects_bad_scenes() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("s.toml");
+    std::fs::write(
+        &scene,
+        "[simulation]\ndt = 0.01\nsteps = 4\ngravity = [0.0, -9.81, 0.0]\n\
+         [solver]\ncubature = 300\n[output]\nevery = 2\nformats = [\"vtk\"]\n\
+         [[object]]\nname = \"bar\"\nshape = \"box:1,0.2,0.2\"\n\
+         basis = { kernels = 40, modes = 4, points = 2000 }\n\
+         [[object.boundary]]\nregion = { half_space = { point = [0.1, 0.0, 0.0], normal = [-1.0, 0.0, 0.0] } }\n",
+    )
+    .unwrap();
+    let out = dir.path().join("frames");
+    let o = freeform(&[
+        "run",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r: serde_json::Value = serde_json::from_slice(&o.stdout).expect("stdout is JSON");
+    assert_eq!(r["steps"], 4);
+    assert_eq!(r["frames"], 3);
+    let obj = &r["objects"][0];
+    for key in [
+        "step_ms_mean",
+        "iterations_mean",
+        "nonconverged_steps",
+        "line_search_failures",
+        "terms",
+        "basis_cached",
+    ] {
+        assert!(!obj[key].is_null(), "missing {key}");
+    }
+    let steps = obj["steps"].as_array().unwrap();
+    assert_eq!(steps.len(), 4);
+    for key in [
+        "wall_ms",
+        "iterations",
+        "energy",
+        "line_search_failed",
+        "converged",
+    ] {
+        assert!(!steps[0][key].is_null(), "missing step key {key}");
+    }
+    assert!(out.join("bar.pvd").exists() && out.join("bar/bar_000004.vtp").exists());
+    // The cache sits next to the scene; a second run uses it.
+    let o = freeform(&["run", scene.to_str().unwrap(), "--json"]);
+    let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(r["objects"][0]["basis_cached"], true);
+
+    // A bad scene: exit 1, the line number, no frames.
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(&bad, "[simulation]\ndt = 0.01\nsteps = 4\nsubsteps = 2\n").unwrap();
+    let out2 = dir.path().join("frames2");
+    let o = freeform(&[
+        "run",
+        bad.to_str().unwrap(),
+        "--out",
+        out2.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("line 4") && err.contains("substeps"), "{err}");
+    assert!(!out2.exists());
+    let o = freeform(&["run", dir.path().join("missing.toml").to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("missing.toml"));
+}

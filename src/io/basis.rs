@@ -97,38 +97,24 @@ pub fn save(path: &Path, basis: &Basis, metadata: &serde_json::Value) -> Result<
             npy_bytes(&[meta.len() as u64], &meta).map_err(io_err)?,
         ),
     ];
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let tmp = tempfile_in(dir).map_err(io_err)?;
-    {
-        let file = std::fs::File::create(&tmp).map_err(io_err)?;
+    super::write_atomically(path, |tmp| {
+        let io_tmp = |source| Error::Io {
+            path: tmp.to_path_buf(),
+            source,
+        };
+        let file = std::fs::File::create(tmp).map_err(io_tmp)?;
         let mut zip = zip::ZipWriter::new(std::io::BufWriter::new(file));
         let opts = zip::write::SimpleFileOptions::default()
             .compression_method(zip::CompressionMethod::Stored)
             .large_file(true);
         for (name, bytes) in entries {
             zip.start_file(format!("{name}.npy"), opts)
-                .map_err(|e| io_err(std::io::Error::other(e)))?;
-            zip.write_all(&bytes).map_err(io_err)?;
+                .map_err(|e| io_tmp(std::io::Error::other(e)))?;
+            zip.write_all(&bytes).map_err(io_tmp)?;
         }
-        let mut inner = zip.finish().map_err(|e| io_err(std::io::Error::other(e)))?;
-        inner.flush().map_err(io_err)?;
-    }
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        io_err(e)
+        let mut inner = zip.finish().map_err(|e| io_tmp(std::io::Error::other(e)))?;
+        inner.flush().map_err(io_tmp)
     })
-}
-
-fn tempfile_in(dir: &Path) -> std::io::Result<std::path::PathBuf> {
-    let pid = std::process::id();
-    let nanos = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.as_nanos())
-        .unwrap_or(0);
-    Ok(dir.join(format!(".freeform-basis-{pid}-{nanos}.tmp")))
 }
 
 /// A basis read back from disk, with its metadata.

@@ -4,8 +4,44 @@ pub mod basis;
 pub mod obj;
 pub mod ply;
 pub mod stl;
+pub mod vtk;
 
 use crate::geometry::GeometryError;
+use std::path::{Path, PathBuf};
+
+/// A fresh temporary path next to `path` (same directory, so a rename is atomic).
+pub(crate) fn temp_path_for(path: &Path) -> PathBuf {
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let pid = std::process::id();
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_nanos())
+        .unwrap_or(0);
+    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
+    dir.join(format!(".{name}.{pid}-{nanos}.tmp"))
+}
+
+/// Run `write` on a temporary file next to `path`, then rename it to `path`: a failed or
+/// interrupted write never leaves a partial file under the final name.
+pub fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(&Path) -> crate::Result<()>,
+) -> crate::Result<()> {
+    let tmp = temp_path_for(path);
+    let result = write(&tmp).and_then(|()| {
+        std::fs::rename(&tmp, path).map_err(|source| crate::Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })
+    });
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
 
 /// Check that every triangle of a mesh about to be written refers to one of `vertex_count`
 /// vertices (and fits the signed 32-bit indices some formats store).

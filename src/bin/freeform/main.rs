@@ -1,6 +1,7 @@
 //! The `freeform` command-line tool. `freeform <COMMAND> --help` lists every option.
 
 mod modes;
+mod run;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -23,6 +24,8 @@ struct Cli {
 enum Command {
     /// Compute skinning eigenmodes of a shape and write them to a basis file (.npz).
     Modes(modes::ModesArgs),
+    /// Simulate a scene file (TOML) and write frames for ParaView.
+    Run(run::RunArgs),
 }
 
 /// Write to standard output; a closed pipe (`freeform ... | head`) is not an error.
@@ -52,6 +55,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Modes(args) => modes::run(args),
+        Command::Run(args) => run::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

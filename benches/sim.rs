@@ -1,0 +1,86 @@
+//! Reduced simulation speed: one backward-Euler step of the standard bend (beam 5 x 1 x 1 m,
+//! K = 1000, 5000 cubature points) for m = 16 and 32 and each Hessian strategy, plus the
+//! per-iteration pieces (energy + gradient, full Hessian assembly, dense factorization).
+//! Steps are measured on a running simulation (the state keeps evolving between samples).
+//!
+//!     cargo bench --bench sim
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use freeform::geometry::{Shape, ShapeOptions};
+use freeform::material::Region;
+use freeform::pipeline::{build_basis, BasisOptions, BasisRun};
+use freeform::progress::Silent;
+use freeform::sim::elastic::Projection;
+use freeform::sim::{Boundary, HessianStrategy, NewtonOptions, ReducedSim, SimOptions};
+use std::hint::black_box;
+
+fn beam(modes: usize) -> BasisRun {
+    let shape = Shape::parse("box:5,1,1", &ShapeOptions::default()).expect("box");
+    let opts = BasisOptions {
+        kernels: 1000,
+        modes,
+        ..BasisOptions::default()
+    };
+    build_basis(&shape, &opts, &Silent).expect("basis")
+}
+
+fn bend(run: &BasisRun, hessian: HessianStrategy) -> ReducedSim {
+    let opts = SimOptions {
+        gravity: Some([0.0, -9.81, 0.0]),
+        cubature: 5000,
+        boundaries: vec![Boundary {
+            region: Region::HalfSpace {
+                point: [0.5, 0.0, 0.0],
+                normal: [-1.0, 0.0, 0.0],
+            },
+            motion: freeform::sim::motion::Motion::Fixed,
+            stiffness: None,
+        }],
+        newton: NewtonOptions {
+            hessian,
+            ..NewtonOptions::default()
+        },
+        ..SimOptions::default()
+    };
+    let mut s = ReducedSim::new(&run.basis, &run.points, &run.material, &opts).expect("sim");
+    // Start from a bent, moving state, not the rest state.
+    for _ in 0..20 {
+        s.step();
+    }
+    s
+}
+
+fn steps(c: &mut Criterion) {
+    let mut g = c.benchmark_group("sim_step");
+    g.sample_size(20);
+    for m in [16, 32] {
+        let run = beam(m);
+        for h in [
+            HessianStrategy::Lbfgs,
+            HessianStrategy::Fixed,
+            HessianStrategy::Newton,
+        ] {
+            let mut s = bend(&run, h);
+            g.bench_function(format!("bend_m{m}_{}", h.name()), |b| {
+                b.iter(|| black_box(s.step()))
+            });
+        }
+        let s = bend(&run, HessianStrategy::Lbfgs);
+        let z = s.z.clone();
+        let mut grad = vec![0.0; z.len()];
+        g.bench_function(format!("energy_gradient_m{m}"), |b| {
+            b.iter(|| black_box(s.elastic().energy_gradient(&z, &mut grad)))
+        });
+        g.bench_function(format!("hessian_m{m}"), |b| {
+            b.iter(|| black_box(s.elastic().hessian(&z, Projection::PerPoint)))
+        });
+        let h = s.elastic().hessian(&z, Projection::PerPoint);
+        g.bench_function(format!("cholesky_m{m}"), |b| {
+            b.iter(|| black_box(h.llt(faer::Side::Lower).is_ok()))
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, steps);
+criterion_main!(benches);

@@ -1,0 +1,114 @@
+//! `freeform run`: simulate a scene file and write frames for ParaView.
+
+use crate::{emit, set_threads, CliResult};
+use clap::Args;
+use freeform::progress::{Progress, Silent, TerminalProgress};
+use freeform::scene::{run as run_scene, RunSettings, RunSummary, Scene};
+use std::io::IsTerminal;
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct RunArgs {
+    /// The scene file (TOML; see docs/scenes.md and examples/*.toml).
+    scene: PathBuf,
+    /// Directory for the frames (VTK .vtp + .pvd, PLY); none: simulate without writing frames.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Print the JSON summary (per-step wall time, iterations, energy, line-search failures).
+    #[arg(long)]
+    json: bool,
+    /// Ignore and do not write the basis cache.
+    #[arg(long)]
+    no_cache: bool,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+}
+
+pub fn run(args: RunArgs) -> CliResult {
+    set_threads(args.threads)?;
+    let mut scene = Scene::load(&args.scene)?;
+    if args.no_cache {
+        scene.cache.enabled = false;
+    }
+    let base_dir = args
+        .scene
+        .parent()
+        .map(|p| p.to_path_buf())
+        .unwrap_or_default();
+    let settings = RunSettings {
+        base_dir,
+        out: args.out.clone(),
+    };
+    let bar = TerminalProgress::new();
+    let progress: &dyn Progress = if std::io::stderr().is_terminal() {
+        &bar
+    } else {
+        &Silent
+    };
+    let summary = run_scene(&scene, &settings, progress)?;
+    if args.json {
+        let mut v = serde_json::to_value(&summary)?;
+        v["scene"] = serde_json::Value::String(args.scene.display().to_string());
+        emit(&(serde_json::to_string_pretty(&v)? + "\n"))?;
+    } else {
+        emit(&text_summary(&summary, &args))?;
+    }
+    Ok(())
+}
+
+fn text_summary(s: &RunSummary, args: &RunArgs) -> String {
+    let mut lines = vec![format!(
+        "freeform run {}: {} steps of {} s in {:.2} s",
+        args.scene.display(),
+        s.steps,
+        s.dt,
+        s.total_s
+    )];
+    for o in &s.objects {
+        lines.push(format!(
+            "  {}: {} kernels, {} modes, {} integration / {} cubature points; basis {} ({:.2} s)",
+            o.name,
+            o.kernels,
+            o.modes,
+            o.points,
+            o.cubature_points,
+            if o.basis_cached {
+                "from cache"
+            } else {
+                "computed"
+            },
+            o.precompute_s
+        ));
+        lines.push(format!(
+            "    step {:.2} ms mean, {:.2} ms max; {:.2} iterations mean, {} max; {} not converged; {} line-search failures",
+            o.step_ms_mean,
+            o.step_ms_max,
+            o.iterations_mean,
+            o.iterations_max,
+            o.nonconverged_steps,
+            o.line_search_failures
+        ));
+    }
+    if let Some(out) = &args.out {
+        lines.push(format!(
+            "  {} frames, {} files in {}",
+            s.frames,
+            s.files.len(),
+            out.display()
+        ));
+    }
+    let shown = s.warnings.len().min(10);
+    lines.extend(
+        s.warnings[..shown]
+            .iter()
+            .map(|w| format!("  warning: {w}")),
+    );
+    if s.warnings.len() > shown {
+        lines.push(format!(
+            "  ... and {} more warnings (see --json)",
+            s.warnings.len() - shown
+        ));
+    }
+    lines.join("\n") + "\n"
+}

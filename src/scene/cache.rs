@@ -1,0 +1,84 @@
+//! The on-disk basis cache. A basis is stored as `<dir>/<key>.npz` (the ordinary basis file)
+//! where the key is the SHA-256 of everything that produced it: the cache format, the
+//! freeform version, the shape specification, the SHA-256 of the shape file's bytes (for
+//! files) and every basis option (material and region overrides included). Integration
+//! points and materials are cheap and deterministic, so they are recomputed, not stored.
+
+use crate::io::basis;
+use crate::pipeline::BasisOptions;
+use crate::skinning::Basis;
+use crate::{Error, Result};
+use sha2::{Digest, Sha256};
+use std::path::{Path, PathBuf};
+
+/// Bump when the cached content or its meaning changes.
+const CACHE_FORMAT: u32 = 1;
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// The cache key of a basis: 64 hex digits.
+pub fn key(shape_spec: &str, shape_file: Option<&Path>, opts: &BasisOptions) -> Result<String> {
+    let file_hash = match shape_file {
+        Some(p) => {
+            let bytes = std::fs::read(p).map_err(|source| Error::Io {
+                path: p.to_path_buf(),
+                source,
+            })?;
+            Some(hex(&Sha256::digest(&bytes)))
+        }
+        None => None,
+    };
+    let desc = serde_json::json!({
+        "cache_format": CACHE_FORMAT,
+        "freeform_version": env!("CARGO_PKG_VERSION"),
+        "shape": shape_spec,
+        "shape_file_sha256": file_hash,
+        "options": opts,
+    });
+    Ok(hex(&Sha256::digest(desc.to_string().as_bytes())))
+}
+
+/// Path of the cached basis for `key` in `dir`.
+pub fn path(dir: &Path, key: &str) -> PathBuf {
+    dir.join(format!("{key}.npz"))
+}
+
+/// The cached basis, if present and readable with the expected number of modes. A damaged
+/// or mismatched file is reported through `warn` and ignored (it will be rewritten).
+pub fn load(dir: &Path, key: &str, modes: usize, warn: &mut dyn FnMut(String)) -> Option<Basis> {
+    let p = path(dir, key);
+    if !p.exists() {
+        return None;
+    }
+    match basis::load(&p) {
+        Ok(l) if l.basis.modes() == modes + 1 => Some(l.basis),
+        Ok(l) => {
+            warn(format!(
+                "cached basis {} has {} modes, expected {}; recomputing",
+                p.display(),
+                l.basis.modes(),
+                modes + 1
+            ));
+            None
+        }
+        Err(e) => {
+            warn(format!(
+                "ignoring unreadable cached basis: {e}; recomputing"
+            ));
+            None
+        }
+    }
+}
+
+/// Store a basis under `key` (atomically; creates `dir`).
+pub fn store(dir: &Path, key: &str, b: &Basis, metadata: &serde_json::Value) -> Result<PathBuf> {
+    std::fs::create_dir_all(dir).map_err(|source| Error::Io {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    let p = path(dir, key);
+    basis::save(&p, b, metadata)?;
+    Ok(p)
+}

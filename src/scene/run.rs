@@ -1,0 +1,507 @@
+//! Running a scene: per object, the basis (from the cache or computed), the reduced model,
+//! the render points and their weights; then the time loop, frame output and the summary.
+
+use super::cache;
+use super::spec::{Format, ObjectSpec, Scene};
+use crate::geometry::{Shape, ShapeOptions};
+use crate::io::vtk::{self, PointData};
+use crate::material::MaterialField;
+use crate::pipeline::{build_basis, default_points, sample_shape, BasisOptions};
+use crate::progress::Progress;
+use crate::report::Stopwatch;
+use crate::sampling::{IntegrationPoints, Resolution};
+use crate::sim::{ReducedSim, SimOptions, StepReport};
+use crate::skinning::{Basis, SkinningWeights};
+use crate::{Error, Point3, Result};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// Where a run reads relative paths from and writes to.
+#[derive(Debug, Clone, Default)]
+pub struct RunSettings {
+    /// Directory that relative shape paths and the cache directory are resolved against
+    /// (the scene file's directory for `freeform run`).
+    pub base_dir: PathBuf,
+    /// Output directory for frames (None: simulate and summarise only).
+    pub out: Option<PathBuf>,
+}
+
+/// One step of one object in the summary.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct StepRow {
+    /// Step number (1-based).
+    pub step: usize,
+    /// Wall time, ms.
+    pub wall_ms: f64,
+    /// Solver iterations.
+    pub iterations: usize,
+    /// Energy/gradient evaluations.
+    pub evaluations: usize,
+    /// Whether the step met the tolerance.
+    pub converged: bool,
+    /// Final convergence measure.
+    pub residual: f64,
+    /// Incremental potential at the end of the step, J.
+    pub energy: f64,
+    /// Line-search step halvings.
+    pub line_search_cutbacks: usize,
+    /// Whether the line search failed.
+    pub line_search_failed: bool,
+    /// Smallest det F over the cubature points.
+    pub min_det: f64,
+    /// Cubature points with det F <= 0.
+    pub inverted: usize,
+    /// Collider penetrations at the end of the step.
+    pub contacts: usize,
+}
+
+impl From<&StepReport> for StepRow {
+    fn from(r: &StepReport) -> Self {
+        let s = &r.solve;
+        StepRow {
+            step: r.step,
+            wall_ms: r.wall_s * 1e3,
+            iterations: s.iterations,
+            evaluations: s.evaluations,
+            converged: s.converged,
+            residual: s.residual,
+            energy: s.energy,
+            line_search_cutbacks: s.line_search_cutbacks,
+            line_search_failed: s.line_search_failed,
+            min_det: s.info.min_det,
+            inverted: s.info.inverted,
+            contacts: s.info.contacts,
+        }
+    }
+}
+
+/// Summary of one object's run.
+#[derive(Debug, Clone, Serialize)]
+pub struct ObjectSummary {
+    /// Object name.
+    pub name: String,
+    /// Shape specification.
+    pub shape: String,
+    /// Kernels K.
+    pub kernels: usize,
+    /// Modes m.
+    pub modes: usize,
+    /// Integration points.
+    pub points: usize,
+    /// Cubature points.
+    pub cubature_points: usize,
+    /// Render points written per frame.
+    pub render_points: usize,
+    /// The terms of the incremental potential that were built.
+    pub terms: Vec<String>,
+    /// Whether the basis came from the cache.
+    pub basis_cached: bool,
+    /// The cached basis file, if caching is on.
+    pub basis_file: Option<String>,
+    /// Basis precomputation (or cache load) time, s.
+    pub precompute_s: f64,
+    /// Reduced-model setup time (weights, moments, rest factorization), s.
+    pub setup_s: f64,
+    /// Mean and max step wall time, ms.
+    pub step_ms_mean: f64,
+    /// Max step wall time, ms.
+    pub step_ms_max: f64,
+    /// Mean solver iterations per step.
+    pub iterations_mean: f64,
+    /// Max solver iterations in one step.
+    pub iterations_max: usize,
+    /// Steps that did not meet the tolerance.
+    pub nonconverged_steps: usize,
+    /// Steps whose line search failed.
+    pub line_search_failures: usize,
+    /// Line-search step halvings over the run.
+    pub line_search_cutbacks: usize,
+    /// Smallest det F seen.
+    pub min_det: f64,
+    /// Per-step rows.
+    pub steps: Vec<StepRow>,
+}
+
+/// Summary of a scene run.
+#[derive(Debug, Clone, Serialize)]
+pub struct RunSummary {
+    /// Time step, s.
+    pub dt: f64,
+    /// Steps simulated.
+    pub steps: usize,
+    /// Frames written per object (0 without an output directory).
+    pub frames: usize,
+    /// Output files written.
+    pub files: Vec<String>,
+    /// Per-object summaries.
+    pub objects: Vec<ObjectSummary>,
+    /// Total wall time, s.
+    pub total_s: f64,
+    /// Warnings (non-converged steps, cache problems...).
+    pub warnings: Vec<String>,
+}
+
+/// An object ready to step.
+struct Prepared {
+    spec: ObjectSpec,
+    sim: ReducedSim,
+    render: Vec<Point3>,
+    triangles: Option<Vec<[u32; 3]>>,
+    weights: SkinningWeights,
+    summary: ObjectSummary,
+    pvd: Vec<(f64, String)>,
+}
+
+fn is_primitive(spec: &str) -> bool {
+    let t = spec.trim().to_ascii_lowercase();
+    t.starts_with("box:") || t.starts_with("sphere:")
+}
+
+/// Resolve a relative shape path against `base`.
+fn resolve_shape(spec: &str, base: &Path) -> (String, Option<PathBuf>) {
+    if is_primitive(spec) {
+        return (spec.to_string(), None);
+    }
+    let p = Path::new(spec.trim());
+    let full = if p.is_relative() {
+        base.join(p)
+    } else {
+        p.to_path_buf()
+    };
+    (full.display().to_string(), Some(full))
+}
+
+/// An object's shape with the specification it was read from.
+struct ResolvedShape {
+    shape: Shape,
+    /// The specification with relative paths resolved.
+    spec: String,
+    /// The file, for file shapes.
+    file: Option<PathBuf>,
+}
+
+/// What [`object_basis`] returns.
+struct ObjectBasis {
+    basis: Basis,
+    points: IntegrationPoints,
+    material: MaterialField,
+    cached: bool,
+    file: Option<PathBuf>,
+}
+
+/// Basis, integration points and materials of an object (from the cache when possible).
+fn object_basis(
+    spec: &ObjectSpec,
+    shape: &ResolvedShape,
+    scene: &Scene,
+    settings: &RunSettings,
+    progress: &dyn Progress,
+    warnings: &mut Vec<String>,
+) -> Result<ObjectBasis> {
+    let opts: BasisOptions = spec.basis_options()?;
+    let cache_dir = scene.cache.enabled.then(|| {
+        if scene.cache.dir.is_relative() {
+            settings.base_dir.join(&scene.cache.dir)
+        } else {
+            scene.cache.dir.clone()
+        }
+    });
+    let key = match &cache_dir {
+        Some(_) => Some(cache::key(
+            // Paths enter the key by content, not by name.
+            if shape.file.is_some() {
+                "file"
+            } else {
+                &shape.spec
+            },
+            shape.file.as_deref(),
+            &opts,
+        )?),
+        None => None,
+    };
+    if let (Some(dir), Some(key)) = (&cache_dir, &key) {
+        let mut warn = |w: String| warnings.push(format!("object '{}': {w}", spec.name));
+        if let Some(basis) = cache::load(dir, key, opts.modes, &mut warn) {
+            let resolution = opts
+                .resolution
+                .unwrap_or(Resolution::Count(default_points(opts.kernels)));
+            let points = sample_shape(&shape.shape, resolution, &opts.cloud)?;
+            let material =
+                MaterialField::from_regions(&points.points, &opts.material, &opts.overrides)?;
+            return Ok(ObjectBasis {
+                basis,
+                points,
+                material,
+                cached: true,
+                file: Some(cache::path(dir, key)),
+            });
+        }
+    }
+    let run = build_basis(&shape.shape, &opts, progress)?;
+    let mut file_out = None;
+    if let (Some(dir), Some(key)) = (&cache_dir, &key) {
+        let meta = serde_json::json!({
+            "freeform_version": env!("CARGO_PKG_VERSION"),
+            "shape": shape.spec,
+            "options": opts,
+            "report": run.report,
+        });
+        file_out = Some(cache::store(dir, key, &run.basis, &meta)?);
+    }
+    Ok(ObjectBasis {
+        basis: run.basis,
+        points: run.points,
+        material: run.material,
+        cached: false,
+        file: file_out,
+    })
+}
+
+fn prepare(
+    spec: &ObjectSpec,
+    scene: &Scene,
+    settings: &RunSettings,
+    progress: &dyn Progress,
+    warnings: &mut Vec<String>,
+) -> Result<Prepared> {
+    let ctx = |e: Error| Error::Scene {
+        message: format!("object '{}': {e}", spec.name),
+    };
+    let (shape_spec, file) = resolve_shape(&spec.shape, &settings.base_dir);
+    let shape = Shape::parse(
+        &shape_spec,
+        &ShapeOptions {
+            allow_open_mesh: spec.allow_open_mesh,
+        },
+    )
+    .map_err(|e| ctx(e.into()))?;
+    let resolved = ResolvedShape {
+        shape,
+        spec: shape_spec,
+        file,
+    };
+    let clock = Stopwatch::start();
+    let ObjectBasis {
+        basis,
+        points,
+        material,
+        cached,
+        file: basis_file,
+    } = object_basis(spec, &resolved, scene, settings, progress, warnings).map_err(ctx)?;
+    let shape = resolved.shape;
+    let precompute_s = clock.elapsed();
+    let clock = Stopwatch::start();
+    progress.begin(&format!("setup {}", spec.name), None);
+    let opts = SimOptions {
+        dt: scene.simulation.dt,
+        gravity: scene.simulation.gravity,
+        cubature: spec.cubature.unwrap_or(scene.solver.cubature),
+        newton: scene.solver.newton(),
+        boundaries: spec.boundaries.clone(),
+        colliders: scene.colliders.clone(),
+        placement: spec.placement,
+    };
+    let sim = ReducedSim::new(&basis, &points, &material, &opts).map_err(ctx)?;
+    let (render, triangles) = match &shape {
+        Shape::Mesh(m) => (m.vertices().to_vec(), Some(m.triangles().to_vec())),
+        other => (
+            other
+                .render_points()
+                .map(|p| p.to_vec())
+                .unwrap_or_else(|| points.points.clone()),
+            None,
+        ),
+    };
+    let weights = basis.weights(&render).map_err(|e| {
+        ctx(Error::Scene {
+            message: format!(
+                "the skinning weights cannot be evaluated at the render points ({e}); \
+                 more kernels or a larger support factor cover them"
+            ),
+        })
+    })?;
+    progress.finish();
+    let summary = ObjectSummary {
+        name: spec.name.clone(),
+        shape: spec.shape.clone(),
+        kernels: basis.kernels.len(),
+        modes: basis.modes() - 1,
+        points: points.len(),
+        cubature_points: sim.cubature().len(),
+        render_points: render.len(),
+        terms: sim.terms(),
+        basis_cached: cached,
+        basis_file: basis_file.map(|p| p.display().to_string()),
+        precompute_s,
+        setup_s: clock.elapsed(),
+        step_ms_mean: 0.0,
+        step_ms_max: 0.0,
+        iterations_mean: 0.0,
+        iterations_max: 0,
+        nonconverged_steps: 0,
+        line_search_failures: 0,
+        line_search_cutbacks: 0,
+        min_det: f64::INFINITY,
+        steps: Vec::new(),
+    };
+    Ok(Prepared {
+        spec: spec.clone(),
+        sim,
+        render,
+        triangles,
+        weights,
+        summary,
+        pvd: Vec::new(),
+    })
+}
+
+/// Write one frame of an object; returns the files written.
+fn write_frame(
+    p: &mut Prepared,
+    out: &Path,
+    frame: usize,
+    formats: &[Format],
+) -> Result<Vec<String>> {
+    let dir = out.join(&p.spec.name);
+    std::fs::create_dir_all(&dir).map_err(|source| Error::Io {
+        path: dir.clone(),
+        source,
+    })?;
+    let x = p.sim.positions(&p.render, &p.weights);
+    let disp: Vec<[f64; 3]> = x
+        .iter()
+        .zip(&p.render)
+        .map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]])
+        .collect();
+    let stem = format!("{}_{frame:06}", p.spec.name);
+    let mut files = Vec::new();
+    for f in formats {
+        match f {
+            Format::Vtk => {
+                let path = dir.join(format!("{stem}.vtp"));
+                vtk::write_vtp(
+                    &path,
+                    &x,
+                    p.triangles.as_deref(),
+                    &[PointData::Vector("displacement", &disp)],
+                )?;
+                p.pvd
+                    .push((p.sim.time, format!("{}/{stem}.vtp", p.spec.name)));
+                files.push(path.display().to_string());
+            }
+            Format::Ply => {
+                let path = dir.join(format!("{stem}.ply"));
+                crate::io::write_atomically(&path, |tmp| {
+                    match &p.triangles {
+                        Some(t) => crate::io::ply::write_ply_mesh(
+                            tmp,
+                            &x,
+                            t,
+                            crate::io::ply::PlyWriteOptions::default(),
+                        )?,
+                        None => crate::io::ply::write_ply_points(tmp, &x, &[])?,
+                    }
+                    Ok(())
+                })?;
+                files.push(path.display().to_string());
+            }
+        }
+    }
+    Ok(files)
+}
+
+/// Run `scene`: precompute (or load) every object's basis, simulate all steps, write frames
+/// to `settings.out` and return the summary. Non-converged steps are reported in the
+/// summary and its warnings, never hidden; the state always stays finite.
+pub fn run(scene: &Scene, settings: &RunSettings, progress: &dyn Progress) -> Result<RunSummary> {
+    scene.validate()?;
+    let total = Stopwatch::start();
+    let mut warnings = Vec::new();
+    let mut objects = Vec::new();
+    for spec in &scene.objects {
+        objects.push(prepare(spec, scene, settings, progress, &mut warnings)?);
+    }
+    let formats = &scene.output.formats;
+    let mut files = Vec::new();
+    let mut frames = 0;
+    if let Some(out) = &settings.out {
+        std::fs::create_dir_all(out).map_err(|source| Error::Io {
+            path: out.clone(),
+            source,
+        })?;
+        for p in objects.iter_mut() {
+            files.extend(write_frame(p, out, 0, formats)?);
+        }
+        frames = 1;
+    }
+    let steps = scene.simulation.steps;
+    progress.begin("simulate", Some(steps as u64));
+    for step in 1..=steps {
+        for p in objects.iter_mut() {
+            let rep = p.sim.step();
+            if !rep.solve.converged {
+                warnings.push(format!(
+                    "object '{}': step {step} did not converge ({} iterations, residual {:.2e}{})",
+                    p.spec.name,
+                    rep.solve.iterations,
+                    rep.solve.residual,
+                    if rep.solve.line_search_failed {
+                        ", line search failed"
+                    } else {
+                        ""
+                    }
+                ));
+            }
+            p.summary.steps.push(StepRow::from(&rep));
+        }
+        if let Some(out) = &settings.out {
+            if step % scene.output.every == 0 || step == steps {
+                for p in objects.iter_mut() {
+                    files.extend(write_frame(p, out, step, formats)?);
+                }
+                frames += 1;
+            }
+        }
+        progress.set_position(step as u64);
+    }
+    progress.finish();
+    if let Some(out) = &settings.out {
+        if formats.contains(&Format::Vtk) {
+            for p in &objects {
+                let path = out.join(format!("{}.pvd", p.spec.name));
+                vtk::write_pvd(&path, &p.pvd)?;
+                files.push(path.display().to_string());
+            }
+        }
+    }
+    let objects = objects
+        .into_iter()
+        .map(|p| finish_summary(p.summary))
+        .collect();
+    Ok(RunSummary {
+        dt: scene.simulation.dt,
+        steps,
+        frames,
+        files,
+        objects,
+        total_s: total.elapsed(),
+        warnings,
+    })
+}
+
+fn finish_summary(mut s: ObjectSummary) -> ObjectSummary {
+    let n = s.steps.len().max(1) as f64;
+    s.step_ms_mean = s.steps.iter().map(|r| r.wall_ms).sum::<f64>() / n;
+    s.step_ms_max = s.steps.iter().map(|r| r.wall_ms).fold(0.0, f64::max);
+    s.iterations_mean = s.steps.iter().map(|r| r.iterations as f64).sum::<f64>() / n;
+    s.iterations_max = s.steps.iter().map(|r| r.iterations).max().unwrap_or(0);
+    s.nonconverged_steps = s.steps.iter().filter(|r| !r.converged).count();
+    s.line_search_failures = s.steps.iter().filter(|r| r.line_search_failed).count();
+    s.line_search_cutbacks = s.steps.iter().map(|r| r.line_search_cutbacks).sum();
+    s.min_det = s
+        .steps
+        .iter()
+        .map(|r| r.min_det)
+        .fold(f64::INFINITY, f64::min);
+    s
+}

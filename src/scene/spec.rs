@@ -1,0 +1,368 @@
+//! The scene description: what `freeform run` reads from TOML and what the builder API
+//! ([`super::SceneBuilder`]) produces. Unknown keys are errors; every default is stated
+//! here and in docs/scenes.md.
+
+use crate::material::{Material, MaterialOverride};
+use crate::pipeline::{BasisOptions, SolverChoice};
+use crate::rkpm::{KernelType, SupportOptions};
+use crate::sampling::{CloudVolumeOptions, Resolution};
+use crate::sim::newton::HessianStrategy;
+use crate::sim::{Boundary, Collider, NewtonOptions, Placement};
+use crate::{Error, Result};
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+/// A whole scene.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// Time stepping and gravity.
+    pub simulation: Simulation,
+    /// Per-step solver settings (defaults: see [`SolverSettings`]).
+    #[serde(default)]
+    pub solver: SolverSettings,
+    /// What to write.
+    #[serde(default)]
+    pub output: OutputSettings,
+    /// The basis cache.
+    #[serde(default)]
+    pub cache: CacheSettings,
+    /// The objects (`[[object]]` tables); they do not interact with each other.
+    #[serde(default, rename = "object")]
+    pub objects: Vec<ObjectSpec>,
+    /// Static obstacles shared by all objects (`[[collider]]` tables).
+    #[serde(default, rename = "collider", skip_serializing_if = "Vec::is_empty")]
+    pub colliders: Vec<Collider>,
+}
+
+/// Time stepping.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Simulation {
+    /// Time step h, seconds.
+    pub dt: f64,
+    /// Number of steps.
+    pub steps: usize,
+    /// Gravity, m/s^2; absent means no gravity term at all.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gravity: Option<[f64; 3]>,
+}
+
+/// Per-step solver settings.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SolverSettings {
+    /// Hessian strategy: "lbfgs" (default), "newton" or "fixed".
+    pub hessian: HessianStrategy,
+    /// Convergence tolerance (RMS Newton step / object diagonal), default 1e-6.
+    pub tol: f64,
+    /// Iteration cap per step, default 100.
+    pub max_iter: usize,
+    /// L-BFGS history length, default 8.
+    pub lbfgs_history: usize,
+    /// L-BFGS Hessian refresh period in iterations (0: never), default 10.
+    pub refresh_iterations: usize,
+    /// Cubature points for the elastic energy, default 5000 (all points if fewer).
+    pub cubature: usize,
+}
+
+impl Default for SolverSettings {
+    fn default() -> Self {
+        let n = NewtonOptions::default();
+        Self {
+            hessian: n.hessian,
+            tol: n.tol,
+            max_iter: n.max_iter,
+            lbfgs_history: n.lbfgs_history,
+            refresh_iterations: n.refresh_iterations,
+            cubature: crate::sim::cubature::DEFAULT_CUBATURE,
+        }
+    }
+}
+
+impl SolverSettings {
+    /// The Newton options these settings describe.
+    pub fn newton(&self) -> NewtonOptions {
+        NewtonOptions {
+            hessian: self.hessian,
+            tol: self.tol,
+            max_iter: self.max_iter,
+            lbfgs_history: self.lbfgs_history,
+            refresh_iterations: self.refresh_iterations,
+        }
+    }
+}
+
+/// Output file formats.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Format {
+    /// VTK XML PolyData per frame plus a `.pvd` collection (ParaView).
+    Vtk,
+    /// Binary PLY per frame (points, or the deformed mesh for mesh inputs).
+    Ply,
+}
+
+/// What is written per frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OutputSettings {
+    /// Write a frame every this many steps (frame 0, the initial state, is always written).
+    /// Default 1.
+    pub every: usize,
+    /// Formats, default ["vtk", "ply"].
+    pub formats: Vec<Format>,
+}
+
+impl Default for OutputSettings {
+    fn default() -> Self {
+        Self {
+            every: 1,
+            formats: vec![Format::Vtk, Format::Ply],
+        }
+    }
+}
+
+/// The basis cache: a basis computed once is stored under a key made of everything that
+/// produced it and reused by later runs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CacheSettings {
+    /// Use the cache (default true).
+    pub enabled: bool,
+    /// Directory; relative paths are relative to the scene file. Default `.freeform-cache`.
+    pub dir: PathBuf,
+}
+
+impl Default for CacheSettings {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            dir: PathBuf::from(".freeform-cache"),
+        }
+    }
+}
+
+/// One object: its shape, material, basis settings, boundary conditions and placement.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectSpec {
+    /// Name, used for output file names (letters, digits, '-', '_').
+    pub name: String,
+    /// Shape: `box:LX,LY,LZ`, `sphere:R`, or a mesh / point-cloud file (relative to the scene
+    /// file).
+    pub shape: String,
+    /// Accept a mesh with holes.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub allow_open_mesh: bool,
+    /// Base material (default: E 5e6 Pa, nu 0.45, rho 1000 kg/m^3).
+    #[serde(default)]
+    pub material: Material,
+    /// Materials inside regions, applied in order (`[[object.region_material]]`).
+    #[serde(
+        default,
+        rename = "region_material",
+        skip_serializing_if = "Vec::is_empty"
+    )]
+    pub overrides: Vec<MaterialOverride>,
+    /// Basis settings.
+    #[serde(default)]
+    pub basis: BasisSettings,
+    /// Boundary conditions (`[[object.boundary]]`).
+    #[serde(default, rename = "boundary", skip_serializing_if = "Vec::is_empty")]
+    pub boundaries: Vec<Boundary>,
+    /// Initial placement and velocity.
+    #[serde(default)]
+    pub placement: Placement,
+    /// Cubature points for this object (default: the solver setting).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cubature: Option<usize>,
+}
+
+/// Basis precomputation settings of an object (see `freeform modes --help`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct BasisSettings {
+    /// RKPM kernels K, default 1000.
+    pub kernels: usize,
+    /// Modes m (m + 1 handles), default 16.
+    pub modes: usize,
+    /// Integration points (default 50 K clamped to 20,000..2,000,000).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub points: Option<usize>,
+    /// Integration grid spacing, metres (instead of `points`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub spacing: Option<f64>,
+    /// Kernel window, default "cubic".
+    pub kernel: KernelType,
+    /// Support factor, default 2.0.
+    pub support: f64,
+    /// Support neighbour, default 4.
+    pub support_neighbor: usize,
+    /// Eigensolver, default "lobpcg".
+    pub eigensolver: SolverChoice,
+    /// Eigensolver tolerance, default 1e-8.
+    pub eigen_tol: f64,
+    /// Point clouds: total volume, m^3.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub volume: Option<f64>,
+    /// Point clouds: voxel edge, metres.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub voxel: Option<f64>,
+}
+
+impl Default for BasisSettings {
+    fn default() -> Self {
+        let b = BasisOptions::default();
+        Self {
+            kernels: b.kernels,
+            modes: b.modes,
+            points: None,
+            spacing: None,
+            kernel: b.kernel,
+            support: b.support.factor,
+            support_neighbor: b.support.neighbor,
+            eigensolver: b.solver,
+            eigen_tol: b.tol,
+            volume: None,
+            voxel: None,
+        }
+    }
+}
+
+impl ObjectSpec {
+    /// The basis options of this object.
+    pub fn basis_options(&self) -> Result<BasisOptions> {
+        let b = &self.basis;
+        if b.points.is_some() && b.spacing.is_some() {
+            return Err(Error::param(
+                "basis.points",
+                format!("{:?}", b.points),
+                format!(
+                    "object '{}': give either basis.points or basis.spacing, not both",
+                    self.name
+                ),
+            ));
+        }
+        let opts = BasisOptions {
+            kernels: b.kernels,
+            modes: b.modes,
+            resolution: match (b.points, b.spacing) {
+                (Some(n), _) => Some(Resolution::Count(n)),
+                (None, Some(h)) => Some(Resolution::Spacing(h)),
+                (None, None) => None,
+            },
+            kernel: b.kernel,
+            support: SupportOptions {
+                factor: b.support,
+                neighbor: b.support_neighbor,
+            },
+            material: self.material,
+            overrides: self.overrides.clone(),
+            solver: b.eigensolver,
+            tol: b.eigen_tol,
+            cloud: CloudVolumeOptions {
+                voxel: b.voxel,
+                total_volume: b.volume,
+            },
+            ..BasisOptions::default()
+        };
+        opts.validate()?;
+        Ok(opts)
+    }
+}
+
+impl Scene {
+    /// Parse a scene from TOML text. Syntax errors, unknown keys and wrong types are
+    /// reported with their line and column.
+    pub fn from_toml(text: &str) -> Result<Scene> {
+        let scene: Scene = toml::from_str(text).map_err(|e| Error::Scene {
+            message: e.to_string(),
+        })?;
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    /// The scene as TOML text (round-trips through [`Scene::from_toml`]).
+    pub fn to_toml(&self) -> Result<String> {
+        toml::to_string(self).map_err(|e| Error::Scene {
+            message: format!("cannot write the scene as TOML: {e}"),
+        })
+    }
+
+    /// Check every value that parsing cannot (ranges, names, consistency).
+    pub fn validate(&self) -> Result<()> {
+        let s = &self.simulation;
+        if !(s.dt > 0.0 && s.dt.is_finite()) {
+            return Err(scene_err(format!(
+                "simulation.dt = {} must be a positive number of seconds (e.g. 0.01)",
+                s.dt
+            )));
+        }
+        if s.steps == 0 {
+            return Err(scene_err("simulation.steps must be at least 1".to_string()));
+        }
+        if let Some(g) = s.gravity {
+            if !g.iter().all(|v| v.is_finite()) {
+                return Err(scene_err(format!(
+                    "simulation.gravity = {g:?} must be finite"
+                )));
+            }
+        }
+        self.solver.newton().validate()?;
+        if self.solver.cubature == 0 {
+            return Err(scene_err("solver.cubature must be at least 1".into()));
+        }
+        if self.output.every == 0 {
+            return Err(scene_err("output.every must be at least 1".into()));
+        }
+        if self.objects.is_empty() {
+            return Err(scene_err(
+                "the scene has no [[object]]: add at least one object".into(),
+            ));
+        }
+        let mut names = std::collections::HashSet::new();
+        for o in &self.objects {
+            let ok = !o.name.is_empty()
+                && o.name
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
+            if !ok {
+                return Err(scene_err(format!(
+                    "object name '{}' must be non-empty and use only letters, digits, '-' and '_' \
+                     (it names the output files)",
+                    o.name
+                )));
+            }
+            if !names.insert(o.name.clone()) {
+                return Err(scene_err(format!("two objects are named '{}'", o.name)));
+            }
+            let _checked = o.basis_options().map_err(|e| in_object(&o.name, e))?;
+            for (i, b) in o.boundaries.iter().enumerate() {
+                b.motion
+                    .validate()
+                    .map_err(|e| in_object(&o.name, scene_err(format!("boundary {i}: {e}"))))?;
+            }
+            if o.cubature == Some(0) {
+                return Err(in_object(
+                    &o.name,
+                    scene_err("cubature must be at least 1".into()),
+                ));
+            }
+        }
+        for (i, c) in self.colliders.iter().enumerate() {
+            c.shape
+                .validate()
+                .map_err(|e| scene_err(format!("collider {i}: {e}")))?;
+        }
+        Ok(())
+    }
+}
+
+fn scene_err(message: String) -> Error {
+    Error::Scene { message }
+}
+
+fn in_object(name: &str, e: Error) -> Error {
+    scene_err(format!("object '{name}': {e}"))
+}

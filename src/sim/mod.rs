@@ -1,0 +1,22 @@
+//! Reduced-order simulation (design.md section 2, "Reduced simulation"; the paper's
+//! Eqs. 1-2): m + 1 affine handles driven by the skinning eigenmodes, backward Euler as
+//! minimisation of the incremental potential, Newton or quasi-Newton per step.
+//!
+//! - [`cubature`]: the subset of integration points that carries the elastic energy.
+//! - [`elastic`]: the elastic energy, gradient and Hessian in z (structured, no dense
+//!   per-point 9 x 12 (m + 1) blocks).
+//! - [`terms`]: inertia, gravity, boundary and collider penalties.
+//! - [`motion`]: prescribed rigid motions for boundaries.
+//! - [`newton`]: the per-step minimiser and its strategies.
+//! - [`object`]: one simulated object (setup, state, stepping).
+
+pub mod cubature;
+pub mod elastic;
+mod lanes;
+pub mod motion;
+pub mod newton;
+pub mod object;
+pub mod terms;
+
+pub use newton::{HessianStrategy, NewtonOptions};
+pub use object::{Boundary, Collider, Placement, ReducedSim, SimOptions, StepReport};

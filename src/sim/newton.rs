@@ -1,0 +1,358 @@
+//! Minimisation of one time step's incremental potential: Newton or quasi-Newton with a
+//! backtracking (Armijo) line search.
+//!
+//! Strategies ([`HessianStrategy`]):
+//! - `Newton`: the full Hessian (per-point PSD projection) rebuilt and Cholesky-factorized
+//!   every iteration. Quadratic convergence; O(C (4 (m + 1))^2) per iteration for C
+//!   cubature points.
+//! - `Fixed`: the rest-state system matrix S (inertia + rest elastic Hessian + boundary
+//!   penalties), factorized once for the whole run; each iteration costs one gradient and two
+//!   triangular solves. Linear convergence.
+//! - `Lbfgs`: L-BFGS with S^-1 as the initial inverse Hessian (Liu et al. 2017); the same
+//!   cost per iteration as `Fixed`, fewer iterations.
+//!
+//! Convergence: with delta = B^-1 grad E, where B is the best Hessian model at hand (the
+//! latest factorized Hessian for `Newton` and for `Lbfgs` after a refresh, the rest matrix S
+//! otherwise and always for `Fixed`), the mass-weighted RMS length of delta over the object,
+//! divided by the rest bounding-box diagonal D, must fall below `tol`. It reads "one more
+//! Newton step would move the points by less than tol x D on average" (a Newton decrement in
+//! length units): scale free, and comparable across strategies. With `Fixed` under large
+//! rotations S overestimates the stiffness of rotated material, so it can stop early: prefer
+//! `Lbfgs` there (docs/performance.md has the measurements).
+
+use faer::linalg::solvers::{Llt, Solve};
+use faer::{Mat, Side};
+use serde::{Deserialize, Serialize};
+
+/// How the Newton system is built.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum HessianStrategy {
+    /// Full PSD-projected Hessian, refactorized every iteration.
+    Newton,
+    /// Rest-state Hessian factorized once.
+    Fixed,
+    /// L-BFGS on top of the rest-state Hessian (default: fastest to the same tolerance in
+    /// our measurements, docs/performance.md).
+    #[default]
+    Lbfgs,
+}
+
+impl HessianStrategy {
+    /// Name used in reports and scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            HessianStrategy::Newton => "newton",
+            HessianStrategy::Fixed => "fixed",
+            HessianStrategy::Lbfgs => "lbfgs",
+        }
+    }
+}
+
+/// Solver settings for each time step.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct NewtonOptions {
+    /// Hessian strategy.
+    pub hessian: HessianStrategy,
+    /// Convergence tolerance on the RMS step length relative to the object's diagonal.
+    pub tol: f64,
+    /// Iteration cap per time step.
+    pub max_iter: usize,
+    /// L-BFGS history length (pairs kept).
+    pub lbfgs_history: usize,
+    /// L-BFGS: every this many iterations within a step, rebuild and refactorize the full
+    /// Hessian as the new base matrix (0: never; keep the rest matrix).
+    pub refresh_iterations: usize,
+}
+
+impl Default for NewtonOptions {
+    fn default() -> Self {
+        Self {
+            hessian: HessianStrategy::default(),
+            tol: 1e-6,
+            max_iter: 100,
+            lbfgs_history: 8,
+            refresh_iterations: 10,
+        }
+    }
+}
+
+impl NewtonOptions {
+    /// Check ranges.
+    pub fn validate(&self) -> crate::Result<()> {
+        if !(self.tol > 0.0 && self.tol < 1.0) {
+            return Err(crate::Error::param(
+                "tol",
+                self.tol,
+                "the Newton tolerance must be in (0, 1) (default 1e-6)",
+            ));
+        }
+        if self.max_iter == 0 {
+            return Err(crate::Error::param(
+                "max_iter",
+                0,
+                "need at least one Newton iteration per step (default 100)",
+            ));
+        }
+        if self.hessian == HessianStrategy::Lbfgs && self.lbfgs_history == 0 {
+            return Err(crate::Error::param(
+                "lbfgs_history",
+                0,
+                "L-BFGS needs a history of at least one pair (default 8)",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// What a potential reports besides its value.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct EvalInfo {
+    /// Smallest det F over the cubature points.
+    pub min_det: f64,
+    /// Cubature points with det F <= 0.
+    pub inverted: usize,
+    /// Collider penetrations (point-obstacle pairs).
+    pub contacts: usize,
+    /// Estimated rounding error of the energy, J (the penalty quadratics cancel large
+    /// terms): energy changes below it are noise.
+    #[serde(skip)]
+    pub rounding: f64,
+}
+
+/// A smooth function of z to minimise.
+pub trait Potential {
+    /// Energy (J), gradient written to `grad`.
+    fn energy_gradient(&self, z: &[f64], grad: &mut [f64]) -> (f64, EvalInfo);
+    /// PSD approximation of the Hessian at z.
+    fn hessian(&self, z: &[f64]) -> Mat<f64>;
+}
+
+/// Outcome of one time step's minimisation.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct SolveReport {
+    /// Iterations taken.
+    pub iterations: usize,
+    /// Whether the tolerance was met.
+    pub converged: bool,
+    /// Final convergence measure (compare with `tol`).
+    pub residual: f64,
+    /// Final energy, J.
+    pub energy: f64,
+    /// Energy/gradient evaluations (the dominant cost of the quasi-Newton strategies).
+    pub evaluations: usize,
+    /// Step halvings in the line search, summed over iterations.
+    pub line_search_cutbacks: usize,
+    /// Whether the line search failed to decrease the energy (the step ended early).
+    pub line_search_failed: bool,
+    /// Hessian factorizations (Newton).
+    pub factorizations: usize,
+    /// Times a Newton Hessian was not positive definite and the rest matrix was used.
+    pub cholesky_fallbacks: usize,
+    /// Diagnostics at the final state.
+    pub info: EvalInfo,
+    /// Seconds spent in energy/gradient evaluations.
+    pub gradient_s: f64,
+    /// Seconds spent building Hessians.
+    pub hessian_s: f64,
+    /// Seconds spent factorizing and solving.
+    pub solve_s: f64,
+}
+
+/// The fixed pieces the solver needs.
+pub struct SolverContext<'a> {
+    /// Cholesky factor of the rest system matrix S.
+    pub rest: &'a Llt<f64>,
+    /// Convergence measure of delta = S^-1 grad (relative RMS length).
+    pub measure: &'a dyn Fn(&[f64]) -> f64,
+    /// Options.
+    pub options: &'a NewtonOptions,
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+fn solve_with(f: &Llt<f64>, rhs: &[f64]) -> Vec<f64> {
+    let b = Mat::from_fn(rhs.len(), 1, |i, _| rhs[i]);
+    let x = f.solve(&b);
+    (0..rhs.len()).map(|i| x[(i, 0)]).collect()
+}
+
+/// Quasi-Newton memory carried across time steps (the Hessian changes little from one step
+/// to the next): L-BFGS curvature pairs and the current base matrix.
+#[derive(Default)]
+pub struct QuasiNewtonState {
+    /// Curvature pairs (s, y, 1 / s.y), oldest first.
+    pairs: std::collections::VecDeque<(Vec<f64>, Vec<f64>, f64)>,
+    /// Factor of the latest refreshed Hessian (None: the rest matrix S).
+    base: Option<Llt<f64>>,
+}
+
+/// Minimise `pot` starting from `z` (updated in place); `state` carries the quasi-Newton memory between
+/// calls.
+pub fn minimize(
+    pot: &dyn Potential,
+    z: &mut [f64],
+    ctx: &SolverContext,
+    state: &mut QuasiNewtonState,
+) -> SolveReport {
+    use crate::report::Stopwatch;
+    let n = z.len();
+    let opts = ctx.options;
+    let mut rep = SolveReport::default();
+    let mut grad = vec![0.0; n];
+    let sw = Stopwatch::start();
+    let (mut e, mut info) = pot.energy_gradient(z, &mut grad);
+    rep.gradient_s += sw.elapsed();
+    rep.evaluations += 1;
+    let mut trial = vec![0.0; n];
+    let mut tgrad = vec![0.0; n];
+    loop {
+        // The convergence measure uses the best Hessian model at hand: the latest factorized
+        // Hessian (Newton; L-BFGS after a refresh), else the rest matrix S.
+        let sw = Stopwatch::start();
+        let model = match opts.hessian {
+            HessianStrategy::Fixed => ctx.rest,
+            _ => state.base.as_ref().unwrap_or(ctx.rest),
+        };
+        let delta = solve_with(model, &grad);
+        rep.solve_s += sw.elapsed();
+        rep.residual = (ctx.measure)(&delta);
+        if !rep.residual.is_finite() {
+            rep.residual = f64::INFINITY;
+            break;
+        }
+        if rep.residual <= opts.tol {
+            rep.converged = true;
+            break;
+        }
+        if rep.iterations == opts.max_iter {
+            break;
+        }
+        rep.iterations += 1;
+        if opts.hessian == HessianStrategy::Lbfgs
+            && opts.refresh_iterations > 0
+            && rep.iterations % opts.refresh_iterations == 0
+        {
+            // Slow progress: the base matrix is too far from the current Hessian (large
+            // rotations, contact). Rebuild it here; later steps keep using it.
+            let sw = Stopwatch::start();
+            let h = pot.hessian(z);
+            rep.hessian_s += sw.elapsed();
+            let sw = Stopwatch::start();
+            rep.factorizations += 1;
+            match h.llt(Side::Lower) {
+                Ok(f) => state.base = Some(f),
+                Err(_) => rep.cholesky_fallbacks += 1,
+            }
+            state.pairs.clear();
+            rep.solve_s += sw.elapsed();
+        }
+        let hist = &mut state.pairs;
+        // Search direction.
+        let mut dir: Vec<f64> = match opts.hessian {
+            HessianStrategy::Fixed => delta.iter().map(|v| -v).collect(),
+            HessianStrategy::Lbfgs => {
+                let sw = Stopwatch::start();
+                let mut q = grad.clone();
+                let mut alpha = Vec::with_capacity(hist.len());
+                for (s, y, rho) in hist.iter().rev() {
+                    let a = rho * dot(s, &q);
+                    q.iter_mut().zip(y).for_each(|(qi, yi)| *qi -= a * yi);
+                    alpha.push(a);
+                }
+                let mut r = solve_with(state.base.as_ref().unwrap_or(ctx.rest), &q);
+                for ((s, y, rho), a) in hist.iter().zip(alpha.iter().rev()) {
+                    let b = rho * dot(y, &r);
+                    r.iter_mut().zip(s).for_each(|(ri, si)| *ri += (a - b) * si);
+                }
+                rep.solve_s += sw.elapsed();
+                r.iter().map(|v| -v).collect()
+            }
+            HessianStrategy::Newton => {
+                let sw = Stopwatch::start();
+                let h = pot.hessian(z);
+                rep.hessian_s += sw.elapsed();
+                let sw = Stopwatch::start();
+                rep.factorizations += 1;
+                let d = match h.llt(Side::Lower) {
+                    Ok(f) => {
+                        let d = solve_with(&f, &grad);
+                        state.base = Some(f);
+                        d
+                    }
+                    Err(_) => {
+                        // The PSD-projected Hessian plus the SPD inertia is positive definite
+                        // in exact arithmetic; if rounding breaks that, take the rest step.
+                        rep.cholesky_fallbacks += 1;
+                        delta.clone()
+                    }
+                };
+                rep.solve_s += sw.elapsed();
+                d.iter().map(|v| -v).collect()
+            }
+        };
+        let mut slope = dot(&grad, &dir);
+        if slope.is_nan() || slope >= 0.0 {
+            // Not a descent direction (cannot happen with positive curvature pairs; guard
+            // against rounding): fall back to the rest-preconditioned gradient.
+            hist.clear();
+            dir = delta.iter().map(|v| -v).collect();
+            slope = dot(&grad, &dir);
+        }
+        // Backtracking line search (Armijo, c = 1e-4). Near convergence the decrease can be
+        // below the rounding noise of E (E sums terms of much larger size); then a trial is
+        // accepted when E did not grow beyond that noise and the directional derivative
+        // shrank (the step moved toward the minimum along the direction).
+        let noise = 1e-11 * e.abs() + info.rounding;
+        let mut alpha = 1.0;
+        let mut accepted = None;
+        for _ in 0..40 {
+            for i in 0..n {
+                trial[i] = z[i] + alpha * dir[i];
+            }
+            let sw = Stopwatch::start();
+            let (et, it) = pot.energy_gradient(&trial, &mut tgrad);
+            rep.gradient_s += sw.elapsed();
+            rep.evaluations += 1;
+            let armijo = et <= e + 1e-4 * alpha * slope;
+            let flat = et <= e + noise && dot(&tgrad, &dir).abs() <= -slope;
+            if et.is_finite() && (armijo || flat) {
+                accepted = Some((et, it));
+                break;
+            }
+            rep.line_search_cutbacks += 1;
+            alpha *= 0.5;
+        }
+        let Some((et, it)) = accepted else {
+            if opts.hessian == HessianStrategy::Lbfgs && !hist.is_empty() {
+                // Start the quasi-Newton model afresh before giving up.
+                hist.clear();
+                continue;
+            }
+            rep.line_search_failed = true;
+            break;
+        };
+        // Curvature pair for L-BFGS.
+        if opts.hessian == HessianStrategy::Lbfgs {
+            let s: Vec<f64> = dir.iter().map(|d| alpha * d).collect();
+            let y: Vec<f64> = tgrad.iter().zip(&grad).map(|(a, b)| a - b).collect();
+            let sy = dot(&s, &y);
+            if sy > 1e-12 * dot(&y, &y).sqrt() * dot(&s, &s).sqrt() {
+                hist.push_back((s, y, 1.0 / sy));
+                if hist.len() > opts.lbfgs_history {
+                    hist.pop_front();
+                }
+            }
+        }
+        z.copy_from_slice(&trial);
+        std::mem::swap(&mut grad, &mut tgrad);
+        e = et;
+        info = it;
+    }
+    rep.energy = e;
+    rep.info = info;
+    rep
+}

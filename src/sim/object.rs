@@ -1,0 +1,598 @@
+//! One simulated object: its reduced model (built from a basis, integration points and
+//! materials), its state (z, dz/dt, time) and backward-Euler time stepping.
+//!
+//! Only the terms the setup declares are built: no gravity code runs without gravity, no
+//! boundary moments without boundaries, no contact loop without colliders.
+
+use crate::material::{MaterialField, Region};
+use crate::report::Stopwatch;
+use crate::sampling::IntegrationPoints;
+use crate::sim::cubature::{self, Cubature, DEFAULT_CUBATURE};
+use crate::sim::elastic::{ElasticTerm, Layout, Projection};
+use crate::sim::motion::{rotation_matrix, AxisAngle, Motion, Rigid};
+use crate::sim::newton::{self, EvalInfo, NewtonOptions, Potential, SolveReport, SolverContext};
+use crate::sim::terms::{
+    add_block_diagonal, add_block_product, BoundaryTerm, ColliderShape, ContactTerm, Moments,
+};
+use crate::skinning::{Basis, SkinningWeights};
+use crate::{Error, Point3, Result};
+use faer::linalg::solvers::Llt;
+use faer::{Mat, Side};
+use serde::{Deserialize, Serialize};
+
+/// Default penalty factor: a penalty stiffness is this factor times the larger of the
+/// inertial (rho / h^2) and elastic (E / D^2) stiffness densities, so it dominates both and
+/// scales with the units, the material and the time step.
+pub const PENALTY_FACTOR: f64 = 1e3;
+
+/// A region of the object driven by a prescribed motion (held when the motion is `Fixed`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Boundary {
+    /// Which integration points (rest positions) are driven.
+    pub region: Region,
+    /// The motion of their rest positions (default: held in place).
+    #[serde(default = "fixed")]
+    pub motion: Motion,
+    /// Penalty stiffness, Pa/m^2 (default: [`PENALTY_FACTOR`] x max(rho/h^2, E/D^2)).
+    #[serde(default)]
+    pub stiffness: Option<f64>,
+}
+
+fn fixed() -> Motion {
+    Motion::Fixed
+}
+
+/// A static obstacle with its penalty stiffness.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Collider {
+    /// The obstacle.
+    pub shape: ColliderShape,
+    /// Penalty stiffness, Pa/m^2 (default as for [`Boundary`]).
+    #[serde(default)]
+    pub stiffness: Option<f64>,
+}
+
+/// Initial placement and velocity of an object (applied to its rest shape).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Placement {
+    /// Translation, metres.
+    pub translation: [f64; 3],
+    /// Rotation about the origin, applied before the translation.
+    pub rotation: Option<AxisAngle>,
+    /// Initial linear velocity, m/s.
+    pub velocity: [f64; 3],
+    /// Initial angular velocity about the placed centre of mass, rad/s.
+    pub angular_velocity: [f64; 3],
+}
+
+/// Everything that defines the simulation of one object besides its basis.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimOptions {
+    /// Time step h, seconds.
+    pub dt: f64,
+    /// Gravity, m/s^2 (None: no gravity term at all).
+    pub gravity: Option<[f64; 3]>,
+    /// Cubature points for the elastic energy (default 5000; all points if fewer).
+    pub cubature: usize,
+    /// Per-step solver settings.
+    pub newton: NewtonOptions,
+    /// Kinematic boundary conditions.
+    pub boundaries: Vec<Boundary>,
+    /// Static obstacles.
+    pub colliders: Vec<Collider>,
+    /// Initial placement and velocity.
+    pub placement: Placement,
+}
+
+impl Default for SimOptions {
+    fn default() -> Self {
+        Self {
+            dt: 0.01,
+            gravity: None,
+            cubature: DEFAULT_CUBATURE,
+            newton: NewtonOptions::default(),
+            boundaries: Vec::new(),
+            colliders: Vec::new(),
+            placement: Placement::default(),
+        }
+    }
+}
+
+/// Report of one time step.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct StepReport {
+    /// Step number (1-based).
+    pub step: usize,
+    /// Time at the end of the step, s.
+    pub time: f64,
+    /// Wall time of the step, s.
+    pub wall_s: f64,
+    /// The minimisation's report.
+    #[serde(flatten)]
+    pub solve: SolveReport,
+}
+
+/// A simulated object.
+pub struct ReducedSim {
+    layout: Layout,
+    elastic: ElasticTerm,
+    mass: Moments,
+    gravity: Option<[f64; 3]>,
+    boundaries: Vec<BoundaryTerm>,
+    contacts: Option<ContactTerm>,
+    rest_factor: Llt<f64>,
+    dt: f64,
+    diag: f64,
+    options: NewtonOptions,
+    cubature: Cubature,
+    /// Reduced coordinates z, 12 (m + 1).
+    pub z: Vec<f64>,
+    /// Reduced velocity dz/dt.
+    pub zdot: Vec<f64>,
+    /// Simulated time, s.
+    pub time: f64,
+    /// Steps taken.
+    pub steps: usize,
+    history: newton::QuasiNewtonState,
+}
+
+fn positive(name: &'static str, v: f64, what: &str) -> Result<()> {
+    if v > 0.0 && v.is_finite() {
+        Ok(())
+    } else {
+        Err(Error::param(
+            name,
+            v,
+            format!("{what} must be positive and finite"),
+        ))
+    }
+}
+
+impl ReducedSim {
+    /// Build the reduced model of an object from its basis, integration points and material.
+    pub fn new(
+        basis: &Basis,
+        ip: &IntegrationPoints,
+        material: &MaterialField,
+        opts: &SimOptions,
+    ) -> Result<ReducedSim> {
+        positive("dt", opts.dt, "the time step (seconds)")?;
+        opts.newton.validate()?;
+        if let Some(g) = opts.gravity {
+            if !g.iter().all(|v| v.is_finite()) {
+                return Err(Error::param("gravity", format!("{g:?}"), "must be finite"));
+            }
+        }
+        let n = ip.len();
+        if material.len() != n {
+            return Err(Error::LengthMismatch {
+                what: "material (integration points)",
+                expected: n,
+                got: material.len(),
+            });
+        }
+        let all = basis.weights(&ip.points)?;
+        let layout = Layout {
+            handles: basis.modes(),
+        };
+        let cub = cubature::select(ip, material, opts.cubature)?;
+        let cw = subset(&all, &cub.source);
+        let elastic = ElasticTerm::new(&cub, &cw)?;
+        let idx: Vec<usize> = (0..n).collect();
+        let rho_v: Vec<f64> = (0..n)
+            .map(|i| material.density[i] * ip.volumes[i])
+            .collect();
+        let mass = Moments::new(&ip.points, &all, &idx, &rho_v);
+        let aabb = crate::geometry::Aabb::from_points(&ip.points)
+            .ok_or_else(|| Error::param("points", 0, "the object has no integration points"))?;
+        let diag = aabb.diagonal().max(f64::MIN_POSITIVE);
+        let h2 = opts.dt * opts.dt;
+        let rho_max = material.density.iter().cloned().fold(0.0, f64::max);
+        let e_max = material.youngs.iter().cloned().fold(0.0, f64::max);
+        let default_k = PENALTY_FACTOR * (rho_max / h2).max(e_max / (diag * diag));
+        let placement = placement_transform(&opts.placement)?;
+        let mut boundaries = Vec::new();
+        for (b, spec) in opts.boundaries.iter().enumerate() {
+            spec.motion.validate()?;
+            let k = spec.stiffness.unwrap_or(default_k);
+            positive("stiffness", k, "a boundary penalty stiffness (Pa/m^2)")?;
+            let pts: Vec<usize> = (0..n)
+                .filter(|&i| spec.region.contains(&ip.points[i]))
+                .collect();
+            if pts.is_empty() {
+                return Err(Error::param(
+                    "boundary",
+                    b,
+                    format!(
+                        "region {:?} contains no integration point of the object (regions are \
+                         in rest coordinates; the object spans {:?} to {:?})",
+                        spec.region, aabb.min, aabb.max
+                    ),
+                ));
+            }
+            let coef: Vec<f64> = pts.iter().map(|&i| k * ip.volumes[i]).collect();
+            boundaries.push(BoundaryTerm {
+                motion: spec.motion.clone(),
+                stiffness: k,
+                moments: Moments::new(&ip.points, &all, &pts, &coef),
+                points: pts,
+                placement,
+            });
+        }
+        let contacts = if opts.colliders.is_empty() {
+            None
+        } else {
+            let mut ks = Vec::new();
+            for c in &opts.colliders {
+                let k = c.stiffness.unwrap_or(default_k);
+                positive("stiffness", k, "a collider penalty stiffness (Pa/m^2)")?;
+                c.shape.validate()?;
+                ks.push(k);
+            }
+            Some(ContactTerm::new(
+                opts.colliders.iter().map(|c| c.shape).collect(),
+                ks,
+                &cub.points,
+                &cub.volumes,
+                &cw,
+            ))
+        };
+        // Rest system matrix S = M/h^2 + K_rest + boundary penalties.
+        let z0 = vec![0.0; layout.dofs()];
+        let mut s = elastic.hessian(&z0, Projection::None);
+        add_block_diagonal(layout, &mass.bb, 1.0 / h2, &mut s);
+        for b in &boundaries {
+            add_block_diagonal(layout, &b.moments.bb, 1.0, &mut s);
+        }
+        let rest_factor = s.llt(Side::Lower).map_err(|e| {
+            Error::param(
+                "modes",
+                layout.handles - 1,
+                format!(
+                    "the reduced rest system is not positive definite ({e:?}): the skinning \
+                     modes are linearly dependent on the integration points; use fewer modes \
+                     or more kernels"
+                ),
+            )
+        })?;
+        let mut sim = ReducedSim {
+            layout,
+            elastic,
+            mass,
+            gravity: opts.gravity,
+            boundaries,
+            contacts,
+            rest_factor,
+            dt: opts.dt,
+            diag,
+            options: opts.newton,
+            cubature: cub,
+            z: vec![0.0; layout.dofs()],
+            zdot: vec![0.0; layout.dofs()],
+            time: 0.0,
+            steps: 0,
+            history: Default::default(),
+        };
+        sim.place(&opts.placement, &placement)?;
+        Ok(sim)
+    }
+
+    /// The layout of z.
+    pub fn layout(&self) -> Layout {
+        self.layout
+    }
+
+    /// The cubature points used for the elastic energy.
+    pub fn cubature(&self) -> &Cubature {
+        &self.cubature
+    }
+
+    /// The boundary terms (with their penalty stiffness and point sets).
+    pub fn boundaries(&self) -> &[BoundaryTerm] {
+        &self.boundaries
+    }
+
+    /// The terms of the incremental potential that were built, in evaluation order
+    /// (terms the setup did not ask for are neither built nor evaluated).
+    pub fn terms(&self) -> Vec<String> {
+        let mut t = vec!["inertia".to_string(), "elastic".to_string()];
+        if self.gravity.is_some() {
+            t.push("gravity".into());
+        }
+        for (i, b) in self.boundaries.iter().enumerate() {
+            t.push(format!("boundary {i} ({} points)", b.points.len()));
+        }
+        if let Some(c) = &self.contacts {
+            t.push(format!("colliders ({})", c.shapes.len()));
+        }
+        t
+    }
+
+    /// Rest bounding-box diagonal D, metres.
+    pub fn diagonal(&self) -> f64 {
+        self.diag
+    }
+
+    /// Total mass, kg.
+    pub fn total_mass(&self) -> f64 {
+        self.mass.total
+    }
+
+    /// The constant value of mode 0 (the constant mode), m^(-3/2).
+    fn constant_mode(&self) -> Result<f64> {
+        let c0 = self.mass.b[3] / self.mass.total;
+        if !(c0.abs() > 0.0 && c0.is_finite()) {
+            return Err(Error::param(
+                "basis",
+                c0,
+                "mode 0 of the basis is not the constant mode",
+            ));
+        }
+        Ok(c0)
+    }
+
+    /// Put the object at `placement` with its initial velocity.
+    fn place(&mut self, p: &Placement, rigid: &Rigid) -> Result<()> {
+        let nonzero = rigid != &Rigid::IDENTITY
+            || p.velocity
+                .iter()
+                .chain(&p.angular_velocity)
+                .any(|v| *v != 0.0);
+        if !nonzero {
+            return Ok(());
+        }
+        for v in p.velocity.iter().chain(&p.angular_velocity) {
+            if !v.is_finite() {
+                return Err(Error::param("velocity", v, "must be finite"));
+            }
+        }
+        let c0 = self.constant_mode()?;
+        let l = self.layout;
+        let r = &rigid.rotation;
+        for row in 0..3 {
+            for a in 0..3 {
+                let id = if row == a { 1.0 } else { 0.0 };
+                self.z[l.index(row, 0, a)] = (r[row][a] - id) / c0;
+            }
+            self.z[l.index(row, 0, 3)] = rigid.translation[row] / c0;
+        }
+        // Velocity v + w x (x - c) at x = R X + t, with c the placed centre of mass.
+        let com0: Point3 = std::array::from_fn(|d| self.mass.xx[d][3] / self.mass.total);
+        let com = rigid.apply(&com0);
+        let w = p.angular_velocity;
+        let wx = [[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]];
+        for row in 0..3 {
+            for a in 0..3 {
+                let v: f64 = (0..3).map(|k| wx[row][k] * r[k][a]).sum();
+                self.zdot[l.index(row, 0, a)] = v / c0;
+            }
+            let wt: f64 = (0..3)
+                .map(|k| wx[row][k] * (rigid.translation[k] - com[k]))
+                .sum();
+            self.zdot[l.index(row, 0, 3)] = (p.velocity[row] + wt) / c0;
+        }
+        Ok(())
+    }
+
+    /// Advance one time step of backward Euler.
+    pub fn step(&mut self) -> StepReport {
+        let sw = Stopwatch::start();
+        let t = self.time + self.dt;
+        let zpred: Vec<f64> = self
+            .z
+            .iter()
+            .zip(&self.zdot)
+            .map(|(z, v)| z + self.dt * v)
+            .collect();
+        let mut z = zpred.clone();
+        let mut history = std::mem::take(&mut self.history);
+        let pot = StepPotential {
+            sim: self,
+            zpred: &zpred,
+            t,
+        };
+        let layout = self.layout;
+        let mass = &self.mass.bb;
+        let total = self.mass.total;
+        let diag = self.diag;
+        let measure = move |d: &[f64]| {
+            let mut md = vec![0.0; d.len()];
+            add_block_product(layout, mass, 1.0, d, &mut md);
+            let q: f64 = d.iter().zip(&md).map(|(a, b)| a * b).sum();
+            (q.max(0.0) / total).sqrt() / diag
+        };
+        let ctx = SolverContext {
+            rest: &self.rest_factor,
+            measure: &measure,
+            options: &self.options,
+        };
+        let solve = newton::minimize(&pot, &mut z, &ctx, &mut history);
+        self.history = history;
+        for i in 0..z.len() {
+            self.zdot[i] = (z[i] - self.z[i]) / self.dt;
+        }
+        self.z = z;
+        self.time = t;
+        self.steps += 1;
+        StepReport {
+            step: self.steps,
+            time: t,
+            wall_s: sw.elapsed(),
+            solve,
+        }
+    }
+
+    /// Elastic energy (J) of the current state.
+    pub fn elastic_energy(&self) -> f64 {
+        self.elastic.energy(&self.z).0
+    }
+
+    /// The elastic term (for diagnostics and tests).
+    pub fn elastic(&self) -> &ElasticTerm {
+        &self.elastic
+    }
+
+    /// Deformed positions of points with rest positions `rest` and skinning weights `w`
+    /// (values only are used), metres.
+    pub fn positions(&self, rest: &[Point3], w: &SkinningWeights) -> Vec<Point3> {
+        map_points(self.layout, &self.z, rest, w)
+    }
+
+    /// The incremental potential of the next step for a given predictor, for tests:
+    /// (energy, gradient) at `z`.
+    pub fn step_potential(&self, zpred: &[f64], t: f64, z: &[f64]) -> (f64, Vec<f64>) {
+        let pot = StepPotential {
+            sim: self,
+            zpred,
+            t,
+        };
+        let mut g = vec![0.0; z.len()];
+        let (e, _) = pot.energy_gradient(z, &mut g);
+        (e, g)
+    }
+
+    /// The PSD Hessian of the step potential at `z` (what `Newton` factorizes).
+    pub fn step_hessian(&self, zpred: &[f64], t: f64, z: &[f64]) -> Mat<f64> {
+        StepPotential {
+            sim: self,
+            zpred,
+            t,
+        }
+        .hessian(z)
+    }
+}
+
+/// x = X + sum_j W_j Z_j [X; 1] for each point.
+pub fn map_points(layout: Layout, z: &[f64], rest: &[Point3], w: &SkinningWeights) -> Vec<Point3> {
+    use rayon::prelude::*;
+    let nh = layout.handles;
+    rest.par_iter()
+        .enumerate()
+        .map(|(i, x)| {
+            let mut y = *x;
+            for j in 0..nh {
+                let wj = w.values[i * nh + j];
+                for (r, yr) in y.iter_mut().enumerate() {
+                    let o = layout.index(r, j, 0);
+                    *yr += wj * (z[o] * x[0] + z[o + 1] * x[1] + z[o + 2] * x[2] + z[o + 3]);
+                }
+            }
+            y
+        })
+        .collect()
+}
+
+fn subset(w: &SkinningWeights, idx: &[usize]) -> SkinningWeights {
+    let m = w.modes;
+    SkinningWeights {
+        modes: m,
+        values: idx
+            .iter()
+            .flat_map(|&i| w.values[i * m..(i + 1) * m].iter().copied())
+            .collect(),
+        gradients: idx
+            .iter()
+            .flat_map(|&i| w.gradients[i * m..(i + 1) * m].iter().copied())
+            .collect(),
+    }
+}
+
+fn placement_transform(p: &Placement) -> Result<Rigid> {
+    if !p.translation.iter().all(|v| v.is_finite()) {
+        return Err(Error::param(
+            "translation",
+            format!("{:?}", p.translation),
+            "must be finite",
+        ));
+    }
+    let rotation = match &p.rotation {
+        None => Rigid::IDENTITY.rotation,
+        Some(a) => {
+            let n = a.axis.iter().map(|v| v * v).sum::<f64>().sqrt();
+            if !(n > 0.0 && n.is_finite() && a.degrees.is_finite()) {
+                return Err(Error::param(
+                    "rotation",
+                    format!("{a:?}"),
+                    "needs a finite non-zero axis and a finite angle",
+                ));
+            }
+            rotation_matrix(&a.axis.map(|v| v / n), a.degrees.to_radians())
+        }
+    };
+    Ok(Rigid {
+        rotation,
+        translation: p.translation,
+    })
+}
+
+/// The incremental potential of one step:
+/// 1/(2 h^2) |z - z_pred|_M^2 + elastic(z) - gravity work + penalties at time t.
+struct StepPotential<'a> {
+    sim: &'a ReducedSim,
+    zpred: &'a [f64],
+    t: f64,
+}
+
+impl Potential for StepPotential<'_> {
+    fn energy_gradient(&self, z: &[f64], grad: &mut [f64]) -> (f64, EvalInfo) {
+        let s = self.sim;
+        let l = s.layout;
+        let (mut e, st) = s.elastic.energy_gradient(z, grad);
+        let h2 = s.dt * s.dt;
+        let dz: Vec<f64> = z.iter().zip(self.zpred).map(|(a, b)| a - b).collect();
+        let mut mdz = vec![0.0; dz.len()];
+        add_block_product(l, &s.mass.bb, 1.0 / h2, &dz, &mut mdz);
+        e += 0.5 * dz.iter().zip(&mdz).map(|(a, b)| a * b).sum::<f64>();
+        grad.iter_mut().zip(&mdz).for_each(|(g, m)| *g += m);
+        if let Some(g) = s.gravity {
+            // -sum rho v g . (X + B z): the constant part is dropped.
+            let n4 = l.row_len();
+            for r in 0..3 {
+                for k in 0..n4 {
+                    let f = g[r] * s.mass.b[k];
+                    e -= f * z[r * n4 + k];
+                    grad[r * n4 + k] -= f;
+                }
+            }
+        }
+        // Rounding of E: a few ulps of the summed magnitudes (n4 terms per dot product).
+        let mut scale = e.abs();
+        for b in &s.boundaries {
+            let (eb, sb) = b.energy_gradient(l, self.t, z, grad);
+            e += eb;
+            scale += sb;
+        }
+        let mut contacts = 0;
+        if let Some(c) = &s.contacts {
+            let (ec, active) = c.energy_gradient(l, z, grad);
+            e += ec;
+            contacts = active;
+        }
+        (
+            e,
+            EvalInfo {
+                min_det: st.min_det,
+                inverted: st.inverted,
+                contacts,
+                rounding: scale * 1e-16 * (l.row_len() as f64).sqrt() * 4.0,
+            },
+        )
+    }
+
+    fn hessian(&self, z: &[f64]) -> Mat<f64> {
+        let s = self.sim;
+        let l = s.layout;
+        let mut h = s.elastic.hessian(z, Projection::PerPoint);
+        add_block_diagonal(l, &s.mass.bb, 1.0 / (s.dt * s.dt), &mut h);
+        for b in &s.boundaries {
+            add_block_diagonal(l, &b.moments.bb, 1.0, &mut h);
+        }
+        if let Some(c) = &s.contacts {
+            c.add_hessian(l, z, &mut h);
+        }
+        h
+    }
+}

@@ -1,0 +1,425 @@
+//! The quadratic and penalty terms of the incremental potential: inertia and gravity (exact,
+//! from precomputed moments over all integration points), kinematic boundary penalties
+//! (held or moving regions, also quadratic in z), and one-sided collider penalties (evaluated
+//! on the cubature points).
+//!
+//! Every point position is x = X + B z with B = I_3 (x) b^T, b[4 j + a] = W_j(X) Xh_a, so a
+//! weighted sum of |x - target|^2 over fixed points is a quadratic in z whose coefficients
+//! are the moments sum c b b^T, sum c b Xh^T and sum c Xh Xh^T, computed once.
+
+use crate::sim::elastic::Layout;
+use crate::sim::motion::{Motion, Rigid};
+use crate::skinning::SkinningWeights;
+use crate::Point3;
+use faer::{Accum, Mat, Par};
+use serde::{Deserialize, Serialize};
+
+/// Weighted moments of the map b over a point set.
+#[derive(Debug, Clone)]
+pub struct Moments {
+    /// sum c b b^T, 4 (m + 1) square.
+    pub bb: Mat<f64>,
+    /// sum c b Xh^T, 4 (m + 1) x 4.
+    pub bx: Mat<f64>,
+    /// sum c Xh Xh^T, 4 x 4.
+    pub xx: [[f64; 4]; 4],
+    /// sum c b, 4 (m + 1).
+    pub b: Vec<f64>,
+    /// sum c.
+    pub total: f64,
+}
+
+/// Rows of b for `points` (row i = b(X_i), 4 (m + 1) entries), each scaled by `scale[i]`.
+fn b_rows(points: &[Point3], w: &SkinningWeights, idx: &[usize], scale: &[f64]) -> Mat<f64> {
+    let nh = w.modes;
+    Mat::from_fn(idx.len(), 4 * nh, |p, col| {
+        let i = idx[p];
+        let (j, a) = (col / 4, col % 4);
+        let xa = if a == 3 { 1.0 } else { points[i][a] };
+        scale[p] * w.values[i * nh + j] * xa
+    })
+}
+
+impl Moments {
+    /// Moments over the points `idx` of `points` with non-negative weights `coef` (one per
+    /// index); `w` holds the skinning weights of all `points`.
+    pub fn new(points: &[Point3], w: &SkinningWeights, idx: &[usize], coef: &[f64]) -> Moments {
+        let n4 = 4 * w.modes;
+        let mut bb = Mat::<f64>::zeros(n4, n4);
+        let mut bx = Mat::<f64>::zeros(n4, 4);
+        let mut xx = [[0.0; 4]; 4];
+        let mut b = vec![0.0; n4];
+        // Blocks of rows keep the dense scratch small for millions of points.
+        for (ids, cs) in idx.chunks(4096).zip(coef.chunks(4096)) {
+            let sq: Vec<f64> = cs.iter().map(|c| c.max(0.0).sqrt()).collect();
+            let rows = b_rows(points, w, ids, &sq);
+            faer::linalg::matmul::matmul(
+                bb.as_mut(),
+                Accum::Add,
+                rows.transpose(),
+                rows.as_ref(),
+                1.0,
+                Par::rayon(0),
+            );
+            let xh = Mat::from_fn(ids.len(), 4, |p, a| {
+                sq[p] * if a == 3 { 1.0 } else { points[ids[p]][a] }
+            });
+            faer::linalg::matmul::matmul(
+                bx.as_mut(),
+                Accum::Add,
+                rows.transpose(),
+                xh.as_ref(),
+                1.0,
+                Par::Seq,
+            );
+            for (p, (&i, &c)) in ids.iter().zip(cs).enumerate() {
+                let x = points[i];
+                let h = [x[0], x[1], x[2], 1.0];
+                for a in 0..4 {
+                    for q in 0..4 {
+                        xx[a][q] += c * h[a] * h[q];
+                    }
+                }
+                for (col, bc) in b.iter_mut().enumerate() {
+                    *bc += sq[p] * rows[(p, col)];
+                }
+            }
+        }
+        // Exact symmetry.
+        for i in 0..n4 {
+            for j in 0..i {
+                let v = 0.5 * (bb[(i, j)] + bb[(j, i)]);
+                bb[(i, j)] = v;
+                bb[(j, i)] = v;
+            }
+        }
+        Moments {
+            bb,
+            bx,
+            xx,
+            b,
+            total: coef.iter().sum(),
+        }
+    }
+}
+
+/// y += A x for the n4 x n4 matrix A applied to each row block of z.
+pub fn add_block_product(layout: Layout, a: &Mat<f64>, scale: f64, z: &[f64], y: &mut [f64]) {
+    let n4 = layout.row_len();
+    for r in 0..3 {
+        let zr = &z[r * n4..(r + 1) * n4];
+        let yr = &mut y[r * n4..(r + 1) * n4];
+        for (j, zj) in zr.iter().enumerate() {
+            if *zj != 0.0 {
+                let col = a.col(j);
+                for (i, yi) in yr.iter_mut().enumerate() {
+                    *yi += scale * col[i] * zj;
+                }
+            }
+        }
+    }
+}
+
+/// Add `scale` x A to each diagonal block of the 12 (m + 1) square matrix `h`.
+pub fn add_block_diagonal(layout: Layout, a: &Mat<f64>, scale: f64, h: &mut Mat<f64>) {
+    let n4 = layout.row_len();
+    for r in 0..3 {
+        for j in 0..n4 {
+            for i in 0..n4 {
+                h[(r * n4 + i, r * n4 + j)] += scale * a[(i, j)];
+            }
+        }
+    }
+}
+
+/// A region of the object pulled to a prescribed rigid motion of its rest positions by the
+/// penalty kappa/2 sum_i v_i |x_i(z) - T(t) X_i|^2 over the integration points in the region.
+#[derive(Debug, Clone)]
+pub struct BoundaryTerm {
+    /// The prescribed motion.
+    pub motion: Motion,
+    /// Penalty stiffness kappa, Pa/m^2 (energy per volume per squared distance).
+    pub stiffness: f64,
+    /// kappa-weighted moments over the region's points (coefficients kappa v_i).
+    pub moments: Moments,
+    /// Indices of the integration points in the region.
+    pub points: Vec<usize>,
+    /// The object's initial placement; the motion acts on the placed positions.
+    pub placement: Rigid,
+}
+
+impl BoundaryTerm {
+    /// G = [R - I, t] for the target at time t: target - X = G Xh.
+    fn offset(&self, t: f64) -> [[f64; 4]; 3] {
+        let Rigid {
+            rotation: r,
+            translation: tr,
+        } = self.target(t);
+        std::array::from_fn(|i| {
+            [
+                r[i][0] - if i == 0 { 1.0 } else { 0.0 },
+                r[i][1] - if i == 1 { 1.0 } else { 0.0 },
+                r[i][2] - if i == 2 { 1.0 } else { 0.0 },
+                tr[i],
+            ]
+        })
+    }
+
+    /// Energy (J) at time `t`, gradient added to `grad`, and the size of the summed terms
+    /// before cancellation (J; a bound on E's rounding error is ~ n eps times it).
+    pub fn energy_gradient(
+        &self,
+        layout: Layout,
+        t: f64,
+        z: &[f64],
+        grad: &mut [f64],
+    ) -> (f64, f64) {
+        let n4 = layout.row_len();
+        let g = self.offset(t);
+        let m = &self.moments;
+        let mut e = 0.0;
+        let mut scale = 0.0;
+        for r in 0..3 {
+            let zr = &z[r * n4..(r + 1) * n4];
+            // q = bx G_r^T, the linear coefficient.
+            let q: Vec<f64> = (0..n4)
+                .map(|i| (0..4).map(|a| m.bx[(i, a)] * g[r][a]).sum())
+                .collect();
+            let mut pz = vec![0.0; n4];
+            let mut pz_abs = vec![0.0; n4];
+            for (j, zj) in zr.iter().enumerate() {
+                if *zj != 0.0 {
+                    let col = m.bb.col(j);
+                    for (i, p) in pz.iter_mut().enumerate() {
+                        *p += col[i] * zj;
+                        pz_abs[i] += (col[i] * zj).abs();
+                    }
+                }
+            }
+            let mut c = 0.0;
+            for a in 0..4 {
+                for b in 0..4 {
+                    c += g[r][a] * m.xx[a][b] * g[r][b];
+                }
+            }
+            for i in 0..n4 {
+                e += 0.5 * zr[i] * pz[i] - zr[i] * q[i];
+                scale += 0.5 * zr[i].abs() * pz_abs[i] + (zr[i] * q[i]).abs();
+                grad[r * n4 + i] += pz[i] - q[i];
+            }
+            e += 0.5 * c;
+            scale += 0.5 * c.abs();
+        }
+        (e, scale)
+    }
+
+    /// The target transform of rest positions at time `t`: motion(t) after the placement.
+    pub fn target(&self, t: f64) -> Rigid {
+        let m = self.motion.at(t);
+        let p = &self.placement;
+        let rotation = crate::linalg3::mul(&m.rotation, &p.rotation);
+        let moved = Rigid {
+            rotation: m.rotation,
+            translation: [0.0; 3],
+        }
+        .apply(&p.translation);
+        Rigid {
+            rotation,
+            translation: std::array::from_fn(|i| moved[i] + m.translation[i]),
+        }
+    }
+
+    /// Largest distance (m) between a region point and its target at time `t`, for positions
+    /// `x` of all integration points.
+    pub fn max_deviation(&self, t: f64, rest: &[Point3], x: &[Point3]) -> f64 {
+        let tr = self.target(t);
+        self.points
+            .iter()
+            .map(|&i| {
+                let y = tr.apply(&rest[i]);
+                (0..3).map(|d| (x[i][d] - y[d]).powi(2)).sum::<f64>().sqrt()
+            })
+            .fold(0.0, f64::max)
+    }
+}
+
+/// A static obstacle the object must stay out of.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum ColliderShape {
+    /// The half-space behind a plane: points with (x - point) . normal < 0 penetrate.
+    Plane {
+        /// A point on the plane, metres.
+        point: Point3,
+        /// Normal pointing out of the obstacle (any non-zero length).
+        normal: [f64; 3],
+    },
+    /// An axis-aligned box obstacle [min, max], metres.
+    Box {
+        /// Lower corner.
+        min: Point3,
+        /// Upper corner.
+        max: Point3,
+    },
+}
+
+impl ColliderShape {
+    /// Check for a finite, non-zero normal and an ordered, finite box.
+    pub fn validate(&self) -> crate::Result<()> {
+        let ok = match self {
+            ColliderShape::Plane { point, normal } => {
+                point.iter().chain(normal).all(|v| v.is_finite())
+                    && normal.iter().any(|v| *v != 0.0)
+            }
+            ColliderShape::Box { min, max } => {
+                min.iter().chain(max).all(|v| v.is_finite()) && (0..3).all(|d| min[d] < max[d])
+            }
+        };
+        if ok {
+            Ok(())
+        } else {
+            Err(crate::Error::param(
+                "collider",
+                format!("{self:?}"),
+                "a plane needs a finite point and a non-zero normal; a box needs finite \
+                 corners with min < max on every axis",
+            ))
+        }
+    }
+
+    /// Penetration depth d >= 0 (m) and the unit push-out direction, or None outside.
+    pub fn penetration(&self, x: &Point3) -> Option<(f64, [f64; 3])> {
+        match self {
+            ColliderShape::Plane { point, normal } => {
+                let n = (normal[0].powi(2) + normal[1].powi(2) + normal[2].powi(2)).sqrt();
+                let u = normal.map(|v| v / n);
+                let s: f64 = (0..3).map(|d| (x[d] - point[d]) * u[d]).sum();
+                (s < 0.0).then_some((-s, u))
+            }
+            ColliderShape::Box { min, max } => {
+                if !(0..3).all(|d| x[d] > min[d] && x[d] < max[d]) {
+                    return None;
+                }
+                // Push out through the nearest face.
+                let mut best = (f64::INFINITY, [0.0; 3]);
+                for d in 0..3 {
+                    let (lo, hi) = (x[d] - min[d], max[d] - x[d]);
+                    if lo < best.0 {
+                        let mut u = [0.0; 3];
+                        u[d] = -1.0;
+                        best = (lo, u);
+                    }
+                    if hi < best.0 {
+                        let mut u = [0.0; 3];
+                        u[d] = 1.0;
+                        best = (hi, u);
+                    }
+                }
+                Some(best)
+            }
+        }
+    }
+}
+
+/// One-sided collider penalties kappa/2 sum_c v_c d_c^2 on the cubature points.
+#[derive(Debug, Clone)]
+pub struct ContactTerm {
+    /// Obstacles.
+    pub shapes: Vec<ColliderShape>,
+    /// Penalty stiffness per obstacle, Pa/m^2.
+    pub stiffness: Vec<f64>,
+    points: Vec<Point3>,
+    volumes: Vec<f64>,
+    w: Vec<f64>,
+    handles: usize,
+}
+
+impl ContactTerm {
+    /// Contacts for the cubature points `points` (volumes `volumes`, skinning weights `w`).
+    pub fn new(
+        shapes: Vec<ColliderShape>,
+        stiffness: Vec<f64>,
+        points: &[Point3],
+        volumes: &[f64],
+        w: &SkinningWeights,
+    ) -> ContactTerm {
+        ContactTerm {
+            shapes,
+            stiffness,
+            points: points.to_vec(),
+            volumes: volumes.to_vec(),
+            w: w.values.clone(),
+            handles: w.modes,
+        }
+    }
+
+    fn b(&self, c: usize) -> impl Iterator<Item = (usize, f64)> + '_ {
+        let x = self.points[c];
+        let xh = [x[0], x[1], x[2], 1.0];
+        (0..4 * self.handles).map(move |k| (k, self.w[c * self.handles + k / 4] * xh[k % 4]))
+    }
+
+    /// Current position of cubature point `c`.
+    fn position(&self, layout: Layout, c: usize, z: &[f64]) -> Point3 {
+        let n4 = layout.row_len();
+        let mut x = self.points[c];
+        for (k, bk) in self.b(c) {
+            for (r, xr) in x.iter_mut().enumerate() {
+                *xr += bk * z[r * n4 + k];
+            }
+        }
+        x
+    }
+
+    /// Energy (J), gradient added to `grad`, and the number of penetrating points.
+    pub fn energy_gradient(&self, layout: Layout, z: &[f64], grad: &mut [f64]) -> (f64, usize) {
+        let n4 = layout.row_len();
+        let mut e = 0.0;
+        let mut active = 0;
+        for c in 0..self.points.len() {
+            let x = self.position(layout, c, z);
+            for (shape, &k) in self.shapes.iter().zip(&self.stiffness) {
+                if let Some((d, u)) = shape.penetration(&x) {
+                    active += 1;
+                    let v = self.volumes[c];
+                    e += 0.5 * k * v * d * d;
+                    // dE/dx = -k v d u.
+                    for (kk, bk) in self.b(c) {
+                        for r in 0..3 {
+                            grad[r * n4 + kk] -= k * v * d * u[r] * bk;
+                        }
+                    }
+                }
+            }
+        }
+        (e, active)
+    }
+
+    /// Add the Hessian of the active penalties (k v u u^T per penetrating point, the
+    /// generalized Gauss-Newton part, PSD) to `h`.
+    pub fn add_hessian(&self, layout: Layout, z: &[f64], h: &mut Mat<f64>) {
+        let n4 = layout.row_len();
+        for c in 0..self.points.len() {
+            let x = self.position(layout, c, z);
+            for (shape, &k) in self.shapes.iter().zip(&self.stiffness) {
+                if let Some((_, u)) = shape.penetration(&x) {
+                    let v = self.volumes[c];
+                    let b: Vec<(usize, f64)> = self.b(c).collect();
+                    for r in 0..3 {
+                        for s in 0..3 {
+                            let coef = k * v * u[r] * u[s];
+                            if coef == 0.0 {
+                                continue;
+                            }
+                            for &(i, bi) in &b {
+                                for &(j, bj) in &b {
+                                    h[(r * n4 + i, s * n4 + j)] += coef * bi * bj;
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
