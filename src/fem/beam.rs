@@ -98,7 +98,8 @@ impl FemBeamConfig {
     }
 
     /// The recommended reference for comparisons with the reduced model: quadratic tets,
-    /// r = 4 (3,321 FE nodes, 1,920 tets; ~1 s per step on 2 cores). Chosen from the
+    /// r = 4 (3,321 FE nodes, 1,920 tets; ~1 s (bend) to 2.5 s (twist) per step on 2 loaded
+    /// cores, 3-8 minutes per run, then cached). Chosen from the
     /// refinement study in docs/accuracy.md: linear tets lock in bending and are still tens of
     /// percent too stiff at r = 8, quadratic ones converge at order ~3 and r = 4 is within
     /// an estimated ~1e-3 D (RMS) of the converged bend.
