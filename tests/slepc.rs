@@ -77,6 +77,51 @@ fn every_preset_matches_the_analytic_spectrum_and_the_dense_solver() {
     }
 }
 
+/// The real problem: H_w and M of RKPM kernels on a box (K = 300, graded spectrum with
+/// lambda_max / lambda_1 ~ 1e3, a null vector), where a wrong convergence test shows up.
+#[test]
+fn rkpm_matrices_agree_with_the_dense_solver() {
+    use freeform::eigen::compare::{max_eigenvalue_rel_diff, max_subspace_angle};
+    use freeform::geometry::{Shape, ShapeOptions};
+    use freeform::pipeline::{prepare, BasisOptions};
+    let shape = Shape::parse("box:2,1,1", &ShapeOptions::default()).unwrap();
+    let opts = BasisOptions {
+        kernels: 300,
+        modes: 8,
+        ..BasisOptions::default()
+    };
+    let p = prepare(&shape, &opts, &Silent).unwrap();
+    let (h, m) = (&p.assembled.hessian, &p.assembled.mass);
+    let req = EigenRequest {
+        nev: 9,
+        tol: 1e-10,
+        max_iter: 2000,
+    };
+    let dense = DenseSolver.solve(h, m, &req, &Silent).unwrap();
+    for preset in [SlepcPreset::KsSinvert, SlepcPreset::LobpcgGamg] {
+        let sol = SlepcSolver::new(SlepcOptions {
+            preset,
+            ..SlepcOptions::default()
+        })
+        .solve(h, m, &req, &Silent)
+        .unwrap_or_else(|e| panic!("{}: {e}", preset.name()));
+        // The targets: 1e-8 relative for eigenvalues, 1e-6 rad for eigenspaces. With
+        // residuals <= 1e-10 the angle bound is residual x ||H|| / gap ~ 1e-10 x 1e3 / 1e-1.
+        let diff = max_eigenvalue_rel_diff(&sol.values, &dense.values);
+        let angle = max_subspace_angle(
+            m,
+            &sol.values,
+            &sol.vectors,
+            &dense.values,
+            &dense.vectors,
+            1e-6,
+        )
+        .unwrap();
+        assert!(diff < 1e-8, "{}: eigenvalue diff {diff:e}", preset.name());
+        assert!(angle < 1e-6, "{}: subspace angle {angle:e}", preset.name());
+    }
+}
+
 #[test]
 fn petsc_options_override_the_preset() {
     let (h, m) = q1_fem(N, H);
