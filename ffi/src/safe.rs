@@ -106,7 +106,7 @@ pub fn petsc_int(call: &'static str, v: usize) -> Result<sys::PetscInt> {
         call,
         message: format!(
             "{v} does not fit PETSc's {}-bit PetscInt",
-            8 * size_of::<sys::PetscInt>()
+            sys::PetscInt::BITS
         ),
     })
 }

@@ -268,7 +268,7 @@ pub fn read_matrix_market(path: &Path) -> Result<SparseMatrix, MatrixFileError> 
 
 /// CSC with sorted row indices from triplets (column-major sort, duplicates summed).
 fn csc_from_triplets(n: usize, mut t: Vec<(usize, usize, f64)>) -> SparseMatrix {
-    t.sort_by(|a, b| (a.1, a.0).cmp(&(b.1, b.0)));
+    t.sort_by_key(|a| (a.1, a.0));
     let mut ptr = vec![0usize; n + 1];
     let mut idx = Vec::with_capacity(t.len());
     let mut val: Vec<f64> = Vec::with_capacity(t.len());
