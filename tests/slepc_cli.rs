@@ -72,27 +72,30 @@ fn compare_native_slepc_and_dense() {
     assert!(angle < 1e-6, "{angle}");
 }
 
-/// Eigenvalues of `freeform modes --solver slepc --json` under mpirun.
-fn mpi_eigenvalues(ranks: usize, dir: &std::path::Path) -> (Vec<f64>, serde_json::Value) {
-    let out = dir.join(format!("basis{ranks}.npz"));
-    let r = json(&mpirun(
-        ranks,
-        &[
-            "modes",
-            "box:2,1,1",
-            "--kernels",
-            "400",
-            "--modes",
-            "8",
-            "--solver",
-            "slepc",
-            "--tol",
-            "1e-10",
-            "--json",
-            "--out",
-            out.to_str().unwrap(),
-        ],
-    ));
+/// Eigenvalues of `freeform modes --solver slepc --json` under mpirun (`extra` flags added).
+fn mpi_eigenvalues(
+    ranks: usize,
+    extra: &[&str],
+    dir: &std::path::Path,
+) -> (Vec<f64>, serde_json::Value) {
+    let out = dir.join(format!("basis{ranks}{}.npz", extra.len()));
+    let mut args = vec![
+        "modes",
+        "box:2,1,1",
+        "--kernels",
+        "400",
+        "--modes",
+        "8",
+        "--solver",
+        "slepc",
+        "--tol",
+        "1e-10",
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend(extra);
+    let r = json(&mpirun(ranks, &args));
     assert!(out.is_file(), "rank 0 writes the basis");
     let ev = r["eigenvalues"]
         .as_array()
@@ -106,8 +109,10 @@ fn mpi_eigenvalues(ranks: usize, dir: &std::path::Path) -> (Vec<f64>, serde_json
 #[test]
 fn one_and_two_mpi_ranks_agree() {
     let dir = tempfile::tempdir().unwrap();
-    let (one, r1) = mpi_eigenvalues(1, dir.path());
-    let (two, r2) = mpi_eigenvalues(2, dir.path());
+    // One rank: the ordinary pipeline. Two ranks: distributed assembly (each rank only its
+    // kernels' rows) and a distributed solve.
+    let (one, r1) = mpi_eigenvalues(1, &[], dir.path());
+    let (two, r2) = mpi_eigenvalues(2, &[], dir.path());
     assert_eq!(one.len(), 9);
     assert_eq!(two.len(), 9);
     // Same matrices on 1 and 2 ranks; only the solver's parallel reductions and the
@@ -123,4 +128,19 @@ fn one_and_two_mpi_ranks_agree() {
     }
     let notes = r2["eigen"]["notes"].to_string();
     assert!(notes.contains("2 MPI rank(s)"), "{notes}");
+    assert!(notes.contains("distributed assembly: 2 rank(s)"), "{notes}");
+}
+
+#[test]
+fn distributed_assembly_on_one_rank_is_the_same_problem() {
+    // The distributed path on one rank assembles the same entries, summed over the same
+    // points in the same order, as the ordinary pipeline: identical matrices, identical
+    // solver, so identical eigenvalues (to the last bits the JSON printing keeps).
+    let dir = tempfile::tempdir().unwrap();
+    let (plain, _) = mpi_eigenvalues(1, &[], dir.path());
+    let (dist, r) = mpi_eigenvalues(1, &["--distributed"], dir.path());
+    assert_eq!(plain, dist);
+    assert!(r["eigen"]["notes"]
+        .to_string()
+        .contains("distributed assembly: 1 rank(s)"));
 }

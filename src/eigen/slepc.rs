@@ -146,6 +146,26 @@ pub fn world_rank() -> Result<(usize, usize), EigenError> {
     ))
 }
 
+/// Element-wise sum of `values` over all ranks of `PETSC_COMM_WORLD`, in place (collective).
+///
+/// # Errors
+/// [`EigenError::Backend`] with the MPI/PETSc error.
+pub fn allreduce_sum(values: &mut [f64]) -> Result<(), EigenError> {
+    let session = petsc::session().map_err(backend)?;
+    let world = session.world();
+    session.allreduce_sum(world, values).map_err(backend)
+}
+
+/// Element-wise maximum of `values` over all ranks of `PETSC_COMM_WORLD` (collective).
+///
+/// # Errors
+/// [`EigenError::Backend`] with the MPI/PETSc error.
+pub fn allreduce_max(values: &mut [f64]) -> Result<(), EigenError> {
+    let session = petsc::session().map_err(backend)?;
+    let world = session.world();
+    session.allreduce_max(world, values).map_err(backend)
+}
+
 /// Finalize PETSc and MPI (a no-op if the backend was never used). Programs that used the
 /// backend call it once before exiting; afterwards the backend cannot be used again in the
 /// process. Without it, an exit hook finalizes.
@@ -399,7 +419,7 @@ fn configure<'s>(
 /// same definition (EPS_CONV_NORM with infinity norms, which equal our 1-norms for symmetric
 /// matrices), but SLEPc may test a residual it updated by recurrence rather than recomputed;
 /// a pair whose recomputed residual exceeds 10 tol is reported as not converged.
-const RESIDUAL_SLACK: f64 = 10.0;
+pub const RESIDUAL_SLACK: f64 = 10.0;
 
 impl Eigensolver for SlepcSolver {
     fn name(&self) -> &'static str {

@@ -70,6 +70,10 @@ pub struct ModesArgs {
     /// MatrixMarket array to --out (default eigenvectors.mtx).
     #[arg(long, value_name = "DIR")]
     from_matrices: Option<PathBuf>,
+    /// With --solver slepc: assemble distributed (each MPI rank only its kernels' rows)
+    /// even on one rank [default: when run under mpirun with more than one rank].
+    #[arg(long)]
+    distributed: bool,
     /// Relative residual tolerance of the eigensolver.
     #[arg(long, default_value_t = 1e-8)]
     tol: f64,
@@ -165,7 +169,10 @@ pub fn run(args: ModesArgs) -> CliResult {
     } else {
         &Silent
     };
-    let run = build_basis_with(&shape, &opts, solver.as_ref(), progress)?;
+    let run = match distributed_run(&args, &shape, &opts, progress)? {
+        Some(run) => run,
+        None => build_basis_with(&shape, &opts, solver.as_ref(), progress)?,
+    };
     // Under mpirun every rank computed the same basis; only rank 0 writes and prints.
     if !crate::is_root_rank(args.solver)? {
         return Ok(());
@@ -246,6 +253,48 @@ pub fn make_solver(
         let _ = slepc;
         Err(crate::NO_SLEPC.into())
     }
+}
+
+/// The MPI-distributed pipeline when asked for (`--distributed`) or when running on several
+/// ranks with `--solver slepc`; `None` otherwise.
+#[cfg(feature = "slepc")]
+fn distributed_run(
+    args: &ModesArgs,
+    shape: &freeform::geometry::Shape,
+    opts: &BasisOptions,
+    progress: &dyn Progress,
+) -> Result<Option<freeform::pipeline::BasisRun>, Box<dyn std::error::Error>> {
+    use freeform::eigen::slepc::{world_rank, SlepcOptions};
+    if args.solver != SolverArg::Slepc {
+        if args.distributed {
+            return Err("--distributed needs --solver slepc".into());
+        }
+        return Ok(None);
+    }
+    if !args.distributed && world_rank()?.1 == 1 {
+        return Ok(None);
+    }
+    let mut slepc = SlepcOptions::parse(&args.slepc)?;
+    if !args.petsc_options.is_empty() {
+        slepc.petsc_options = format!("{} {}", slepc.petsc_options, args.petsc_options)
+            .trim()
+            .to_string();
+    }
+    let (run, _dist) = freeform::distributed::build_basis_mpi(shape, opts, &slepc, progress)?;
+    Ok(Some(run))
+}
+
+#[cfg(not(feature = "slepc"))]
+fn distributed_run(
+    args: &ModesArgs,
+    _shape: &freeform::geometry::Shape,
+    _opts: &BasisOptions,
+    _progress: &dyn Progress,
+) -> Result<Option<freeform::pipeline::BasisRun>, Box<dyn std::error::Error>> {
+    if args.distributed {
+        return Err(crate::NO_SLEPC.into());
+    }
+    Ok(None)
 }
 
 /// `--from-matrices DIR`: solve given H and M, report, write the eigenvectors.
