@@ -189,3 +189,30 @@ fn non_convergence_returns_the_partial_result() {
         ),
     }
 }
+
+#[test]
+fn petsc_reads_our_binary_export_exactly() {
+    use freeform::eigen::slepc::petsc_binary_difference;
+    use freeform::io::matrix_market::write_petsc_binary;
+    let (h, m) = q1_fem(N, H);
+    let dir = tempfile::tempdir().unwrap();
+    for (name, a) in [("h.petsc", &h), ("m.petsc", &m)] {
+        let path = dir.path().join(name);
+        write_petsc_binary(&path, a).unwrap();
+        // Same entries, same summation order per row: PETSc's product equals ours exactly.
+        assert_eq!(petsc_binary_difference(&path, a).unwrap(), 0.0);
+    }
+    // A different matrix is detected (M is not H).
+    let diff = petsc_binary_difference(&dir.path().join("m.petsc"), &h).unwrap();
+    assert!(diff > 0.1, "{diff}");
+    // A file that is not a PETSc matrix is a PETSc error with its message, not a crash.
+    let junk = dir.path().join("junk.petsc");
+    std::fs::write(&junk, b"not a petsc file at all").unwrap();
+    match petsc_binary_difference(&junk, &h) {
+        Err(EigenError::Backend { message, .. }) => assert!(
+            message.contains("MatLoad") || message.contains("PetscViewer"),
+            "{message}"
+        ),
+        other => panic!("expected a PETSc error, got {:?}", other.map(|_| ())),
+    }
+}

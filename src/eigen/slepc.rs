@@ -166,6 +166,46 @@ pub fn allreduce_max(values: &mut [f64]) -> Result<(), EigenError> {
     session.allreduce_max(world, values).map_err(backend)
 }
 
+/// Load a PETSc binary matrix file (e.g. `hessian.petsc` from `freeform export`) with PETSc's
+/// own `MatLoad` on this rank and compare it with `a`: returns max_i |(A_file x - A x)_i| /
+/// max_i |(A x)_i| for a fixed pseudo-random x (0 when the file holds exactly `a`).
+///
+/// # Errors
+/// [`EigenError::Backend`] if PETSc cannot read the file; [`EigenError::InvalidRequest`] if
+/// the sizes differ.
+pub fn petsc_binary_difference(
+    path: &std::path::Path,
+    a: &SparseMatrix,
+) -> Result<f64, EigenError> {
+    let session = petsc::session().map_err(backend)?;
+    let comm = session.self_comm();
+    let mat = petsc::Mat::load_binary(&session, comm, path).map_err(backend)?;
+    let (rows, cols) = mat.size().map_err(backend)?;
+    if rows != a.nrows() || cols != a.ncols() {
+        return Err(EigenError::InvalidRequest(format!(
+            "{} holds a {rows} x {cols} matrix, expected {} x {}",
+            path.display(),
+            a.nrows(),
+            a.ncols()
+        )));
+    }
+    let mut rng = super::SplitMix64::new(7);
+    let xv: Vec<f64> = (0..cols).map(|_| rng.next_f64() - 0.5).collect();
+    let mut x = mat.create_vector().map_err(backend)?;
+    x.set_local_values(&xv).map_err(backend)?;
+    let mut y = mat.create_vector().map_err(backend)?;
+    mat.mult(&x, &mut y).map_err(backend)?;
+    let file_y = y.local_values().map_err(backend)?;
+    let mut ours = vec![0.0; rows];
+    crate::sparse::sym_mul_row_major(a, &xv, 1, &mut ours, 1, 1);
+    let scale = ours.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let diff = file_y
+        .iter()
+        .zip(&ours)
+        .fold(0.0f64, |m, (p, q)| m.max((p - q).abs()));
+    Ok(if scale > 0.0 { diff / scale } else { diff })
+}
+
 /// Finalize PETSc and MPI (a no-op if the backend was never used). Programs that used the
 /// backend call it once before exiting; afterwards the backend cannot be used again in the
 /// process. Without it, an exit hook finalizes.
