@@ -884,8 +884,11 @@ impl<'s> Eps<'s> {
 /// so the others do not wait forever in a collective). A no-op on one rank, before
 /// initialization, after finalization, or if another thread holds PETSc.
 pub fn abort_world_if_parallel(code: i32) {
-    let Ok(state) = STATE.try_lock() else {
-        return;
+    // A panic while a session was open poisons the lock: still abort then.
+    let state = match STATE.try_lock() {
+        Ok(guard) => guard,
+        Err(std::sync::TryLockError::Poisoned(p)) => p.into_inner(),
+        Err(std::sync::TryLockError::WouldBlock) => return,
     };
     if *state != State::Active {
         return;
