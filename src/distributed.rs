@@ -247,7 +247,12 @@ pub fn build_basis_mpi(
             converged: good,
             nev: request.nev,
             tol: request.tol,
-            max_residual: info.max_relative_residual,
+            // Pairs SLEPc did not converge are not available: their residual is unknown.
+            max_residual: if rs.values.len() < request.nev {
+                f64::INFINITY
+            } else {
+                info.max_relative_residual
+            },
             partial: Box::new(EigenSolution {
                 values: rs.values,
                 vectors: rs.vectors,

@@ -511,7 +511,12 @@ impl Eigensolver for SlepcSolver {
                 converged: good,
                 nev: request.nev,
                 tol: request.tol,
-                max_residual: solution.info.max_relative_residual,
+                // Pairs SLEPc did not converge are not available at all: their residual is unknown.
+                max_residual: if solution.values.len() < request.nev {
+                    f64::INFINITY
+                } else {
+                    solution.info.max_relative_residual
+                },
                 partial: Box::new(solution),
             });
         }
