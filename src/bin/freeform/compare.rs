@@ -44,7 +44,11 @@ pub struct CompareArgs {
 #[derive(Serialize)]
 struct Entry {
     solver: String,
+    /// Wall-clock seconds of the solve.
     time_s: f64,
+    /// CPU seconds of this process during the solve (all threads; user + system): less
+    /// sensitive than `time_s` to other processes sharing the cores. 0 where unknown.
+    cpu_s: f64,
     iterations: usize,
     max_relative_residual: f64,
     orthonormality_error: f64,
@@ -119,8 +123,13 @@ pub fn run(args: CompareArgs) -> CliResult {
     let mut results: Vec<(Entry, Option<EigenSolution>)> = Vec::new();
     for solver in &solvers {
         let clock = Stopwatch::start();
+        let cpu0 = process_cpu_seconds();
         let outcome = solver.solve(h, m, &request, &Silent);
         let time_s = clock.elapsed();
+        let cpu_s = match (cpu0, process_cpu_seconds()) {
+            (Some(a), Some(b)) => b - a,
+            _ => 0.0,
+        };
         let (solution, error) = match outcome {
             Ok(s) => (Some(s), None),
             Err(freeform::eigen::EigenError::NotConverged { partial, .. }) => {
@@ -139,6 +148,7 @@ pub fn run(args: CompareArgs) -> CliResult {
                 .filter(|s| !s.is_empty())
                 .unwrap_or_else(|| solver.name().to_string()),
             time_s,
+            cpu_s,
             iterations: solution.as_ref().map_or(0, |s| s.info.iterations),
             max_relative_residual: solution
                 .as_ref()
@@ -217,6 +227,19 @@ pub fn run(args: CompareArgs) -> CliResult {
     Ok(())
 }
 
+/// User + system CPU seconds of this process so far, from /proc/self/stat (Linux; clock
+/// ticks of 1/100 s), or None elsewhere.
+fn process_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the command name (which may contain spaces) end with ')'.
+    let rest = stat.rsplit_once(')')?.1;
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    // utime and stime are fields 14 and 15 of the whole line: 12 and 13 after ')'.
+    let utime: f64 = f.get(11)?.parse().ok()?;
+    let stime: f64 = f.get(12)?.parse().ok()?;
+    Some((utime + stime) / 100.0)
+}
+
 fn summary(r: &Report) -> String {
     let mut lines = vec![
         format!("freeform compare {}", r.shape),
@@ -225,15 +248,16 @@ fn summary(r: &Report) -> String {
             r.kernels, r.points, r.modes, r.tol, r.matrices_s
         ),
         format!(
-            "  {:<40} {:>9} {:>6} {:>10} {:>10} {:>10} {:>10}",
-            "solver", "time [s]", "iters", "residual", "orthonorm", "eig diff", "angle"
+            "  {:<40} {:>9} {:>8} {:>6} {:>10} {:>10} {:>10} {:>10}",
+            "solver", "time [s]", "cpu [s]", "iters", "residual", "orthonorm", "eig diff", "angle"
         ),
     ];
     for e in &r.solvers {
         lines.push(format!(
-            "  {:<40} {:>9.3} {:>6} {:>10.2e} {:>10.2e} {:>10.2e} {:>10.2e}{}",
+            "  {:<40} {:>9.3} {:>8.2} {:>6} {:>10.2e} {:>10.2e} {:>10.2e} {:>10.2e}{}",
             e.solver,
             e.time_s,
+            e.cpu_s,
             e.iterations,
             e.max_relative_residual,
             e.orthonormality_error,
