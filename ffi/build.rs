@@ -26,7 +26,7 @@ mod petsc {
         "VecScatter(CreateToAll|Begin|End|Destroy)",
         "EPS(Create|SetOperators|SetProblemType|SetDimensions|SetTolerances|SetWhichEigenpairs|SetTarget|SetType|GetType|GetST|SetFromOptions|Solve|GetConverged|GetEigenpair|GetIterationNumber|GetConvergedReason|Destroy|SetConvergenceTest|GetDimensions|GetTolerances)",
         "ST(SetType|GetType|GetKSP|SetShift|GetShift)",
-        "KSP(SetType|GetType|GetPC)",
+        "KSP(Create|Destroy|SetOperators|SetTolerances|SetFromOptions|Solve|GetIterationNumber|GetConvergedReason|SetType|GetType|GetPC)",
         "PC(SetType|GetType|FactorSetMatSolverType|FactorGetMatSolverType)",
         "MPI_(Comm_rank|Comm_size|Allreduce|Allgather|Allgatherv|Bcast|Barrier|Abort|Initialized|Finalized)",
     ];

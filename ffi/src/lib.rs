@@ -4,7 +4,7 @@
 //! Everything is behind the `petsc` feature: without it this crate is empty and needs nothing
 //! installed, so the default workspace build and `cargo test --workspace` work without PETSc.
 //!
-//! The safe layer ([`Session`], [`Mat`], [`Vector`], [`Eps`]):
+//! The safe layer ([`Session`], [`Mat`], [`Vector`], [`Eps`], [`Ksp`]):
 //! - every PETSc call's error code becomes a [`PetscError`] carrying PETSc's own message (a
 //!   recording error handler replaces PETSc's printing one);
 //! - PETSc objects are RAII handles destroyed on drop, tied to the [`Session`] they were made in;

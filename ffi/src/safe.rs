@@ -1,4 +1,4 @@
-//! The safe layer over [`crate::sys`].
+//! The safe layer over [`crate::sys`]: [`Session`], [`Mat`], [`Vector`], [`Eps`], [`Ksp`].
 
 use crate::sys;
 use std::ffi::{c_char, c_int, c_void, CStr, CString};
@@ -877,6 +877,86 @@ impl<'s> Eps<'s> {
             name_of("PCGetType", p).unwrap_or_default(),
             package,
         ])
+    }
+}
+
+/// A PETSc linear solver (`KSP`), destroyed on drop.
+pub struct Ksp<'s> {
+    raw: sys::KSP,
+    _session: PhantomData<&'s Session>,
+}
+
+impl Drop for Ksp<'_> {
+    fn drop(&mut self) {
+        // SAFETY: we own the handle.
+        unsafe { sys::KSPDestroy(&mut self.raw) };
+    }
+}
+
+impl<'s> Ksp<'s> {
+    /// A new linear solver on `comm`.
+    pub fn new(_session: &'s Session, comm: Comm) -> Result<Self> {
+        let mut raw: sys::KSP = std::ptr::null_mut();
+        // SAFETY: out-pointer on a valid communicator.
+        check("KSPCreate", unsafe { sys::KSPCreate(comm.0, &mut raw) })?;
+        Ok(Ksp {
+            raw,
+            _session: PhantomData,
+        })
+    }
+
+    /// The system matrix (also used to build the preconditioner).
+    pub fn set_operator(&mut self, a: &Mat<'s>) -> Result<()> {
+        // SAFETY: valid handles (KSP takes its own references).
+        check("KSPSetOperators", unsafe {
+            sys::KSPSetOperators(self.raw, a.raw, a.raw)
+        })
+    }
+
+    /// Solver and preconditioner by PETSc names ("cg", "gamg"); relative tolerance and
+    /// iteration cap.
+    pub fn configure(
+        &mut self,
+        ksp_type: &str,
+        pc_type: &str,
+        rtol: f64,
+        max_iter: usize,
+    ) -> Result<()> {
+        let k = cstring("KSPSetType", ksp_type)?;
+        let p = cstring("PCSetType", pc_type)?;
+        let it = petsc_int("KSPSetTolerances", max_iter)?;
+        let mut pc: sys::PC = std::ptr::null_mut();
+        // SAFETY: valid handle; the PC belongs to the KSP. PETSC_DEFAULT (-2) for abstol/dtol.
+        check("KSPSetType", unsafe {
+            sys::KSPSetType(self.raw, k.as_ptr())
+        })?;
+        check("KSPGetPC", unsafe { sys::KSPGetPC(self.raw, &mut pc) })?;
+        check("PCSetType", unsafe { sys::PCSetType(pc, p.as_ptr()) })?;
+        check("KSPSetTolerances", unsafe {
+            sys::KSPSetTolerances(self.raw, rtol, -2.0, -2.0, it)
+        })
+    }
+
+    /// Apply the options database (`-ksp_*`, `-pc_*`).
+    pub fn set_from_options(&mut self) -> Result<()> {
+        check("KSPSetFromOptions", unsafe {
+            sys::KSPSetFromOptions(self.raw)
+        })
+    }
+
+    /// Solve A x = b; returns (iterations, PETSc's converged reason: > 0 converged).
+    pub fn solve(&mut self, b: &Vector<'s>, x: &mut Vector<'s>) -> Result<(usize, i32)> {
+        // SAFETY: valid handles with the operator's layout (PETSc checks).
+        check("KSPSolve", unsafe { sys::KSPSolve(self.raw, b.raw, x.raw) })?;
+        let mut its: sys::PetscInt = 0;
+        let mut reason: sys::KSPConvergedReason = 0;
+        check("KSPGetIterationNumber", unsafe {
+            sys::KSPGetIterationNumber(self.raw, &mut its)
+        })?;
+        check("KSPGetConvergedReason", unsafe {
+            sys::KSPGetConvergedReason(self.raw, &mut reason)
+        })?;
+        Ok((its.max(0) as usize, reason as i32))
     }
 }
 
