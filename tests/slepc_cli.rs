@@ -24,6 +24,8 @@ fn mpirun(ranks: usize, args: &[&str]) -> Output {
         .arg(env!("CARGO_BIN_EXE_freeform"))
         .args(args)
         .env("OMP_NUM_THREADS", "1")
+        // Waiting ranks yield the core instead of busy-polling (2 cores shared with others).
+        .env("OMPI_MCA_mpi_yield_when_idle", "1")
         .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
         .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
         .output()
