@@ -21,6 +21,8 @@
 
 pub mod assembly;
 pub mod centers;
+#[cfg(feature = "slepc")]
+pub mod distributed;
 pub mod eigen;
 pub mod elasticity;
 pub mod error;

@@ -305,6 +305,33 @@ pub fn build_basis(
     opts: &BasisOptions,
     progress: &dyn Progress,
 ) -> Result<BasisRun> {
+    let solver = default_solver(opts.solver);
+    build_basis_with(shape, opts, solver.as_ref(), progress)
+}
+
+/// The eigensolver [`SolverChoice`] names, with default settings.
+pub fn default_solver(choice: SolverChoice) -> Box<dyn Eigensolver> {
+    match choice {
+        SolverChoice::Lobpcg => Box::new(Lobpcg::new(LobpcgOptions::default())),
+        SolverChoice::Dense => Box::new(DenseSolver),
+    }
+}
+
+/// [`build_basis`] with a caller-supplied eigensolver (e.g. the SLEPc backend) instead of
+/// `opts.solver`.
+pub fn build_basis_with(
+    shape: &Shape,
+    opts: &BasisOptions,
+    solver: &dyn Eigensolver,
+    progress: &dyn Progress,
+) -> Result<BasisRun> {
+    let prepared = prepare(shape, opts, progress)?;
+    solve_prepared(prepared, opts, solver, progress)
+}
+
+/// Sample a shape and run the precomputation up to the assembled H_w and M (no eigensolve):
+/// [`prepare_from_points`] after the sampling stage.
+pub fn prepare(shape: &Shape, opts: &BasisOptions, progress: &dyn Progress) -> Result<Prepared> {
     opts.validate()?;
     let mut clock = Stopwatch::start();
     progress.begin("sampling", None);
@@ -315,10 +342,10 @@ pub fn build_basis(
     progress.finish();
     let material = MaterialField::from_regions(&points.points, &opts.material, &opts.overrides)?;
     let sampling = clock.lap();
-    let mut run = build_basis_from_points(points, material, opts, progress)?;
-    run.report.timings_s.sampling = sampling;
-    run.report.timings_s.total += sampling;
-    Ok(run)
+    let mut prepared = prepare_from_points(points, material, opts, progress)?;
+    prepared.timings.sampling = sampling;
+    prepared.timings.total += sampling;
+    Ok(prepared)
 }
 
 /// Run the precomputation from given integration points (N x 3, metres), volumes (N, m^3)
@@ -330,6 +357,41 @@ pub fn build_basis_from_points(
     opts: &BasisOptions,
     progress: &dyn Progress,
 ) -> Result<BasisRun> {
+    let prepared = prepare_from_points(points, material, opts, progress)?;
+    let solver = default_solver(opts.solver);
+    solve_prepared(prepared, opts, solver.as_ref(), progress)
+}
+
+/// Everything before the eigensolve: kernels, the assembled H_w and M, and the figures the
+/// report needs. Made by [`prepare`] / [`prepare_from_points`], consumed by
+/// [`solve_prepared`]; `assembled` is what `freeform export` writes.
+#[derive(Debug, Clone)]
+pub struct Prepared {
+    /// Kernels (Morton order: the row/column order of H_w and M).
+    pub kernels: Kernels,
+    /// H_w (Pa m) and M (m^3), K x K.
+    pub assembled: crate::assembly::Assembled,
+    /// Integration points and volumes, in the caller's order.
+    pub points: IntegrationPoints,
+    /// Material per integration point.
+    pub material: MaterialField,
+    /// Stage timings so far (eigensolve and total not yet filled), seconds.
+    pub timings: Timings,
+    /// Reproducing-identity errors at the integration points.
+    pub reproducing: ReproducingError,
+    /// Coverage figures.
+    pub coverage: CoverageReport,
+    /// Warnings so far.
+    pub warnings: Vec<String>,
+}
+
+/// [`build_basis_from_points`] up to the assembled matrices (no eigensolve).
+pub fn prepare_from_points(
+    points: IntegrationPoints,
+    material: MaterialField,
+    opts: &BasisOptions,
+    progress: &dyn Progress,
+) -> Result<Prepared> {
     opts.validate()?;
     let n = points.len();
     if points.volumes.len() != n {
@@ -430,18 +492,53 @@ pub fn build_basis_from_points(
     progress.finish();
     timings.assembly = clock.lap();
 
+    timings.total = total_clock.elapsed();
+    Ok(Prepared {
+        kernels,
+        assembled,
+        points,
+        material,
+        timings,
+        reproducing: repro,
+        coverage: CoverageReport {
+            min_moment_rcond: stats.min_rcond,
+            min_cover: stats.min_cover,
+            mean_cover: stats.mean_cover,
+            max_cover: stats.max_cover,
+            enlarged_kernels: enlarged,
+            shape_function_bytes: sf_bytes,
+        },
+        warnings,
+    })
+}
+
+/// The eigensolve on prepared matrices with `solver`, and the report.
+pub fn solve_prepared(
+    prepared: Prepared,
+    opts: &BasisOptions,
+    solver: &dyn Eigensolver,
+    progress: &dyn Progress,
+) -> Result<BasisRun> {
+    let Prepared {
+        kernels,
+        assembled,
+        points,
+        material,
+        mut timings,
+        reproducing: repro,
+        coverage,
+        mut warnings,
+    } = prepared;
+    let n = points.len();
+    let clock = Stopwatch::start();
     let request = EigenRequest {
         nev: opts.modes + 1,
         tol: opts.tol,
         max_iter: opts.max_iter,
     };
-    let solver: Box<dyn Eigensolver> = match opts.solver {
-        SolverChoice::Lobpcg => Box::new(Lobpcg::new(LobpcgOptions::default())),
-        SolverChoice::Dense => Box::new(DenseSolver),
-    };
     let solution = solver.solve(&assembled.hessian, &assembled.mass, &request, progress)?;
-    timings.eigensolve = clock.lap();
-    timings.total = total_clock.elapsed();
+    timings.eigensolve = clock.elapsed();
+    timings.total += timings.eigensolve;
     if repro.max() > 1e-8 {
         warnings.push(format!(
             "reproducing error {:.2e} is above 1e-8: the moment matrices are poorly conditioned",
@@ -466,14 +563,7 @@ pub fn build_basis_from_points(
         volume: points.total_volume(),
         kernel: opts.kernel,
         support: opts.support,
-        coverage: CoverageReport {
-            min_moment_rcond: stats.min_rcond,
-            min_cover: stats.min_cover,
-            mean_cover: stats.mean_cover,
-            max_cover: stats.max_cover,
-            enlarged_kernels: enlarged,
-            shape_function_bytes: sf_bytes,
-        },
+        coverage,
         eigen: solution.info.clone(),
         tol: opts.tol,
         warnings,

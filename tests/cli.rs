@@ -221,3 +221,56 @@ fn run_writes_frames_and_a_json_summary_and_rejects_bad_scenes() {
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("missing.toml"));
 }
+
+#[test]
+fn beam_reports_every_key_and_caches_the_fem_reference() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("fem");
+    let args = [
+        "beam",
+        "bend",
+        "--fem-resolution",
+        "1",
+        "--fem-order",
+        "linear",
+        "--kernels",
+        "100",
+        "--modes",
+        "4",
+        "--points",
+        "5000",
+        "--cubature",
+        "500",
+        "--json",
+        "--cache",
+        cache.to_str().unwrap(),
+    ];
+    let o = freeform(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r: serde_json::Value = serde_json::from_slice(&o.stdout).expect("stdout is JSON");
+    for key in [
+        "test",
+        "modes",
+        "kernels",
+        "cubature_points",
+        "normalized_mse",
+        "max_error",
+        "precompute_s",
+        "reduced_step_ms_mean",
+        "fem_step_ms_mean",
+        "fem_nodes",
+        "fem_tets",
+    ] {
+        assert!(!r[key].is_null(), "missing {key}");
+    }
+    assert_eq!(r["fem_cached"], false);
+    // 5 x 1 x 1 cubes, 6 tets each, 2 x 2 x 6 nodes.
+    assert_eq!(r["fem_tets"], 30);
+    assert_eq!(r["fem_nodes"], 24);
+    let mse = r["normalized_mse"].as_f64().unwrap();
+    assert!(mse.is_finite() && mse > 0.0);
+    let o = freeform(&args);
+    let r2: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(r2["fem_cached"], true);
+    assert_eq!(r2["normalized_mse"], r["normalized_mse"]);
+}

@@ -2,6 +2,7 @@
 //! as null space, M SPD), behind one trait.
 //!
 //! - [`lobpcg::Lobpcg`]: native sparse LOBPCG (the default).
+//! - `slepc::SlepcSolver` (feature `slepc`): SLEPc through PETSc, optionally under MPI.
 //! - [`dense::DenseSolver`]: dense reference (Cholesky of M, standard eigenproblem), for K up to a
 //!   few thousand; tests use it as the oracle.
 //!
@@ -9,8 +10,11 @@
 //! M-orthonormal vectors (c^T M c = I), and diagnostics recomputed independently of the
 //! solver's own bookkeeping ([`check_solution`]).
 
+pub mod compare;
 pub mod dense;
 pub mod lobpcg;
+#[cfg(feature = "slepc")]
+pub mod slepc;
 pub mod testing;
 
 use crate::progress::Progress;
@@ -121,6 +125,14 @@ pub enum EigenError {
     /// A non-finite value appeared (NaN/Inf in the inputs or a breakdown).
     #[error("non-finite value in the eigensolver: {0}")]
     NonFinite(String),
+    /// An external solver library (PETSc/SLEPc) failed; `message` is the library's own.
+    #[error("{library} failed: {message}")]
+    Backend {
+        /// Library name.
+        library: &'static str,
+        /// The library's error message (with the call that failed).
+        message: String,
+    },
 }
 
 /// A generalized symmetric-definite eigensolver for the m + 1 smallest pairs.

@@ -1,6 +1,8 @@
-//! File formats: shape inputs (OBJ, STL, PLY meshes and point clouds) and the basis file (.npz).
+//! File formats: shape inputs (OBJ, STL, PLY meshes and point clouds), the basis file (.npz)
+//! and matrix exchange (MatrixMarket, PETSc binary).
 
 pub mod basis;
+pub mod matrix_market;
 pub mod obj;
 pub mod ply;
 pub mod stl;

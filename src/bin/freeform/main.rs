@@ -1,6 +1,9 @@
 //! The `freeform` command-line tool. `freeform <COMMAND> --help` lists every option.
 
+mod compare;
+mod export;
 mod modes;
+mod problem;
 mod run;
 
 use clap::{Parser, Subcommand};
@@ -26,6 +29,37 @@ enum Command {
     Modes(modes::ModesArgs),
     /// Simulate a scene file (TOML) and write frames for ParaView.
     Run(run::RunArgs),
+    /// Build H_w and M once and compare eigensolvers on them (native LOBPCG, SLEPc, dense).
+    Compare(compare::CompareArgs),
+    /// Write H_w and M of a shape as MatrixMarket and PETSc binary files.
+    Export(export::ExportArgs),
+}
+
+/// The error for SLEPc options in a build without the `slepc` feature.
+#[cfg(not(feature = "slepc"))]
+pub const NO_SLEPC: &str = "this freeform was built without SLEPc: rebuild with \
+    `cargo build --release --features slepc` (needs libslepc-real-dev, see docs/slepc.md)";
+
+/// Whether this process prints and writes: rank 0 of the MPI run when `solver` is SLEPc
+/// (every rank runs the command under mpirun), always otherwise.
+pub fn is_root_rank(solver: modes::SolverArg) -> Result<bool, Box<dyn std::error::Error>> {
+    if solver == modes::SolverArg::Slepc {
+        is_root_rank_any()
+    } else {
+        Ok(true)
+    }
+}
+
+/// Rank 0 of the MPI run (true without SLEPc, where there is no MPI).
+pub fn is_root_rank_any() -> Result<bool, Box<dyn std::error::Error>> {
+    #[cfg(feature = "slepc")]
+    {
+        Ok(freeform::eigen::slepc::world_rank()?.0 == 0)
+    }
+    #[cfg(not(feature = "slepc"))]
+    {
+        Ok(true)
+    }
 }
 
 /// Write to standard output; a closed pipe (`freeform ... | head`) is not an error.
@@ -51,17 +85,37 @@ pub fn set_threads(threads: Option<usize>) -> CliResult {
     Ok(())
 }
 
-fn main() -> ExitCode {
-    let cli = Cli::parse();
-    let result = match cli.command {
+fn dispatch(command: Command) -> CliResult {
+    match command {
         Command::Modes(args) => modes::run(args),
         Command::Run(args) => run::run(args),
-    };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
+        Command::Compare(args) => compare::run(args),
+        Command::Export(args) => export::run(args),
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    // A panic must not skip PETSc/MPI finalization (mpirun would report an abort).
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| dispatch(cli.command)));
+    let code = match result {
+        Ok(Ok(())) => ExitCode::SUCCESS,
+        Ok(Err(e)) => {
             eprintln!("error: {e}");
             ExitCode::FAILURE
         }
+        // The panic hook has printed the message.
+        Err(_) => {
+            // Other ranks may wait in a collective for this one: end the whole run.
+            #[cfg(feature = "slepc")]
+            freeform::eigen::slepc::abort_if_parallel(101);
+            ExitCode::from(101)
+        }
+    };
+    #[cfg(feature = "slepc")]
+    if let Err(e) = freeform::eigen::slepc::finalize() {
+        eprintln!("error: {e}");
+        return ExitCode::FAILURE;
     }
+    code
 }

@@ -2,9 +2,10 @@
 
 use crate::{emit, set_threads, CliResult};
 use clap::{Args, ValueEnum};
+use freeform::eigen::{EigenRequest, Eigensolver};
 use freeform::geometry::{Shape, ShapeOptions};
 use freeform::material::Material;
-use freeform::pipeline::{build_basis, BasisOptions, SolverChoice};
+use freeform::pipeline::{build_basis_with, default_solver, BasisOptions, SolverChoice};
 use freeform::progress::{Progress, Silent, TerminalProgress};
 use freeform::rkpm::{KernelType, SupportOptions};
 use freeform::sampling::{CloudVolumeOptions, Resolution};
@@ -18,10 +19,12 @@ enum KernelArg {
     Gaussian,
 }
 
-#[derive(Clone, Copy, ValueEnum)]
-enum SolverArg {
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SolverArg {
     Lobpcg,
     Dense,
+    /// SLEPc (needs a build with `--features slepc`; works under mpirun).
+    Slepc,
 }
 
 #[derive(Args)]
@@ -29,7 +32,8 @@ enum SolverArg {
 pub struct ModesArgs {
     /// The shape: box:LX,LY,LZ (corner at the origin), sphere:R (centred at the origin), or a
     /// .obj / .stl / .ply file (a PLY without faces is a point cloud, e.g. Gaussian splats).
-    shape: String,
+    #[arg(required_unless_present = "from_matrices")]
+    shape: Option<String>,
     /// Number of RKPM kernels K.
     #[arg(long, default_value_t = 1000)]
     kernels: usize,
@@ -54,6 +58,22 @@ pub struct ModesArgs {
     /// Eigensolver.
     #[arg(long, value_enum, default_value = "lobpcg")]
     solver: SolverArg,
+    /// SLEPc configuration: ks-sinvert (default), lobpcg-gamg, lobpcg-hypre.
+    #[arg(long, default_value = "ks-sinvert")]
+    slepc: String,
+    /// PETSc options for --solver slepc, e.g. "-eps_type jd -st_pc_type gamg" (applied after
+    /// the --slepc preset; values starting with '-' are fine inside the quotes).
+    #[arg(long, allow_hyphen_values = true, default_value = "")]
+    petsc_options: String,
+    /// Solve the matrices in DIR (hessian.mtx, mass.mtx from `freeform export` or any
+    /// MatrixMarket pair) instead of building them from a shape; writes the eigenvectors as a
+    /// MatrixMarket array to --out (default eigenvectors.mtx).
+    #[arg(long, value_name = "DIR")]
+    from_matrices: Option<PathBuf>,
+    /// With --solver slepc: assemble distributed (each MPI rank only its kernels' rows)
+    /// even on one rank [default: when run under mpirun with more than one rank].
+    #[arg(long)]
+    distributed: bool,
     /// Relative residual tolerance of the eigensolver.
     #[arg(long, default_value_t = 1e-8)]
     tol: f64,
@@ -78,9 +98,9 @@ pub struct ModesArgs {
     /// Accept a mesh with holes (inside = winding number >= 0.5).
     #[arg(long)]
     allow_open_mesh: bool,
-    /// Where to write the basis.
-    #[arg(long, default_value = "basis.npz")]
-    out: PathBuf,
+    /// Where to write the basis [default: basis.npz; eigenvectors.mtx with --from-matrices].
+    #[arg(long)]
+    out: Option<PathBuf>,
     /// Print the JSON report on standard output.
     #[arg(long)]
     json: bool,
@@ -91,6 +111,14 @@ pub struct ModesArgs {
 
 pub fn run(args: ModesArgs) -> CliResult {
     set_threads(args.threads)?;
+    if let Some(dir) = &args.from_matrices {
+        return from_matrices(dir, &args);
+    }
+    let shape_arg = args.shape.clone().unwrap_or_default();
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("basis.npz"));
     let opts = BasisOptions {
         kernels: args.kernels,
         modes: args.modes,
@@ -114,8 +142,9 @@ pub fn run(args: ModesArgs) -> CliResult {
             density: args.density,
         },
         solver: match args.solver {
-            SolverArg::Lobpcg => SolverChoice::Lobpcg,
             SolverArg::Dense => SolverChoice::Dense,
+            // Slepc: the pipeline gets the solver object below.
+            SolverArg::Lobpcg | SolverArg::Slepc => SolverChoice::Lobpcg,
         },
         tol: args.tol,
         max_iter: args.max_iter,
@@ -127,8 +156,9 @@ pub fn run(args: ModesArgs) -> CliResult {
     };
     // Check the parameters before reading a possibly large file.
     opts.validate()?;
+    let solver = make_solver(args.solver, &args.slepc, &args.petsc_options, opts.solver)?;
     let shape = Shape::parse(
-        &args.shape,
+        &shape_arg,
         &ShapeOptions {
             allow_open_mesh: args.allow_open_mesh,
         },
@@ -139,35 +169,42 @@ pub fn run(args: ModesArgs) -> CliResult {
     } else {
         &Silent
     };
-    let run = build_basis(&shape, &opts, progress)?;
+    let run = match distributed_run(&args, &shape, &opts, progress)? {
+        Some(run) => run,
+        None => build_basis_with(&shape, &opts, solver.as_ref(), progress)?,
+    };
+    // Under mpirun every rank computed the same basis; only rank 0 writes and prints.
+    if !crate::is_root_rank(args.solver)? {
+        return Ok(());
+    }
     let metadata = serde_json::json!({
         "freeform_version": env!("CARGO_PKG_VERSION"),
-        "shape": args.shape,
+        "shape": shape_arg,
         "options": opts,
         "points": run.report.points,
         "volume": run.report.volume,
         "max_relative_residual": run.report.max_relative_residual,
         "orthonormality_error": run.report.orthonormality_error,
     });
-    freeform::io::basis::save(&args.out, &run.basis, &metadata)?;
+    freeform::io::basis::save(&out, &run.basis, &metadata)?;
     let r = &run.report;
     if args.json {
         let mut value = serde_json::to_value(r)?;
-        value["shape"] = serde_json::Value::String(args.shape.clone());
-        value["basis_file"] = serde_json::Value::String(args.out.display().to_string());
+        value["shape"] = serde_json::Value::String(shape_arg.clone());
+        value["basis_file"] = serde_json::Value::String(out.display().to_string());
         emit(&(serde_json::to_string_pretty(&value)? + "\n"))?;
     } else {
-        emit(&summary(r, &args))?;
+        emit(&summary(r, &shape_arg, &out))?;
     }
     Ok(())
 }
 
 /// The human-readable summary of a `modes` run.
-fn summary(r: &freeform::pipeline::ModesReport, args: &ModesArgs) -> String {
+fn summary(r: &freeform::pipeline::ModesReport, shape: &str, out: &std::path::Path) -> String {
     let t = &r.timings_s;
     let ev: Vec<String> = r.eigenvalues.iter().map(|v| format!("{v:.6e}")).collect();
     let mut lines = vec![
-        format!("freeform modes {}", args.shape),
+        format!("freeform modes {shape}"),
         format!("  kernels {}  integration points {}  volume {:.6} m^3", r.kernels, r.points, r.volume),
         format!("  modes {} (+ constant)  solver {}  H_w nnz {}  M nnz {}", r.modes, r.solver, r.nnz_hessian, r.nnz_mass),
         format!("  eigenvalues [Pa/m^2]: {}", ev.join(" ")),
@@ -182,6 +219,144 @@ fn summary(r: &freeform::pipeline::ModesReport, args: &ModesArgs) -> String {
         format!("  peak memory {:.1} MB", r.peak_memory_bytes as f64 / 1e6),
     ];
     lines.extend(r.warnings.iter().map(|w| format!("  warning: {w}")));
-    lines.push(format!("  basis written to {}", args.out.display()));
+    lines.push(format!("  basis written to {}", out.display()));
     lines.join("\n") + "\n"
+}
+
+/// The eigensolver asked for on the command line. `slepc` and `petsc_options` only apply to
+/// `--solver slepc`.
+pub fn make_solver(
+    solver: SolverArg,
+    slepc: &str,
+    petsc_options: &str,
+    choice: SolverChoice,
+) -> Result<Box<dyn Eigensolver>, Box<dyn std::error::Error>> {
+    if solver != SolverArg::Slepc {
+        if !petsc_options.is_empty() {
+            return Err("--petsc-options applies to --solver slepc only".into());
+        }
+        return Ok(default_solver(choice));
+    }
+    #[cfg(feature = "slepc")]
+    {
+        use freeform::eigen::slepc::{SlepcOptions, SlepcSolver};
+        let mut options = SlepcOptions::parse(slepc)?;
+        if !petsc_options.is_empty() {
+            options.petsc_options = format!("{} {petsc_options}", options.petsc_options)
+                .trim()
+                .to_string();
+        }
+        Ok(Box::new(SlepcSolver::new(options)))
+    }
+    #[cfg(not(feature = "slepc"))]
+    {
+        let _ = slepc;
+        Err(crate::NO_SLEPC.into())
+    }
+}
+
+/// The MPI-distributed pipeline when asked for (`--distributed`) or when running on several
+/// ranks with `--solver slepc`; `None` otherwise.
+#[cfg(feature = "slepc")]
+fn distributed_run(
+    args: &ModesArgs,
+    shape: &freeform::geometry::Shape,
+    opts: &BasisOptions,
+    progress: &dyn Progress,
+) -> Result<Option<freeform::pipeline::BasisRun>, Box<dyn std::error::Error>> {
+    use freeform::eigen::slepc::{world_rank, SlepcOptions};
+    if args.solver != SolverArg::Slepc {
+        if args.distributed {
+            return Err("--distributed needs --solver slepc".into());
+        }
+        return Ok(None);
+    }
+    if !args.distributed && world_rank()?.1 == 1 {
+        return Ok(None);
+    }
+    let mut slepc = SlepcOptions::parse(&args.slepc)?;
+    if !args.petsc_options.is_empty() {
+        slepc.petsc_options = format!("{} {}", slepc.petsc_options, args.petsc_options)
+            .trim()
+            .to_string();
+    }
+    let (run, _dist) = freeform::distributed::build_basis_mpi(shape, opts, &slepc, progress)?;
+    Ok(Some(run))
+}
+
+#[cfg(not(feature = "slepc"))]
+fn distributed_run(
+    args: &ModesArgs,
+    _shape: &freeform::geometry::Shape,
+    _opts: &BasisOptions,
+    _progress: &dyn Progress,
+) -> Result<Option<freeform::pipeline::BasisRun>, Box<dyn std::error::Error>> {
+    if args.distributed {
+        return Err(crate::NO_SLEPC.into());
+    }
+    Ok(None)
+}
+
+/// `--from-matrices DIR`: solve given H and M, report, write the eigenvectors.
+fn from_matrices(dir: &std::path::Path, args: &ModesArgs) -> CliResult {
+    use freeform::io::matrix_market::{read_matrices, write_dense_matrix_market};
+    let choice = match args.solver {
+        SolverArg::Dense => SolverChoice::Dense,
+        _ => SolverChoice::Lobpcg,
+    };
+    let solver = make_solver(args.solver, &args.slepc, &args.petsc_options, choice)?;
+    let clock = freeform::report::Stopwatch::start();
+    let (h, m) = read_matrices(dir)?;
+    let read_s = clock.elapsed();
+    let request = EigenRequest {
+        nev: args.modes + 1,
+        tol: args.tol,
+        max_iter: args.max_iter,
+    };
+    let clock = freeform::report::Stopwatch::start();
+    let solution = solver.solve(&h, &m, &request, &freeform::progress::Silent)?;
+    let solve_s = clock.elapsed();
+    if !crate::is_root_rank(args.solver)? {
+        return Ok(());
+    }
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("eigenvectors.mtx"));
+    write_dense_matrix_market(
+        &out,
+        &solution.vectors,
+        &["freeform eigenvectors, K x (m + 1), columns ascending by eigenvalue, M-orthonormal"],
+    )?;
+    let report = serde_json::json!({
+        "matrices": dir.display().to_string(),
+        "kernels": h.nrows(),
+        "modes": args.modes,
+        "nnz_hessian": h.compute_nnz(),
+        "nnz_mass": m.compute_nnz(),
+        "solver": solver.name(),
+        "eigenvalues": solution.values,
+        "max_relative_residual": solution.info.max_relative_residual,
+        "orthonormality_error": solution.info.orthonormality_error,
+        "timings_s": { "read": read_s, "eigensolve": solve_s },
+        "eigen": solution.info,
+        "tol": args.tol,
+        "eigenvectors_file": out.display().to_string(),
+    });
+    if args.json {
+        emit(&(serde_json::to_string_pretty(&report)? + "\n"))?;
+    } else {
+        let ev: Vec<String> = solution.values.iter().map(|v| format!("{v:.6e}")).collect();
+        emit(&format!(
+            "freeform modes --from-matrices {}\n  K {}  solver {}\n  eigenvalues: {}\n  max relative residual {:.2e}  orthonormality error {:.2e}\n  time [s]: read {read_s:.3}  eigensolve {solve_s:.3}\n  eigenvectors written to {}\n",
+            dir.display(),
+            h.nrows(),
+            solution.info.solver,
+            ev.join(" "),
+            solution.info.max_relative_residual,
+            solution.info.orthonormality_error,
+            out.display()
+        ))?;
+    }
+    Ok(())
 }

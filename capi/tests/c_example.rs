@@ -1,0 +1,111 @@
+//! Compiles `examples/basis.c` against the static library with the system C compiler, runs it,
+//! and checks its output against the Rust library on the same input.
+
+use freeform::material::MaterialField;
+use freeform::pipeline::{build_basis_from_points, BasisOptions};
+use freeform::progress::Silent;
+use freeform::sampling::IntegrationPoints;
+use std::path::PathBuf;
+use std::process::Command;
+
+/// The static library cargo built next to this test binary (target/<profile>/deps/, or
+/// target/<profile>/ after a plain `cargo build`).
+fn static_lib() -> PathBuf {
+    let exe = std::env::current_exe().expect("test binary path");
+    let deps = exe.parent().expect("target/<profile>/deps");
+    let name = "libfreeform_capi.a";
+    [deps.join(name), deps.join("..").join(name)]
+        .into_iter()
+        .find(|p| p.is_file())
+        .unwrap_or_else(|| panic!("{name} not found next to {}", exe.display()))
+}
+
+/// The same problem as examples/basis.c: 20 x 10 x 10 cell centres of a 2 x 1 x 1 box.
+fn rust_eigenvalues() -> Vec<f64> {
+    let h = 0.1;
+    let mut points = Vec::new();
+    for k in 0..10 {
+        for j in 0..10 {
+            for i in 0..20 {
+                points.push([
+                    (i as f64 + 0.5) * h,
+                    (j as f64 + 0.5) * h,
+                    (k as f64 + 0.5) * h,
+                ]);
+            }
+        }
+    }
+    let n = points.len();
+    let material =
+        MaterialField::from_arrays(vec![5e6; n], vec![0.45; n], vec![1000.0; n]).unwrap();
+    let opts = BasisOptions {
+        kernels: 120,
+        modes: 6,
+        ..BasisOptions::default()
+    };
+    let ip = IntegrationPoints {
+        points,
+        volumes: vec![h * h * h; n],
+    };
+    build_basis_from_points(ip, material, &opts, &Silent)
+        .unwrap()
+        .basis
+        .eigenvalues
+}
+
+#[test]
+fn c_example_compiles_runs_and_matches_the_rust_library() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let lib = static_lib();
+    let dir = tempfile::tempdir().unwrap();
+    let exe = dir.path().join("basis");
+    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
+    let out = Command::new(&cc)
+        .arg(root.join("examples/basis.c"))
+        .arg("-I")
+        .arg(root.join("ffi/include"))
+        .args(["-std=c99", "-Wall", "-Wextra", "-Werror", "-o"])
+        .arg(&exe)
+        .arg(&lib)
+        .args(["-lm", "-lpthread", "-ldl"])
+        .output()
+        .expect("run the C compiler");
+    assert!(
+        out.status.success(),
+        "cc failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let run = Command::new(&exe).output().expect("run the example");
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "example failed: {stdout}\n{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(stdout.lines().last() == Some("OK"), "{stdout}");
+    // The error paths printed their codes and messages.
+    assert!(
+        stdout.contains("bad options: code 2: invalid kernels"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("small buffer: code 5"), "{stdout}");
+    // Eigenvalues through C (printed with 13 significant digits) equal the Rust library's.
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with("eigenvalues"))
+        .expect("eigenvalue line");
+    let c: Vec<f64> = line
+        .split_whitespace()
+        .skip(1)
+        .map(|v| v.parse().unwrap())
+        .collect();
+    let r = rust_eigenvalues();
+    assert_eq!(c.len(), 7);
+    assert_eq!(r.len(), 7);
+    for (x, y) in c.iter().zip(&r) {
+        assert!(
+            (x - y).abs() <= 1e-11 * y.abs().max(1e-3 * r[1]),
+            "{x} vs {y}"
+        );
+    }
+}

@@ -1,0 +1,393 @@
+//! MPI-distributed precomputation (feature `slepc`): every rank of `mpirun -n P` assembles only
+//! its own rows of H_w and M and SLEPc solves the distributed pencil.
+//!
+//! Per rank:
+//! 1. sampling, kernel centres (FPS), Morton order and support radii, redundantly (cheap next
+//!    to the shape functions, and deterministic, so every rank has the same kernels);
+//! 2. its block of kernels ([`crate::eigen::slepc::block_range`] over the Morton order, so the
+//!    block is spatially compact);
+//! 3. its integration points: those inside the support of one of its kernels (a bounding-box
+//!    filter, then the exact cover test against its kernels only);
+//! 4. shape functions at those points (with all kernels covering them), and assembly: the rows
+//!    of its kernels are complete, because every point of their supports is local, and are
+//!    bit-identical to a one-process assembly (each entry sums the same points in the same
+//!    Morton order);
+//! 5. SLEPc on the row blocks (MPIAIJ), eigenvectors gathered on every rank;
+//! 6. residuals and M-orthonormality recomputed from the local rows and reduced over ranks.
+//!
+//! Limitation: the coverage repair of [`crate::pipeline`] (enlarging supports around badly
+//! covered points) needs every point's shape functions, so it is not run here; a coverage
+//! failure on any rank is an error on all ranks (run without MPI, or raise `--support`).
+
+use crate::assembly::assemble;
+use crate::centers::{farthest_point_sampling, morton_order};
+use crate::eigen::slepc::{
+    allreduce_max, allreduce_sum, block_range, solve_rows, world_rank, RowBlock, SlepcOptions,
+    RESIDUAL_SLACK,
+};
+use crate::eigen::{relative_residual, EigenError, EigenInfo, EigenRequest, EigenSolution};
+use crate::geometry::Shape;
+use crate::material::MaterialField;
+use crate::pipeline::{
+    default_points, sample_shape, BasisOptions, BasisRun, CoverageReport, ModesReport,
+};
+use crate::progress::Progress;
+use crate::report::{peak_memory_bytes, Stopwatch, Timings};
+use crate::rkpm::{
+    covering_kernels, evaluate_on, reproducing_error, support_radii, Kernels, ReproducingError,
+};
+use crate::sampling::Resolution;
+use crate::skinning::Basis;
+use crate::{Point3, Result};
+use faer::Mat;
+
+/// Figures of a distributed run, beside the usual report.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct DistributedReport {
+    /// MPI ranks.
+    pub ranks: usize,
+    /// This rank.
+    pub rank: usize,
+    /// Kernels (rows) per rank, in rank order.
+    pub rows_per_rank: Vec<usize>,
+    /// Integration points each rank evaluated (its kernels' supports), in rank order.
+    pub points_per_rank: Vec<usize>,
+}
+
+/// [`crate::pipeline::build_basis`] across the ranks of `mpirun` with the SLEPc backend (see
+/// the module docs). Collective: every rank calls it with the same arguments; every rank gets
+/// the whole basis back (only one should write it). Stage timings in the report are the
+/// maximum over ranks.
+///
+/// # Errors
+/// As [`crate::pipeline::build_basis`]; PETSc/MPI failures as
+/// [`EigenError::Backend`]. A coverage failure on any rank is reported on all of them.
+pub fn build_basis_mpi(
+    shape: &Shape,
+    opts: &BasisOptions,
+    slepc: &SlepcOptions,
+    progress: &dyn Progress,
+) -> Result<(BasisRun, DistributedReport)> {
+    opts.validate()?;
+    let (rank, size) = world_rank()?;
+    let mut timings = Timings::default();
+    let total = Stopwatch::start();
+    let mut clock = Stopwatch::start();
+
+    progress.begin("sampling", None);
+    let resolution = opts
+        .resolution
+        .unwrap_or(Resolution::Count(default_points(opts.kernels)));
+    let points = sample_shape(shape, resolution, &opts.cloud)?;
+    let material = MaterialField::from_regions(&points.points, &opts.material, &opts.overrides)?;
+    progress.finish();
+    timings.sampling = clock.lap();
+    let n = points.len();
+    if n < opts.kernels {
+        return Err(crate::Error::param(
+            "kernels",
+            opts.kernels,
+            format!("only {n} integration points; use fewer kernels or more points"),
+        ));
+    }
+
+    progress.begin("centers", Some(opts.kernels as u64));
+    let mut idx = farthest_point_sampling(&points.points, opts.kernels)?;
+    morton_order(&points.points, &mut idx);
+    let centers: Vec<Point3> = idx.iter().map(|&i| points.points[i]).collect();
+    let radii = support_radii(&centers, &opts.support)?;
+    let kernels = Kernels {
+        centers,
+        radii,
+        kind: opts.kernel,
+    };
+    progress.finish();
+    timings.centers = clock.lap();
+    let k = kernels.len();
+
+    // This rank's kernels and the integration points in their supports (Morton order).
+    let mine = block_range(k, rank, size);
+    let mut order: Vec<usize> = (0..n).collect();
+    morton_order(&points.points, &mut order);
+    let own = Kernels {
+        centers: kernels.centers[mine.clone()].to_vec(),
+        radii: kernels.radii[mine.clone()].to_vec(),
+        kind: kernels.kind,
+    };
+    let (lo, hi) = support_box(&own);
+    let candidates: Vec<usize> = order
+        .iter()
+        .copied()
+        .filter(|&i| {
+            let p = points.points[i];
+            (0..3).all(|d| p[d] >= lo[d] && p[d] <= hi[d])
+        })
+        .collect();
+    let cand_points: Vec<Point3> = candidates.iter().map(|&i| points.points[i]).collect();
+    let own_cover = covering_kernels(&own, &cand_points);
+    let local: Vec<usize> = (0..candidates.len())
+        .filter(|&c| !own_cover.row(c).is_empty())
+        .map(|c| candidates[c])
+        .collect();
+    drop((own_cover, cand_points, candidates));
+    let local_points: Vec<Point3> = local.iter().map(|&i| points.points[i]).collect();
+    let pattern = covering_kernels(&kernels, &local_points);
+    timings.neighbors = clock.lap();
+
+    progress.begin("shape functions", None);
+    let (sf, stats) = evaluate_on(&kernels, &local_points, pattern, &opts.shape_functions);
+    progress.finish();
+    // Every rank must agree before the collective solve: reduce the failure count first.
+    let mut failed = [stats.failed.len() as f64];
+    allreduce_sum(&mut failed)?;
+    if failed[0] > 0.0 {
+        crate::rkpm::coverage_error(&local_points, &sf, &stats, opts.shape_functions.min_rcond)?;
+        return Err(crate::Error::param(
+            "support",
+            opts.support.factor,
+            format!(
+                "{} point(s) on other MPI ranks are not covered by enough kernels; the \
+                 distributed run does not repair coverage: raise --support or run without MPI",
+                failed[0]
+            ),
+        ));
+    }
+    timings.shape_functions = clock.lap();
+    let repro = reproducing_error(&kernels, &local_points, &sf);
+
+    progress.begin("assembly", None);
+    let all_weights = material.hessian_weights();
+    let volumes: Vec<f64> = local.iter().map(|&i| points.volumes[i]).collect();
+    let weights: Vec<f64> = local.iter().map(|&i| all_weights[i]).collect();
+    let assembled = assemble(&sf, &volumes, &weights, k)?;
+    let h_rows = RowBlock::from_symmetric(&assembled.hessian, mine.clone());
+    let m_rows = RowBlock::from_symmetric(&assembled.mass, mine.clone());
+    let sf_bytes = sf.memory_bytes();
+    drop((assembled, sf, volumes, weights, all_weights));
+    progress.finish();
+    timings.assembly = clock.lap();
+
+    let request = EigenRequest {
+        nev: opts.modes + 1,
+        tol: opts.tol,
+        max_iter: opts.max_iter,
+    };
+    progress.begin("eigen (slepc, distributed)", None);
+    let rs = solve_rows(k, &h_rows, &m_rows, &request, slepc);
+    progress.finish();
+    let rs = rs?;
+    let mut info = EigenInfo {
+        solver: format!("slepc:{}", slepc.label()),
+        iterations: rs.iterations,
+        locked: rs.converged,
+        notes: rs.notes,
+        ..EigenInfo::default()
+    };
+    info.notes.push(format!(
+        "distributed assembly: {size} rank(s), rows {mine:?} here"
+    ));
+    check_rows(&h_rows, &m_rows, &rs.values, &rs.vectors, &mut info)?;
+    timings.eigensolve = clock.lap();
+    timings.total = total.elapsed();
+
+    // Report figures reduced over ranks.
+    let mut t = [
+        timings.sampling,
+        timings.centers,
+        timings.neighbors,
+        timings.shape_functions,
+        timings.assembly,
+        timings.eigensolve,
+        timings.total,
+        repro.partition_of_unity,
+        repro.linear,
+        repro.gradient_sum,
+        repro.gradient_linear,
+        stats.max_cover as f64,
+        -(stats.min_cover as f64),
+        -stats.min_rcond,
+    ];
+    allreduce_max(&mut t)?;
+    let timings = Timings {
+        sampling: t[0],
+        centers: t[1],
+        neighbors: t[2],
+        shape_functions: t[3],
+        assembly: t[4],
+        eigensolve: t[5],
+        total: t[6],
+    };
+    let repro = ReproducingError {
+        partition_of_unity: t[7],
+        linear: t[8],
+        gradient_sum: t[9],
+        gradient_linear: t[10],
+    };
+    let mut counts = vec![0.0; 3 * size];
+    counts[3 * rank] = mine.len() as f64;
+    counts[3 * rank + 1] = local.len() as f64;
+    counts[3 * rank + 2] = h_rows.cols.len() as f64;
+    allreduce_sum(&mut counts)?;
+    let nnz = (0..size).map(|r| counts[3 * r + 2] as usize).sum::<usize>();
+    let dist = DistributedReport {
+        ranks: size,
+        rank,
+        rows_per_rank: (0..size).map(|r| counts[3 * r] as usize).collect(),
+        points_per_rank: (0..size).map(|r| counts[3 * r + 1] as usize).collect(),
+    };
+
+    let good = info
+        .residuals
+        .iter()
+        .filter(|&&r| r <= RESIDUAL_SLACK * request.tol)
+        .count();
+    if rs.values.len() < request.nev || good < request.nev {
+        return Err(EigenError::NotConverged {
+            iterations: info.iterations,
+            converged: good,
+            nev: request.nev,
+            tol: request.tol,
+            // Pairs SLEPc did not converge are not available: their residual is unknown.
+            max_residual: if rs.values.len() < request.nev {
+                f64::INFINITY
+            } else {
+                info.max_relative_residual
+            },
+            partial: Box::new(EigenSolution {
+                values: rs.values,
+                vectors: rs.vectors,
+                info,
+            }),
+        }
+        .into());
+    }
+    let mut warnings = Vec::new();
+    if repro.max() > 1e-8 {
+        warnings.push(format!(
+            "reproducing error {:.2e} is above 1e-8: the moment matrices are poorly conditioned",
+            repro.max()
+        ));
+    }
+    let report = ModesReport {
+        kernels: k,
+        points: n,
+        modes: opts.modes,
+        nnz_hessian: nnz,
+        nnz_mass: nnz,
+        solver: "slepc".into(),
+        eigenvalues: rs.values.clone(),
+        max_relative_residual: info.max_relative_residual,
+        orthonormality_error: info.orthonormality_error,
+        reproducing_error: repro.max(),
+        reproducing_detail: repro,
+        timings_s: timings,
+        peak_memory_bytes: peak_memory_bytes().unwrap_or(0),
+        volume: points.total_volume(),
+        kernel: opts.kernel,
+        support: opts.support,
+        coverage: CoverageReport {
+            min_moment_rcond: -t[13],
+            min_cover: (-t[12]) as usize,
+            mean_cover: stats.mean_cover,
+            max_cover: t[11] as usize,
+            enlarged_kernels: 0,
+            shape_function_bytes: sf_bytes,
+        },
+        eigen: info,
+        tol: opts.tol,
+        warnings,
+    };
+    let basis = Basis {
+        kernels,
+        coefficients: rs.vectors,
+        eigenvalues: rs.values,
+    };
+    Ok((
+        BasisRun {
+            basis,
+            points,
+            material,
+            report,
+        },
+        dist,
+    ))
+}
+
+/// Bounding box of the kernels' supports (centre +- radius).
+fn support_box(k: &Kernels) -> (Point3, Point3) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for (c, &r) in k.centers.iter().zip(&k.radii) {
+        for d in 0..3 {
+            lo[d] = lo[d].min(c[d] - r);
+            hi[d] = hi[d].max(c[d] + r);
+        }
+    }
+    (lo, hi)
+}
+
+/// [`crate::eigen::check_solution`] for row-distributed H and M: each rank forms its rows of
+/// H x and M x from the gathered vectors, and the residual norms, 1-norms (max absolute row
+/// sums, = column sums for symmetric matrices) and the Gram matrix X^T M X are reduced over
+/// the ranks. Collective.
+fn check_rows(
+    h: &RowBlock,
+    m: &RowBlock,
+    values: &[f64],
+    x: &Mat<f64>,
+    info: &mut EigenInfo,
+) -> Result<(), EigenError> {
+    let nev = values.len();
+    let rows = h.rows();
+    let row_mul = |a: &RowBlock, r: usize, j: usize| -> f64 {
+        (a.ptr[r]..a.ptr[r + 1])
+            .map(|e| a.vals[e] * x[(a.cols[e], j)])
+            .sum()
+    };
+    let abs_sum = |a: &RowBlock, r: usize| -> f64 {
+        a.vals[a.ptr[r]..a.ptr[r + 1]].iter().map(|v| v.abs()).sum()
+    };
+    let mut norms = [0.0f64, 0.0];
+    for r in 0..rows {
+        norms[0] = norms[0].max(abs_sum(h, r));
+        norms[1] = norms[1].max(abs_sum(m, r));
+    }
+    allreduce_max(&mut norms)?;
+    // sums[j] = ||r_j||^2 over local rows; gram[a * nev + b] = local part of x_a^T M x_b.
+    let mut sums = vec![0.0; nev + nev * nev];
+    for r in 0..rows {
+        let g = m.first + r;
+        let mx: Vec<f64> = (0..nev).map(|j| row_mul(m, r, j)).collect();
+        for j in 0..nev {
+            let res = row_mul(h, r, j) - values[j] * mx[j];
+            sums[j] += res * res;
+            for a in 0..nev {
+                sums[nev + a * nev + j] += x[(g, a)] * mx[j];
+            }
+        }
+    }
+    allreduce_sum(&mut sums)?;
+    info.residuals = (0..nev)
+        .map(|j| {
+            let xn = (0..x.nrows())
+                .map(|i| x[(i, j)].powi(2))
+                .sum::<f64>()
+                .sqrt();
+            relative_residual(sums[j].sqrt(), values[j], norms[0], norms[1], xn)
+        })
+        .collect();
+    info.max_relative_residual = info.residuals.iter().copied().fold(0.0, f64::max);
+    let mut err = 0.0f64;
+    for a in 0..nev {
+        for b in 0..nev {
+            let e = (sums[nev + a * nev + b] - if a == b { 1.0 } else { 0.0 }).abs();
+            err = if e.is_nan() {
+                f64::INFINITY
+            } else {
+                err.max(e)
+            };
+        }
+    }
+    info.orthonormality_error = err;
+    Ok(())
+}

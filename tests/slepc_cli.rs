@@ -1,0 +1,148 @@
+//! The `freeform` binary with SLEPc (feature `slepc`): `compare` across backends, and MPI runs
+//! (`mpirun -n 1` vs `-n 2`). Needs `mpirun` (OpenMPI) on PATH.
+//! Run: `cargo test --features slepc --test slepc_cli`.
+#![cfg(feature = "slepc")]
+
+use std::process::{Command, Output};
+
+fn json(o: &Output) -> serde_json::Value {
+    assert!(
+        o.status.success(),
+        "exit {:?}: {}\n{}",
+        o.status,
+        String::from_utf8_lossy(&o.stderr),
+        String::from_utf8_lossy(&o.stdout)
+    );
+    serde_json::from_slice(&o.stdout).expect("stdout is one JSON document")
+}
+
+/// `mpirun -n ranks freeform args...`, with the settings docs/slepc.md gives for a 2-core
+/// machine run as root.
+fn mpirun(ranks: usize, args: &[&str]) -> Output {
+    Command::new("mpirun")
+        .args(["-n", &ranks.to_string(), "--oversubscribe"])
+        .arg(env!("CARGO_BIN_EXE_freeform"))
+        .args(args)
+        .env("OMP_NUM_THREADS", "1")
+        // Waiting ranks yield the core instead of busy-polling (2 cores shared with others).
+        .env("OMPI_MCA_mpi_yield_when_idle", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .output()
+        .expect("run mpirun (install openmpi-bin / libslepc-real-dev)")
+}
+
+#[test]
+fn compare_native_slepc_and_dense() {
+    let o = Command::new(env!("CARGO_BIN_EXE_freeform"))
+        .args([
+            "compare",
+            "box:2,1,1",
+            "--kernels",
+            "300",
+            "--modes",
+            "8",
+            "--slepc",
+            "ks-sinvert,lobpcg-gamg",
+            "--slepc",
+            "-eps_type lobpcg -st_type precond -st_pc_type hypre -eps_smallest_real",
+            "--dense",
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    let r = json(&o);
+    let names: Vec<&str> = r["solvers"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["solver"].as_str().unwrap())
+        .collect();
+    assert_eq!(names[0], "lobpcg");
+    assert!(names.contains(&"slepc:ks-sinvert"), "{names:?}");
+    assert!(names.contains(&"slepc:lobpcg-gamg"), "{names:?}");
+    assert!(
+        names.iter().any(|n| n.contains("-st_pc_type hypre")),
+        "{names:?}"
+    );
+    assert!(names.contains(&"dense"), "{names:?}");
+    // The targets (tol 1e-8 for every solver): eigenvalues 1e-8 relative,
+    // eigenspaces 1e-6 rad, across all of them.
+    let diff = r["max_eigenvalue_rel_diff"].as_f64().unwrap();
+    let angle = r["max_subspace_angle"].as_f64().unwrap();
+    assert!(diff < 1e-8, "{diff}");
+    assert!(angle < 1e-6, "{angle}");
+}
+
+/// Eigenvalues of `freeform modes --solver slepc --json` under mpirun (`extra` flags added).
+fn mpi_eigenvalues(
+    ranks: usize,
+    extra: &[&str],
+    dir: &std::path::Path,
+) -> (Vec<f64>, serde_json::Value) {
+    let out = dir.join(format!("basis{ranks}{}.npz", extra.len()));
+    let mut args = vec![
+        "modes",
+        "box:2,1,1",
+        "--kernels",
+        "400",
+        "--modes",
+        "8",
+        "--solver",
+        "slepc",
+        "--tol",
+        "1e-10",
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend(extra);
+    let r = json(&mpirun(ranks, &args));
+    assert!(out.is_file(), "rank 0 writes the basis");
+    let ev = r["eigenvalues"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    (ev, r)
+}
+
+#[test]
+fn one_and_two_mpi_ranks_agree() {
+    let dir = tempfile::tempdir().unwrap();
+    // One rank: the ordinary pipeline. Two ranks: distributed assembly (each rank only its
+    // kernels' rows) and a distributed solve.
+    let (one, r1) = mpi_eigenvalues(1, &[], dir.path());
+    let (two, r2) = mpi_eigenvalues(2, &[], dir.path());
+    assert_eq!(one.len(), 9);
+    assert_eq!(two.len(), 9);
+    // Same matrices on 1 and 2 ranks; only the solver's parallel reductions and the
+    // distributed factorization change round-off (~1e-14). The constant mode's eigenvalue
+    // (~0) is compared relative to the first non-zero one.
+    for (i, (a, b)) in one.iter().zip(&two).enumerate() {
+        let scale = if i == 0 { one[1] } else { a.abs() };
+        assert!((a - b).abs() <= 1e-10 * scale, "pair {i}: {a} vs {b}");
+    }
+    for r in [&r1, &r2] {
+        assert!(r["max_relative_residual"].as_f64().unwrap() < 1e-9, "{r}");
+        assert!(r["orthonormality_error"].as_f64().unwrap() < 1e-8, "{r}");
+    }
+    let notes = r2["eigen"]["notes"].to_string();
+    assert!(notes.contains("2 MPI rank(s)"), "{notes}");
+    assert!(notes.contains("distributed assembly: 2 rank(s)"), "{notes}");
+}
+
+#[test]
+fn distributed_assembly_on_one_rank_is_the_same_problem() {
+    // The distributed path on one rank assembles the same entries, summed over the same
+    // points in the same order, as the ordinary pipeline: identical matrices, identical
+    // solver, so identical eigenvalues (to the last bits the JSON printing keeps).
+    let dir = tempfile::tempdir().unwrap();
+    let (plain, _) = mpi_eigenvalues(1, &[], dir.path());
+    let (dist, r) = mpi_eigenvalues(1, &["--distributed"], dir.path());
+    assert_eq!(plain, dist);
+    assert!(r["eigen"]["notes"]
+        .to_string()
+        .contains("distributed assembly: 1 rank(s)"));
+}
