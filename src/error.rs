@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 pub use crate::eigen::EigenError;
+pub use crate::fem::FemError;
 pub use crate::geometry::GeometryError;
 
 /// Result alias used across the library.
@@ -19,6 +20,9 @@ pub enum Error {
     /// The eigensolver failed (see the inner error; it may carry partial results).
     #[error(transparent)]
     Eigen(#[from] EigenError),
+    /// The FEM reference failed: mesh file, mesh validity, Newton, or trajectory shapes.
+    #[error(transparent)]
+    Fem(#[from] FemError),
     /// A user parameter is out of its valid range.
     #[error("invalid {name} = {value}: {reason}")]
     InvalidParameter {

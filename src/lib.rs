@@ -24,6 +24,7 @@ pub mod centers;
 pub mod eigen;
 pub mod elasticity;
 pub mod error;
+pub mod fem;
 pub mod geometry;
 pub mod io;
 pub mod linalg3;
