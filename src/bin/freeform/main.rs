@@ -1,5 +1,6 @@
 //! The `freeform` command-line tool. `freeform <COMMAND> --help` lists every option.
 
+mod beam;
 mod modes;
 mod run;
 
@@ -26,6 +27,8 @@ enum Command {
     Modes(modes::ModesArgs),
     /// Simulate a scene file (TOML) and write frames for ParaView.
     Run(run::RunArgs),
+    /// The standard beam benchmark: reduced model against the FEM reference (bend | twist).
+    Beam(beam::BeamArgs),
 }
 
 /// Write to standard output; a closed pipe (`freeform ... | head`) is not an error.
@@ -56,6 +59,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Modes(args) => modes::run(args),
         Command::Run(args) => run::run(args),
+        Command::Beam(args) => beam::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
