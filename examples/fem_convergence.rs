@@ -8,6 +8,8 @@
 //! cargo run --release --example fem_convergence -- convergence bend 2,4,8,16 /tmp/ffcache
 //! # fill-reducing orderings: fill and factorization time, AMD vs nested dissection
 //! cargo run --release --example fem_convergence -- ordering bend 4,8,16
+//! # the same on the first 100 frames only
+//! FEM_FRAMES=100 cargo run --release --example fem_convergence -- convergence twist 1q,2q,4q /tmp/ffcache
 //! # per-frame difference between two cached levels (every 10th frame)
 //! cargo run --release --example fem_convergence -- frames twist 4,8 /tmp/ffcache
 //! # displacement of the free-end corner (5, 0, 0) per level: extreme and at frames 100, 200
@@ -54,6 +56,11 @@ fn parse_level(s: &str) -> Result<Level, std::num::ParseIntError> {
 fn config(test: BeamTest, level: Level) -> FemBeamConfig {
     let mut c = FemBeamConfig::standard(test, level.r);
     c.solver.order = level.order;
+    // FEM_MAXIT=n: Newton iteration cap (part of the cache key; the study's first runs used
+    // 100, which no step reached).
+    if let Some(n) = std::env::var("FEM_MAXIT").ok().and_then(|v| v.parse().ok()) {
+        c.solver.max_newton_iterations = n;
+    }
     c
 }
 
@@ -129,6 +136,17 @@ fn convergence(
         );
         refs.push(reference);
     }
+    // FEM_FRAMES=n: compare only the first n frames (e.g. the twist before it buckles).
+    if let Some(n) = std::env::var("FEM_FRAMES")
+        .ok()
+        .and_then(|v| v.parse::<usize>().ok())
+    {
+        println!();
+        println!("(differences over frames 1-{n} only)");
+        for r in &mut refs {
+            r.frames.truncate(n);
+        }
+    }
     println!();
     println!("| r vs 2r | normalized MSE | RMS / D | max error | observed order (RMS) |");
     println!("|---|---|---|---|---|");
@@ -164,16 +182,8 @@ fn frames(
     let [a, b] = levels else {
         return Err("frames needs two levels".into());
     };
-    let ra = run_beam_reference(
-        &config(test, *a),
-        cache.as_deref(),
-        &progress,
-    )?;
-    let rb = run_beam_reference(
-        &config(test, *b),
-        cache.as_deref(),
-        &progress,
-    )?;
+    let ra = run_beam_reference(&config(test, *a), cache.as_deref(), &progress)?;
+    let rb = run_beam_reference(&config(test, *b), cache.as_deref(), &progress)?;
     println!("| frame | RMS / D (r={a} vs r={b}) | max / D | Newton its r={b} |");
     println!("|---|---|---|---|");
     for f in (9..ra.frames.len()).step_by(10) {

@@ -98,9 +98,10 @@ impl FemBeamConfig {
     }
 
     /// The recommended reference for comparisons with the reduced model: quadratic tets,
-    /// r = 4 (3,321 FE nodes, 1,920 tets; ~1 s per step on 2 cores). Chosen from the
-    /// refinement study in docs/accuracy.md: linear tets lock in bending and are still tens of
-    /// percent too stiff at r = 8, quadratic ones converge at order ~3 and r = 4 is within
+    /// r = 4 (3,321 FE nodes, 1,920 tets; ~1 s (bend) to 2.5 s (twist) per step on 2 loaded
+    /// cores, 3-8 minutes per run, then cached). Chosen from the
+    /// refinement study in docs/accuracy.md: linear tets lock in bending (the largest sag is
+    /// still 12% short at r = 8, 3% at r = 16), quadratic ones converge at order ~3 and r = 4 is within
     /// an estimated ~1e-3 D (RMS) of the converged bend.
     pub fn reference(test: BeamTest) -> Self {
         let mut c = Self::standard(test, 4);

@@ -66,8 +66,8 @@ pub struct FemParams {
     /// Default 1e-6: 5.2e-6 m on the 5 m beam, three orders below the smallest RMS error the
     /// reduced model is asked to reach against it (Table 1, twist m = 16: 1e-2 m).
     pub tolerance: f64,
-    /// Newton iteration cap per step. Default 100 (the beam needs 2-6, up to ~30 with the
-    /// projected Hessian late in the twist).
+    /// Newton iteration cap per step. Default 200: the beam needs 2-5 per step, but up to
+    /// 82 in the step where the twisted beam buckles (docs/performance.md).
     pub max_newton_iterations: usize,
     /// Which Hessian Newton factorizes. Default [`HessianMode::ExactFirst`].
     pub hessian: HessianMode,
@@ -77,6 +77,9 @@ pub struct FemParams {
     /// Optional floor penalty. Default none.
     pub plane: Option<PlanePenalty>,
     /// Element order. Default linear (see docs/accuracy.md for what quadratic buys).
+    /// Not serialized when linear, so cache keys of linear runs are those of the versions
+    /// before this field existed.
+    #[serde(default, skip_serializing_if = "is_linear")]
     pub order: ElementOrder,
 }
 
@@ -86,7 +89,7 @@ impl Default for FemParams {
             dt: 0.01,
             gravity: [0.0, -9.81, 0.0],
             tolerance: 1e-6,
-            max_newton_iterations: 100,
+            max_newton_iterations: 200,
             hessian: HessianMode::ExactFirst,
             ordering: OrderingKind::NestedDissection,
             plane: None,
@@ -791,6 +794,10 @@ impl FemSolver {
             .map(|_| ())
             .map_err(|e| format!("{e:?}"))
     }
+}
+
+fn is_linear(order: &ElementOrder) -> bool {
+    *order == ElementOrder::Linear
 }
 
 fn validate_params(p: &FemParams) -> crate::Result<()> {
