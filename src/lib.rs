@@ -20,6 +20,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod assembly;
+pub mod benchmark;
 pub mod centers;
 #[cfg(feature = "slepc")]
 pub mod distributed;

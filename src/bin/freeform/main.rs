@@ -1,5 +1,6 @@
 //! The `freeform` command-line tool. `freeform <COMMAND> --help` lists every option.
 
+mod beam;
 mod compare;
 mod export;
 mod modes;
@@ -29,6 +30,8 @@ enum Command {
     Modes(modes::ModesArgs),
     /// Simulate a scene file (TOML) and write frames for ParaView.
     Run(run::RunArgs),
+    /// The standard beam benchmark: reduced model against the FEM reference (bend | twist).
+    Beam(beam::BeamArgs),
     /// Build H_w and M once and compare eigensolvers on them (native LOBPCG, SLEPc, dense).
     Compare(compare::CompareArgs),
     /// Write H_w and M of a shape as MatrixMarket and PETSc binary files.
@@ -89,6 +92,7 @@ fn dispatch(command: Command) -> CliResult {
     match command {
         Command::Modes(args) => modes::run(args),
         Command::Run(args) => run::run(args),
+        Command::Beam(args) => beam::run(args),
         Command::Compare(args) => compare::run(args),
         Command::Export(args) => export::run(args),
     }

@@ -1,0 +1,187 @@
+//! The standard beam benchmark (design.md section 3): the reduced model against the FEM
+//! reference on the same definition, with the error metric and both sides' costs.
+
+use crate::fem::beam::{run_beam_reference, BeamReference, BeamTest, FemBeamConfig};
+use crate::geometry::Shape;
+use crate::material::Region;
+use crate::pipeline::{build_basis, BasisOptions};
+use crate::progress::Progress;
+use crate::report::Stopwatch;
+use crate::sampling::Resolution;
+use crate::sim::motion::Motion;
+use crate::sim::{Boundary, HessianStrategy, NewtonOptions, ReducedSim, SimOptions};
+use crate::{Error, Point3, Result};
+use serde::Serialize;
+use std::path::Path;
+
+/// The reduced model's settings for a beam run.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ReducedBeamOptions {
+    /// Modes m.
+    pub modes: usize,
+    /// Kernels K.
+    pub kernels: usize,
+    /// Integration points (None: the pipeline default, 50 K clamped).
+    pub points: Option<usize>,
+    /// Cubature points.
+    pub cubature: usize,
+    /// Newton settings.
+    pub newton: NewtonOptions,
+}
+
+impl Default for ReducedBeamOptions {
+    fn default() -> Self {
+        Self {
+            modes: 16,
+            kernels: 1000,
+            points: None,
+            cubature: crate::sim::cubature::DEFAULT_CUBATURE,
+            newton: NewtonOptions::default(),
+        }
+    }
+}
+
+/// The report of `freeform beam`.
+#[derive(Debug, Clone, Serialize)]
+pub struct BeamComparison {
+    /// "bend" or "twist".
+    pub test: &'static str,
+    /// Modes m.
+    pub modes: usize,
+    /// Kernels K.
+    pub kernels: usize,
+    /// Integration points.
+    pub points: usize,
+    /// Cubature points.
+    pub cubature_points: usize,
+    /// Hessian strategy.
+    pub hessian: HessianStrategy,
+    /// Newton tolerance.
+    pub tol: f64,
+    /// mean |x_red - x_fem|^2 / D^2 over frames and FEM nodes.
+    pub normalized_mse: f64,
+    /// max |x_red - x_fem| / D.
+    pub max_error: f64,
+    /// The same over the first half of the frames (before the twist buckles, see
+    /// docs/accuracy.md).
+    pub normalized_mse_first_half: f64,
+    /// max error over the first half of the frames.
+    pub max_error_first_half: f64,
+    /// Basis precomputation plus reduced-model setup, s.
+    pub precompute_s: f64,
+    /// Mean reduced step, ms.
+    pub reduced_step_ms_mean: f64,
+    /// Reduced steps that did not converge.
+    pub reduced_nonconverged_steps: usize,
+    /// Mean FEM step, ms (from the run that produced the cached reference).
+    pub fem_step_ms_mean: f64,
+    /// FEM nodes.
+    pub fem_nodes: usize,
+    /// FEM tetrahedra.
+    pub fem_tets: usize,
+    /// FEM resolution (cubes per metre).
+    pub fem_resolution: usize,
+    /// Whether the FEM reference came from the cache.
+    pub fem_cached: bool,
+}
+
+/// Run the reduced model on the beam test `fem.test` and compare it with the FEM reference
+/// (computed or loaded from `cache_dir`).
+pub fn compare_beam(
+    fem: &FemBeamConfig,
+    opts: &ReducedBeamOptions,
+    cache_dir: Option<&Path>,
+    progress: &dyn Progress,
+) -> Result<BeamComparison> {
+    progress.begin("FEM reference", Some(fem.steps as u64));
+    let reference: BeamReference = run_beam_reference(fem, cache_dir, progress)?;
+    progress.finish();
+    let clock = Stopwatch::start();
+    let spec = format!("box:{},{},{}", fem.size[0], fem.size[1], fem.size[2]);
+    let shape = Shape::parse(&spec, &Default::default())?;
+    let basis_opts = BasisOptions {
+        kernels: opts.kernels,
+        modes: opts.modes,
+        resolution: opts.points.map(Resolution::Count),
+        material: fem.material,
+        ..BasisOptions::default()
+    };
+    let run = build_basis(&shape, &basis_opts, progress)?;
+    let mut boundaries = vec![Boundary {
+        region: Region::HalfSpace {
+            point: [fem.held_length, 0.0, 0.0],
+            normal: [-1.0, 0.0, 0.0],
+        },
+        motion: Motion::Fixed,
+        stiffness: None,
+    }];
+    let dt = fem.solver.dt;
+    if fem.test == BeamTest::Twist {
+        boundaries.push(Boundary {
+            region: Region::HalfSpace {
+                point: [fem.size[0] - fem.twist_length, 0.0, 0.0],
+                normal: [1.0, 0.0, 0.0],
+            },
+            motion: Motion::Rotate {
+                pivot: [0.0, 0.5 * fem.size[1], 0.5 * fem.size[2]],
+                axis: [1.0, 0.0, 0.0],
+                degrees_per_second: fem.twist_degrees / (fem.steps as f64 * dt),
+            },
+            stiffness: None,
+        });
+    }
+    let g = fem.solver.gravity;
+    let sim_opts = SimOptions {
+        dt,
+        gravity: g.iter().any(|v| *v != 0.0).then_some(g),
+        cubature: opts.cubature,
+        newton: opts.newton,
+        boundaries,
+        ..SimOptions::default()
+    };
+    let mut sim = ReducedSim::new(&run.basis, &run.points, &run.material, &sim_opts)?;
+    let weights = run.basis.weights(&reference.rest)?;
+    let precompute_s = clock.elapsed();
+    progress.begin("reduced steps", Some(fem.steps as u64));
+    let mut frames: Vec<Vec<Point3>> = Vec::with_capacity(fem.steps);
+    let mut step_s = 0.0;
+    let mut nonconverged = 0;
+    for k in 0..fem.steps {
+        let r = sim.step();
+        step_s += r.wall_s;
+        nonconverged += usize::from(!r.solve.converged);
+        frames.push(sim.positions(&reference.rest, &weights));
+        progress.set_position(k as u64 + 1);
+    }
+    progress.finish();
+    let metric = |e: crate::fem::FemError| Error::param("beam", fem.test.name(), e.to_string());
+    let err = reference.error_of(&frames).map_err(metric)?;
+    let half = (frames.len() / 2).max(1).min(frames.len());
+    let first = crate::fem::metric::trajectory_error(
+        &reference.rest,
+        &reference.frames[..half],
+        &frames[..half],
+    )
+    .map_err(metric)?;
+    Ok(BeamComparison {
+        test: fem.test.name(),
+        modes: opts.modes,
+        kernels: opts.kernels,
+        points: run.points.len(),
+        cubature_points: sim.cubature().len(),
+        hessian: opts.newton.hessian,
+        tol: opts.newton.tol,
+        normalized_mse: err.normalized_mse,
+        max_error: err.max_error,
+        normalized_mse_first_half: first.normalized_mse,
+        max_error_first_half: first.max_error,
+        precompute_s,
+        reduced_step_ms_mean: 1e3 * step_s / fem.steps.max(1) as f64,
+        reduced_nonconverged_steps: nonconverged,
+        fem_step_ms_mean: reference.step_ms_mean(),
+        fem_nodes: reference.rest.len(),
+        fem_tets: reference.tets.len(),
+        fem_resolution: fem.resolution,
+        fem_cached: matches!(reference.cache, crate::fem::beam::CacheStatus::Hit(_)),
+    })
+}
