@@ -49,6 +49,22 @@ fn held_left() -> Boundary {
     }
 }
 
+/// The right end (x >= 0.9) turned about the bar's axis at `degrees_per_second`.
+fn twisted_right(degrees_per_second: f64) -> Boundary {
+    Boundary {
+        region: Region::HalfSpace {
+            point: [0.9, 0.0, 0.0],
+            normal: [1.0, 0.0, 0.0],
+        },
+        motion: Motion::Rotate {
+            pivot: [0.0, 0.1, 0.1],
+            axis: [1.0, 0.0, 0.0],
+            degrees_per_second,
+        },
+        stiffness: None,
+    }
+}
+
 fn random_z(n: usize, scale: f64, seed: u64) -> Vec<f64> {
     let mut rng = Rng(seed);
     (0..n).map(|_| scale * (rng.next() - 0.5)).collect()
@@ -326,21 +342,7 @@ fn held_points_stay_within_the_penalty_tolerance_and_the_twist_follows() {
     let twist = SimOptions {
         dt: 0.01,
         cubature: 800,
-        boundaries: vec![
-            held_left(),
-            Boundary {
-                region: Region::HalfSpace {
-                    point: [0.9, 0.0, 0.0],
-                    normal: [1.0, 0.0, 0.0],
-                },
-                motion: Motion::Rotate {
-                    pivot: [0.0, 0.1, 0.1],
-                    axis: [1.0, 0.0, 0.0],
-                    degrees_per_second: 360.0,
-                },
-                stiffness: None,
-            },
-        ],
+        boundaries: vec![held_left(), twisted_right(360.0)],
         ..SimOptions::default()
     };
     let mut s = sim(&run, &twist);
@@ -408,21 +410,7 @@ fn violent_steps_stay_finite_and_report() {
         dt: 0.1,
         gravity: Some([0.0, -9.81, 0.0]),
         cubature: 400,
-        boundaries: vec![
-            held_left(),
-            Boundary {
-                region: Region::HalfSpace {
-                    point: [0.9, 0.0, 0.0],
-                    normal: [1.0, 0.0, 0.0],
-                },
-                motion: Motion::Rotate {
-                    pivot: [0.0, 0.1, 0.1],
-                    axis: [1.0, 0.0, 0.0],
-                    degrees_per_second: 1800.0,
-                },
-                stiffness: None,
-            },
-        ],
+        boundaries: vec![held_left(), twisted_right(1800.0)],
         colliders: vec![Collider {
             shape: ColliderShape::Plane {
                 point: [0.0, -0.05, 0.0],

@@ -62,6 +62,8 @@ pub struct SolverSettings {
     pub lbfgs_history: usize,
     /// L-BFGS Hessian refresh period in iterations (0: never), default 10.
     pub refresh_iterations: usize,
+    /// L-BFGS refresh: every n-th cubature point builds the new base, default 4.
+    pub refresh_stride: usize,
     /// Cubature points for the elastic energy, default 5000 (all points if fewer).
     pub cubature: usize,
 }
@@ -75,6 +77,7 @@ impl Default for SolverSettings {
             max_iter: n.max_iter,
             lbfgs_history: n.lbfgs_history,
             refresh_iterations: n.refresh_iterations,
+            refresh_stride: n.refresh_stride,
             cubature: crate::sim::cubature::DEFAULT_CUBATURE,
         }
     }
@@ -89,6 +92,7 @@ impl SolverSettings {
             max_iter: self.max_iter,
             lbfgs_history: self.lbfgs_history,
             refresh_iterations: self.refresh_iterations,
+            refresh_stride: self.refresh_stride,
         }
     }
 }

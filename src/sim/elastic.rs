@@ -206,19 +206,37 @@ impl ElasticTerm {
     /// The Hessian d2E/dz2, 12 (m + 1) square, with per-point Hessians optionally projected to
     /// PSD. Cost: O(C (4 (m + 1))^2) flops for C cubature points, in dense products.
     pub fn hessian(&self, z: &[f64], projection: Projection) -> Mat<f64> {
+        let all: Vec<usize> = (0..self.len()).collect();
+        self.hessian_on(z, projection, &all, 1.0)
+    }
+
+    /// An approximation of [`ElasticTerm::hessian`] from every `stride`-th cubature point,
+    /// volumes scaled so the sampled volume equals the total: about `stride` times cheaper.
+    /// The cubature points are in farthest-point order (or a regular grid), so the sample
+    /// spreads over the whole object. Used as a quasi-Newton base, never as the Newton
+    /// Hessian.
+    pub fn hessian_sampled(&self, z: &[f64], projection: Projection, stride: usize) -> Mat<f64> {
+        let idx: Vec<usize> = (0..self.len()).step_by(stride.max(1)).collect();
+        let total: f64 = self.volumes.iter().sum();
+        let part: f64 = idx.iter().map(|&c| self.volumes[c]).sum();
+        let scale = if part > 0.0 { total / part } else { 1.0 };
+        self.hessian_on(z, projection, &idx, scale)
+    }
+
+    /// The Hessian from the cubature points `idx`, volumes multiplied by `scale`.
+    fn hessian_on(&self, z: &[f64], projection: Projection, idx: &[usize], scale: f64) -> Mat<f64> {
         let n4 = self.layout.row_len();
         let nh = self.layout.handles;
-        let parts: Vec<[Mat<f64>; 6]> = (0..self.len().div_ceil(HESSIAN_CHUNK))
-            .into_par_iter()
-            .map(|k| {
-                let range = k * HESSIAN_CHUNK..((k + 1) * HESSIAN_CHUNK).min(self.len());
+        let parts: Vec<[Mat<f64>; 6]> = idx
+            .par_chunks(HESSIAN_CHUNK)
+            .map(|range| {
                 let cols = 3 * range.len();
                 // A: the vectors a_c of each point (column 3 p + c), column-major in a plain
                 // buffer so the T loop below runs over contiguous slices;
                 // T^(rs): column 3 p + d = sum_c v H[3r + c][3s + d] a_(3p + c).
                 let mut a = vec![0.0; n4 * cols];
                 let mut h9 = Vec::with_capacity(range.len());
-                for (p, c) in range.clone().enumerate() {
+                for (p, &c) in range.iter().enumerate() {
                     let x = self.points[c];
                     let xh = [x[0], x[1], x[2], 1.0];
                     for col in 0..3 {
@@ -237,7 +255,7 @@ impl ElasticTerm {
                         Projection::None => hessian(&f, l, m),
                         Projection::PerPoint => hessian_psd(&f, l, m),
                     };
-                    h9.push((self.volumes[c], h));
+                    h9.push((scale * self.volumes[c], h));
                 }
                 let a_ref = faer::MatRef::from_column_major_slice(&a, n4, cols);
                 let mut blocks: [Mat<f64>; 6] = std::array::from_fn(|_| Mat::zeros(n4, n4));

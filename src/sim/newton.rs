@@ -61,9 +61,12 @@ pub struct NewtonOptions {
     pub max_iter: usize,
     /// L-BFGS history length (pairs kept).
     pub lbfgs_history: usize,
-    /// L-BFGS: every this many iterations within a step, rebuild and refactorize the full
+    /// L-BFGS: every this many iterations within a step, rebuild and refactorize the
     /// Hessian as the new base matrix (0: never; keep the rest matrix).
     pub refresh_iterations: usize,
+    /// L-BFGS: the refreshed base uses every this-many-th cubature point (volumes rescaled):
+    /// a cheaper, still PSD model of the Hessian. 1 uses all points.
+    pub refresh_stride: usize,
 }
 
 impl Default for NewtonOptions {
@@ -74,6 +77,7 @@ impl Default for NewtonOptions {
             max_iter: 100,
             lbfgs_history: 8,
             refresh_iterations: 10,
+            refresh_stride: 4,
         }
     }
 }
@@ -93,6 +97,13 @@ impl NewtonOptions {
                 "max_iter",
                 0,
                 "need at least one Newton iteration per step (default 100)",
+            ));
+        }
+        if self.refresh_stride == 0 {
+            return Err(crate::Error::param(
+                "refresh_stride",
+                0,
+                "the Hessian refresh stride must be at least 1 (default 4)",
             ));
         }
         if self.hessian == HessianStrategy::Lbfgs && self.lbfgs_history == 0 {
@@ -127,6 +138,12 @@ pub trait Potential {
     fn energy_gradient(&self, z: &[f64], grad: &mut [f64]) -> (f64, EvalInfo);
     /// PSD approximation of the Hessian at z.
     fn hessian(&self, z: &[f64]) -> Mat<f64>;
+    /// A cheaper PSD approximation for quasi-Newton bases (default: [`Potential::hessian`]);
+    /// `stride` as in [`NewtonOptions::refresh_stride`].
+    fn base_hessian(&self, z: &[f64], stride: usize) -> Mat<f64> {
+        let _ = stride;
+        self.hessian(z)
+    }
 }
 
 /// Outcome of one time step's minimisation.
@@ -239,7 +256,7 @@ pub fn minimize(
             // Slow progress: the base matrix is too far from the current Hessian (large
             // rotations, contact). Rebuild it here; later steps keep using it.
             let sw = Stopwatch::start();
-            let h = pot.hessian(z);
+            let h = pot.base_hessian(z, opts.refresh_stride);
             rep.hessian_s += sw.elapsed();
             let sw = Stopwatch::start();
             rep.factorizations += 1;

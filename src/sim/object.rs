@@ -583,9 +583,17 @@ impl Potential for StepPotential<'_> {
     }
 
     fn hessian(&self, z: &[f64]) -> Mat<f64> {
+        self.base_hessian(z, 1)
+    }
+
+    fn base_hessian(&self, z: &[f64], stride: usize) -> Mat<f64> {
         let s = self.sim;
         let l = s.layout;
-        let mut h = s.elastic.hessian(z, Projection::PerPoint);
+        let mut h = if stride <= 1 {
+            s.elastic.hessian(z, Projection::PerPoint)
+        } else {
+            s.elastic.hessian_sampled(z, Projection::PerPoint, stride)
+        };
         add_block_diagonal(l, &s.mass.bb, 1.0 / (s.dt * s.dt), &mut h);
         for b in &s.boundaries {
             add_block_diagonal(l, &b.moments.bb, 1.0, &mut h);
