@@ -62,7 +62,7 @@ pub struct SolverSettings {
     pub lbfgs_history: usize,
     /// L-BFGS Hessian refresh period in iterations (0: never), default 10.
     pub refresh_iterations: usize,
-    /// L-BFGS refresh: every n-th cubature point builds the new base, default 4.
+    /// L-BFGS refresh: every n-th cubature point builds the new base, default 1 (all).
     pub refresh_stride: usize,
     /// Cubature points for the elastic energy, default 5000 (all points if fewer).
     pub cubature: usize,

@@ -65,7 +65,8 @@ pub struct NewtonOptions {
     /// Hessian as the new base matrix (0: never; keep the rest matrix).
     pub refresh_iterations: usize,
     /// L-BFGS: the refreshed base uses every this-many-th cubature point (volumes rescaled):
-    /// a cheaper, still PSD model of the Hessian. 1 uses all points.
+    /// a cheaper, still PSD model of the Hessian, but a looser one (more iterations, and the
+    /// convergence measure uses it). Default 1: all points (docs/performance.md measures 4).
     pub refresh_stride: usize,
 }
 
@@ -77,7 +78,7 @@ impl Default for NewtonOptions {
             max_iter: 100,
             lbfgs_history: 8,
             refresh_iterations: 10,
-            refresh_stride: 4,
+            refresh_stride: 1,
         }
     }
 }
