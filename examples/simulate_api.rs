@@ -53,6 +53,7 @@ fn main() -> Result<(), freeform::Error> {
         &RunSettings {
             base_dir: ".".into(),
             out,
+            strict: false,
         },
         &Silent,
     )?;

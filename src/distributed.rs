@@ -261,14 +261,7 @@ pub fn build_basis_mpi(
         }
         .into());
     }
-    let mut warnings = Vec::new();
-    if repro.max() > 1e-8 {
-        warnings.push(format!(
-            "reproducing error {:.2e} is above 1e-8: the moment matrices are poorly conditioned",
-            repro.max()
-        ));
-    }
-    let report = ModesReport {
+    let mut report = ModesReport {
         kernels: k,
         points: n,
         modes: opts.modes,
@@ -295,8 +288,10 @@ pub fn build_basis_mpi(
         },
         eigen: info,
         tol: opts.tol,
-        warnings,
+        warnings: Vec::new(),
+        monitors: Default::default(),
     };
+    crate::pipeline::check_quality(&mut report);
     let basis = Basis {
         kernels,
         coefficients: rs.vectors,

@@ -94,6 +94,13 @@ pub enum Error {
         /// What is wrong.
         reason: String,
     },
+    /// `--strict` (or `strict: true` in the settings) was asked for and a monitor raised a
+    /// warning: poor conditioning, a non-converged solve, a failed line search.
+    #[error("strict mode: {} warning(s), the first: {}", warnings.len(), warnings.first().map(String::as_str).unwrap_or("-"))]
+    Strict {
+        /// Every warning raised up to the point where the run stopped.
+        warnings: Vec<String>,
+    },
 }
 
 impl Error {
@@ -109,6 +116,16 @@ impl Error {
             reason: reason.into(),
         }
     }
+}
+
+/// `Err(Error::Strict)` when `strict` is set and `warnings` is not empty.
+pub fn check_strict(strict: bool, warnings: &[String]) -> Result<()> {
+    if strict && !warnings.is_empty() {
+        return Err(Error::Strict {
+            warnings: warnings.to_vec(),
+        });
+    }
+    Ok(())
 }
 
 /// Check that every coordinate of `points` is finite.

@@ -12,6 +12,7 @@ use crate::eigen::{EigenRequest, Eigensolver};
 use crate::geometry::Shape;
 use crate::material::{Material, MaterialField, MaterialOverride};
 use crate::progress::Progress;
+use crate::report::Monitors;
 use crate::report::{peak_memory_bytes, Stopwatch, Timings};
 use crate::rkpm::{
     self, support_radii, KernelType, Kernels, ReproducingError, ShapeFunctionOptions,
@@ -227,9 +228,58 @@ pub struct ModesReport {
     pub eigen: crate::eigen::EigenInfo,
     /// Tolerance asked for.
     pub tol: f64,
-    /// Warnings worth a look (none means none).
+    /// Warnings worth a look (none means none). `--strict` turns them into errors.
     pub warnings: Vec<String>,
+    /// Conditioning and convergence monitors (the same keys as in `run` and `beam`).
+    pub monitors: Monitors,
 }
+
+/// A moment matrix with a reciprocal condition number below this is reported: 100 times
+/// the default acceptance threshold (`ShapeFunctionOptions::min_rcond` = 1e-6); a
+/// well-covered interior point measures ~1e-2 and a box corner ~1e-3.
+pub const RCOND_WARNING: f64 = 1e-4;
+
+/// Reproducing identities violated by more than this are reported (well-conditioned moment
+/// matrices give ~1e-13).
+pub const REPRODUCING_WARNING: f64 = 1e-8;
+
+/// Fill `report.monitors` and add a warning for each monitor outside its healthy range:
+/// a moment matrix close to singular, reproducing identities violated, eigen-residuals
+/// above the tolerance asked for, M-orthonormality lost.
+pub fn check_quality(report: &mut ModesReport) {
+    report.monitors =
+        Monitors::from_basis(&report.coverage, report.reproducing_error, &report.eigen);
+    let w = &mut report.warnings;
+    let rc = report.coverage.min_moment_rcond;
+    if rc < RCOND_WARNING {
+        w.push(format!(
+            "smallest moment-matrix reciprocal condition number {rc:.1e} is below {RCOND_WARNING:.0e}: \
+             some points are covered by nearly coplanar kernels (thin features or too few kernels \
+             across them); use more kernels or more integration points there, or a larger --support"
+        ));
+    }
+    if report.reproducing_error > REPRODUCING_WARNING {
+        w.push(format!(
+            "reproducing error {:.2e} is above {REPRODUCING_WARNING:.0e}: the moment matrices are poorly conditioned",
+            report.reproducing_error
+        ));
+    }
+    if report.max_relative_residual > report.tol {
+        w.push(format!(
+            "largest relative eigen-residual {:.2e} is above the tolerance {:.1e}",
+            report.max_relative_residual, report.tol
+        ));
+    }
+    if report.orthonormality_error > ORTHONORMALITY_WARNING {
+        w.push(format!(
+            "M-orthonormality error {:.2e} is above {ORTHONORMALITY_WARNING:.0e}: the modes are not an orthonormal basis",
+            report.orthonormality_error
+        ));
+    }
+}
+
+/// max |c^T M c - I| above this is reported (the solvers reach ~1e-14).
+pub const ORTHONORMALITY_WARNING: f64 = 1e-8;
 
 /// Everything a precomputation produces.
 #[derive(Debug, Clone)]
@@ -527,7 +577,7 @@ pub fn solve_prepared(
         mut timings,
         reproducing: repro,
         coverage,
-        mut warnings,
+        warnings,
     } = prepared;
     let n = points.len();
     let clock = Stopwatch::start();
@@ -539,14 +589,7 @@ pub fn solve_prepared(
     let solution = solver.solve(&assembled.hessian, &assembled.mass, &request, progress)?;
     timings.eigensolve = clock.elapsed();
     timings.total += timings.eigensolve;
-    if repro.max() > 1e-8 {
-        warnings.push(format!(
-            "reproducing error {:.2e} is above 1e-8: the moment matrices are poorly conditioned",
-            repro.max()
-        ));
-    }
-
-    let report = ModesReport {
+    let mut report = ModesReport {
         kernels: kernels.len(),
         points: n,
         modes: opts.modes,
@@ -567,7 +610,9 @@ pub fn solve_prepared(
         eigen: solution.info.clone(),
         tol: opts.tol,
         warnings,
+        monitors: Monitors::default(),
     };
+    check_quality(&mut report);
     let basis = Basis {
         kernels,
         coefficients: solution.vectors,

@@ -53,3 +53,94 @@ pub fn peak_memory_bytes() -> Option<u64> {
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb * 1024)
 }
+
+/// Conditioning and convergence monitors, with the same keys in every report (`modes`,
+/// `run`, `beam`; issue #6). A field is `None` when its stage did not run in this process
+/// and was not recorded (for example a basis loaded from an old cache file).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, serde::Deserialize)]
+pub struct Monitors {
+    /// Smallest reciprocal condition number (1-norm) of the scaled RKPM moment matrices over
+    /// the integration points (dimensionless; ~1e-2 in the interior, ~1e-3 at box corners;
+    /// points below `min_rcond`, default 1e-6, trigger support enlargement or an error).
+    pub min_moment_rcond: Option<f64>,
+    /// Kernels whose support was enlarged to cover badly conditioned points.
+    pub enlarged_kernels: Option<usize>,
+    /// Largest violation of the linear reproducing conditions (m, relative to the support).
+    pub reproducing_error: Option<f64>,
+    /// Eigensolver outer iterations.
+    pub eigen_iterations: Option<usize>,
+    /// LOBPCG restarts (iterations that dropped the search directions for conditioning).
+    pub eigen_restarts: Option<usize>,
+    /// Eigenpairs locked at exit.
+    pub eigen_locked: Option<usize>,
+    /// Largest recomputed relative eigen-residual.
+    pub eigen_max_relative_residual: Option<f64>,
+    /// max |c^T M c - I|, recomputed.
+    pub eigen_orthonormality_error: Option<f64>,
+    /// Time steps simulated.
+    pub steps: Option<usize>,
+    /// Steps that did not meet the Newton tolerance.
+    pub newton_nonconverged_steps: Option<usize>,
+    /// Times a Newton Hessian was not positive definite and the rest matrix was used.
+    pub newton_cholesky_fallbacks: Option<usize>,
+    /// Steps whose line search could not decrease the energy.
+    pub line_search_failures: Option<usize>,
+    /// Line-search step halvings over the run.
+    pub line_search_cutbacks: Option<usize>,
+    /// Smallest det F at any cubature point at the end of any step (<= 0: inverted).
+    pub min_det: Option<f64>,
+}
+
+impl Monitors {
+    /// The precomputation monitors of a `modes` report.
+    pub fn from_basis(
+        coverage: &crate::pipeline::CoverageReport,
+        reproducing_error: f64,
+        eigen: &crate::eigen::EigenInfo,
+    ) -> Self {
+        Self {
+            min_moment_rcond: Some(coverage.min_moment_rcond),
+            enlarged_kernels: Some(coverage.enlarged_kernels),
+            reproducing_error: Some(reproducing_error),
+            eigen_iterations: Some(eigen.iterations),
+            eigen_restarts: Some(eigen.restarts),
+            eigen_locked: Some(eigen.locked),
+            eigen_max_relative_residual: Some(eigen.max_relative_residual),
+            eigen_orthonormality_error: Some(eigen.orthonormality_error),
+            ..Self::default()
+        }
+    }
+
+    /// The precomputation monitors stored in a basis file's metadata (the `report.monitors`
+    /// entry written by the scene cache); all `None` when absent.
+    pub fn from_metadata(metadata: &serde_json::Value) -> Self {
+        metadata
+            .get("report")
+            .and_then(|r| r.get("monitors"))
+            .and_then(|m| serde_json::from_value(m.clone()).ok())
+            .unwrap_or_default()
+    }
+
+    /// Count one simulated time step's solver report into the simulation monitors (they
+    /// become `Some` at the first step).
+    pub fn add_step(&mut self, s: &crate::sim::newton::SolveReport) {
+        fn bump(field: &mut Option<usize>, by: usize) {
+            *field = Some(field.unwrap_or(0) + by);
+        }
+        bump(&mut self.steps, 1);
+        bump(
+            &mut self.newton_nonconverged_steps,
+            usize::from(!s.converged),
+        );
+        bump(&mut self.newton_cholesky_fallbacks, s.cholesky_fallbacks);
+        bump(
+            &mut self.line_search_failures,
+            usize::from(s.line_search_failed),
+        );
+        bump(&mut self.line_search_cutbacks, s.line_search_cutbacks);
+        self.min_det = Some(
+            self.min_det
+                .map_or(s.info.min_det, |d| d.min(s.info.min_det)),
+        );
+    }
+}

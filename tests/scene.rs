@@ -286,6 +286,7 @@ fn frames_are_written_for_paraview_and_a_ball_rests_on_the_floor() {
         &RunSettings {
             base_dir: dir.path().to_path_buf(),
             out: Some(out.clone()),
+            strict: false,
         },
         &Silent,
     )
@@ -368,6 +369,7 @@ fn mesh_and_point_cloud_objects_write_deformed_meshes_and_points() {
         &RunSettings {
             base_dir: dir.path().to_path_buf(),
             out: Some(out.clone()),
+            strict: false,
         },
         &Silent,
     )

@@ -45,15 +45,20 @@ pub fn path(dir: &Path, key: &str) -> PathBuf {
     dir.join(format!("{key}.npz"))
 }
 
-/// The cached basis, if present and readable with the expected number of modes. A damaged
+/// The cached basis and its metadata, if present and readable with the expected number of modes. A damaged
 /// or mismatched file is reported through `warn` and ignored (it will be rewritten).
-pub fn load(dir: &Path, key: &str, modes: usize, warn: &mut dyn FnMut(String)) -> Option<Basis> {
+pub fn load(
+    dir: &Path,
+    key: &str,
+    modes: usize,
+    warn: &mut dyn FnMut(String),
+) -> Option<(Basis, serde_json::Value)> {
     let p = path(dir, key);
     if !p.exists() {
         return None;
     }
     match basis::load(&p) {
-        Ok(l) if l.basis.modes() == modes + 1 => Some(l.basis),
+        Ok(l) if l.basis.modes() == modes + 1 => Some((l.basis, l.metadata)),
         Ok(l) => {
             warn(format!(
                 "cached basis {} has {} modes, expected {}; recomputing",

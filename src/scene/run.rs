@@ -3,12 +3,13 @@
 
 use super::cache;
 use super::spec::{Format, ObjectSpec, Scene};
+use crate::error::check_strict;
 use crate::geometry::{Shape, ShapeOptions};
 use crate::io::vtk::{self, PointData};
 use crate::material::MaterialField;
 use crate::pipeline::{build_basis, default_points, sample_shape, BasisOptions};
 use crate::progress::Progress;
-use crate::report::Stopwatch;
+use crate::report::{Monitors, Stopwatch};
 use crate::sampling::{IntegrationPoints, Resolution};
 use crate::sim::{ReducedSim, SimOptions, StepReport};
 use crate::skinning::{Basis, SkinningWeights};
@@ -24,6 +25,11 @@ pub struct RunSettings {
     pub base_dir: PathBuf,
     /// Output directory for frames (None: simulate and summarise only).
     pub out: Option<PathBuf>,
+    /// Stop with [`Error::Strict`] at the first warning (a poorly conditioned basis, a
+    /// step that did not converge, a failed line search, a Cholesky fallback) instead of
+    /// reporting it in the summary. Frames already written stay; the `.pvd` collection is
+    /// only written by a complete run.
+    pub strict: bool,
 }
 
 /// One step of one object in the summary.
@@ -118,6 +124,9 @@ pub struct ObjectSummary {
     pub line_search_cutbacks: usize,
     /// Smallest det F seen.
     pub min_det: f64,
+    /// Conditioning and convergence monitors (the same keys as in `modes` and `beam`); the
+    /// precomputation ones come from the cache file's metadata when the basis was cached.
+    pub monitors: Monitors,
     /// Per-step rows.
     pub steps: Vec<StepRow>,
 }
@@ -187,6 +196,8 @@ struct ObjectBasis {
     material: MaterialField,
     cached: bool,
     file: Option<PathBuf>,
+    /// Precomputation monitors (from the cache file's metadata for a cached basis).
+    monitors: Monitors,
 }
 
 /// Basis, integration points and materials of an object (from the cache when possible).
@@ -221,23 +232,39 @@ fn object_basis(
     };
     if let (Some(dir), Some(key)) = (&cache_dir, &key) {
         let mut warn = |w: String| warnings.push(format!("object '{}': {w}", spec.name));
-        if let Some(basis) = cache::load(dir, key, opts.modes, &mut warn) {
+        if let Some((basis, metadata)) = cache::load(dir, key, opts.modes, &mut warn) {
             let resolution = opts
                 .resolution
                 .unwrap_or(Resolution::Count(default_points(opts.kernels)));
             let points = sample_shape(&shape.shape, resolution, &opts.cloud)?;
             let material =
                 MaterialField::from_regions(&points.points, &opts.material, &opts.overrides)?;
+            // The warnings of the run that produced the cached basis still apply.
+            let stored = metadata
+                .get("report")
+                .and_then(|r| r.get("warnings"))
+                .and_then(|w| w.as_array())
+                .into_iter()
+                .flatten()
+                .filter_map(|w| w.as_str());
+            warnings.extend(stored.map(|w| format!("object '{}': {w}", spec.name)));
             return Ok(ObjectBasis {
                 basis,
                 points,
                 material,
                 cached: true,
                 file: Some(cache::path(dir, key)),
+                monitors: Monitors::from_metadata(&metadata),
             });
         }
     }
     let run = build_basis(&shape.shape, &opts, progress)?;
+    warnings.extend(
+        run.report
+            .warnings
+            .iter()
+            .map(|w| format!("object '{}': {w}", spec.name)),
+    );
     let mut file_out = None;
     if let (Some(dir), Some(key)) = (&cache_dir, &key) {
         let meta = serde_json::json!({
@@ -254,6 +281,7 @@ fn object_basis(
         material: run.material,
         cached: false,
         file: file_out,
+        monitors: run.report.monitors,
     })
 }
 
@@ -287,6 +315,7 @@ fn prepare(
         material,
         cached,
         file: basis_file,
+        monitors,
     } = object_basis(spec, &resolved, scene, settings, progress, warnings).map_err(ctx)?;
     let shape = resolved.shape;
     let precompute_s = clock.elapsed();
@@ -342,6 +371,7 @@ fn prepare(
         line_search_failures: 0,
         line_search_cutbacks: 0,
         min_det: f64::INFINITY,
+        monitors,
         steps: Vec::new(),
     };
     Ok(Prepared {
@@ -421,6 +451,7 @@ pub fn run(scene: &Scene, settings: &RunSettings, progress: &dyn Progress) -> Re
     for spec in &scene.objects {
         objects.push(prepare(spec, scene, settings, progress, &mut warnings)?);
     }
+    check_strict(settings.strict, &warnings)?;
     let formats = &scene.output.formats;
     let mut files = Vec::new();
     let mut frames = 0;
@@ -453,6 +484,15 @@ pub fn run(scene: &Scene, settings: &RunSettings, progress: &dyn Progress) -> Re
                 ));
             }
             p.summary.steps.push(StepRow::from(&rep));
+            p.summary.monitors.add_step(&rep.solve);
+            if rep.solve.cholesky_fallbacks > 0 {
+                warnings.push(format!(
+                    "object '{}': step {step}: {} Newton Hessian(s) were not positive definite; \
+                     the rest Hessian was used instead",
+                    p.spec.name, rep.solve.cholesky_fallbacks
+                ));
+            }
+            check_strict(settings.strict, &warnings)?;
         }
         if let Some(out) = &settings.out {
             if step % scene.output.every == 0 || step == steps {

@@ -158,6 +158,12 @@ pub struct SolveReport {
     pub residual: f64,
     /// Final energy, J.
     pub energy: f64,
+    /// Energy at the start of the step (the predictor), J: `energy` <= this up to rounding.
+    pub initial_energy: f64,
+    /// Largest energy increase accepted by one iteration's line search, J (0 when every
+    /// iteration decreased the energy; positive only within the energy's rounding level,
+    /// where the line search accepts flat steps that reduce the slope).
+    pub max_energy_rise: f64,
     /// Energy/gradient evaluations (the dominant cost of the quasi-Newton strategies).
     pub evaluations: usize,
     /// Step halvings in the line search, summed over iterations.
@@ -225,6 +231,7 @@ pub fn minimize(
     let (mut e, mut info) = pot.energy_gradient(z, &mut grad);
     rep.gradient_s += sw.elapsed();
     rep.evaluations += 1;
+    rep.initial_energy = e;
     let mut trial = vec![0.0; n];
     let mut tgrad = vec![0.0; n];
     loop {
@@ -367,6 +374,7 @@ pub fn minimize(
         }
         z.copy_from_slice(&trial);
         std::mem::swap(&mut grad, &mut tgrad);
+        rep.max_energy_rise = rep.max_energy_rise.max(et - e);
         e = et;
         info = it;
     }

@@ -107,6 +107,10 @@ pub struct ModesArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
+    /// Turn warnings (moment matrices close to singular, reproducing error, eigen-residuals
+    /// above --tol, lost M-orthonormality) into an error: exit code 1, no basis file written.
+    #[arg(long)]
+    strict: bool,
 }
 
 pub fn run(args: ModesArgs) -> CliResult {
@@ -186,6 +190,12 @@ pub fn run(args: ModesArgs) -> CliResult {
         "max_relative_residual": run.report.max_relative_residual,
         "orthonormality_error": run.report.orthonormality_error,
     });
+    if args.strict && !run.report.warnings.is_empty() {
+        for w in &run.report.warnings {
+            eprintln!("warning: {w}");
+        }
+    }
+    freeform::error::check_strict(args.strict, &run.report.warnings)?;
     freeform::io::basis::save(&out, &run.basis, &metadata)?;
     let r = &run.report;
     if args.json {

@@ -23,6 +23,10 @@ pub struct RunArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
+    /// Turn warnings (poorly conditioned basis, a step that did not converge, a failed line
+    /// search, a Newton Hessian fallback) into an error: stop at the first one, exit code 1.
+    #[arg(long)]
+    strict: bool,
 }
 
 pub fn run(args: RunArgs) -> CliResult {
@@ -39,6 +43,7 @@ pub fn run(args: RunArgs) -> CliResult {
     let settings = RunSettings {
         base_dir,
         out: args.out.clone(),
+        strict: args.strict,
     };
     let bar = TerminalProgress::new();
     let progress: &dyn Progress = if std::io::stderr().is_terminal() {
