@@ -85,14 +85,16 @@ fn modes_warns_and_strict_refuses_to_write_the_basis() {
     assert!(good.exists());
 }
 
-fn write_scene(dir: &Path, max_iter: usize) -> std::path::PathBuf {
+fn write_scene(dir: &Path, max_iter: usize, youngs: f64) -> std::path::PathBuf {
     // A bar falling under gravity, held at its left end, with a Newton cap of `max_iter`:
     // 1 iteration cannot reach the 1e-9 tolerance, so steps are reported as not converged.
+    // The soft bar needs time to fall and crush.
+    let steps = if youngs < 1e4 { 50 } else { 5 };
     let scene = format!(
         r#"
 [simulation]
 dt = 0.01
-steps = 5
+steps = {steps}
 gravity = [0.0, -9.81, 0.0]
 
 [solver]
@@ -107,7 +109,7 @@ enabled = false
 [[object]]
 name = "bar"
 shape = "box:1,0.2,0.2"
-material = {{ youngs = 1e5, poisson = 0.4, density = 1000.0 }}
+material = {{ youngs = {youngs:e}, poisson = 0.4, density = 1000.0 }}
 basis = {{ kernels = 60, modes = 4, points = 3000 }}
 
 [[object.boundary]]
@@ -115,7 +117,7 @@ region = {{ half_space = {{ point = [0.1, 0.0, 0.0], normal = [-1.0, 0.0, 0.0] }
 motion = "fixed"
 "#
     );
-    let path = dir.join(format!("bar{max_iter}.toml"));
+    let path = dir.join(format!("bar{max_iter}_{youngs:e}.toml"));
     std::fs::write(&path, scene).unwrap();
     path
 }
@@ -124,7 +126,7 @@ motion = "fixed"
 fn run_reports_monitors_and_strict_stops_at_the_first_failed_step() {
     let dir = tempfile::tempdir().unwrap();
     // Converging run: monitors count every step, no warnings, --strict passes.
-    let scene = write_scene(dir.path(), 100);
+    let scene = write_scene(dir.path(), 100, 1e5);
     let out = dir.path().join("ok");
     let r = freeform(&[
         "run",
@@ -144,7 +146,7 @@ fn run_reports_monitors_and_strict_stops_at_the_first_failed_step() {
     assert!(out.join("bar.pvd").exists());
 
     // Capped at one iteration: without --strict the run completes and reports 5 failures.
-    let scene = write_scene(dir.path(), 1);
+    let scene = write_scene(dir.path(), 1, 1e5);
     let r = freeform(&["run", scene.to_str().unwrap(), "--json"]);
     assert!(r.status.success(), "{}", text(&r.stderr));
     let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
@@ -168,4 +170,18 @@ fn run_reports_monitors_and_strict_stops_at_the_first_failed_step() {
         "{err}"
     );
     assert!(!out.join("bar.pvd").exists());
+
+    // A bar of E = 1e3 Pa crushed by its own weight (rho g L / E ~ 10): inverted cubature
+    // points are warned about once, and counted in min_det.
+    let scene = write_scene(dir.path(), 100, 1e3);
+    let r = freeform(&["run", scene.to_str().unwrap(), "--json"]);
+    assert!(r.status.success(), "{}", text(&r.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+    let warnings = v["warnings"].as_array().unwrap();
+    let inverted: Vec<_> = warnings
+        .iter()
+        .filter(|w| w.as_str().unwrap().contains("inverted"))
+        .collect();
+    assert_eq!(inverted.len(), 1, "{warnings:?}");
+    assert!(v["objects"][0]["monitors"]["min_det"].as_f64().unwrap() <= 0.0);
 }

@@ -159,6 +159,8 @@ struct Prepared {
     weights: SkinningWeights,
     summary: ObjectSummary,
     pvd: Vec<(f64, String)>,
+    /// Whether the inversion warning was given.
+    warned_inverted: bool,
 }
 
 fn is_primitive(spec: &str) -> bool {
@@ -382,6 +384,7 @@ fn prepare(
         weights,
         summary,
         pvd: Vec::new(),
+        warned_inverted: false,
     })
 }
 
@@ -485,6 +488,17 @@ pub fn run(scene: &Scene, settings: &RunSettings, progress: &dyn Progress) -> Re
             }
             p.summary.steps.push(StepRow::from(&rep));
             p.summary.monitors.add_step(&rep.solve);
+            if rep.solve.info.inverted > 0 && !p.warned_inverted {
+                // Once per object: the stable Neo-Hookean energy stays finite through
+                // inversion, but the result is rarely what the user meant.
+                p.warned_inverted = true;
+                warnings.push(format!(
+                    "object '{}': step {step}: {} cubature point(s) inverted (det F = {:.2} <= 0); \
+                     the material is too soft for the load or the time step too large \
+                     (later inversions are counted in the monitors' min_det and each step's `inverted`)",
+                    p.spec.name, rep.solve.info.inverted, rep.solve.info.min_det
+                ));
+            }
             if rep.solve.cholesky_fallbacks > 0 {
                 warnings.push(format!(
                     "object '{}': step {step}: {} Newton Hessian(s) were not positive definite; \

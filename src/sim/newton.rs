@@ -19,6 +19,11 @@
 //! length units): scale free, and comparable across strategies. With `Fixed` under large
 //! rotations S overestimates the stiffness of rotated material, so it can stop early: prefer
 //! `Lbfgs` there (docs/performance.md has the measurements).
+//!
+//! Every step takes at least one iteration, even when the predictor already meets the
+//! tolerance: with small time steps the whole per-step change (g h^2 for gravity) can be
+//! below tol x D, and accepting the predictor would leave the object hanging in the air
+//! (measured: a beam under gravity did not move at h = 1e-4 s; docs/limits.md).
 
 use faer::linalg::solvers::{Llt, Solve};
 use faer::{Mat, Side};
@@ -249,7 +254,7 @@ pub fn minimize(
             rep.residual = f64::INFINITY;
             break;
         }
-        if rep.residual <= opts.tol {
+        if rep.residual <= opts.tol && rep.iterations > 0 {
             rep.converged = true;
             break;
         }
@@ -357,7 +362,13 @@ pub fn minimize(
                 hist.clear();
                 continue;
             }
-            rep.line_search_failed = true;
+            if rep.residual <= opts.tol {
+                // The forced first iteration found nothing to improve: the predictor was
+                // already the minimiser to within rounding.
+                rep.converged = true;
+            } else {
+                rep.line_search_failed = true;
+            }
             break;
         };
         // Curvature pair for L-BFGS.
