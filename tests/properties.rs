@@ -4,6 +4,8 @@
 //! random materials for the Lame formulas. Failing cases are shrunk by proptest and the
 //! seeds it prints can be pinned in `proptest-regressions/`.
 
+#![allow(clippy::needless_range_loop)] // index loops mirror the formulas
+
 use freeform::elasticity::{det3, energy_density, first_piola, hessian, hessian_psd, Mat3, Mat9};
 use freeform::linalg3::mul;
 use freeform::material::Material;
