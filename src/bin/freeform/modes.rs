@@ -1,23 +1,14 @@
 //! `freeform modes`: compute skinning eigenmodes and write a basis file.
 
+use crate::problem::BasisArgs;
 use crate::{emit, set_threads, CliResult};
 use clap::{Args, ValueEnum};
 use freeform::eigen::{EigenRequest, Eigensolver};
-use freeform::geometry::{Shape, ShapeOptions};
-use freeform::material::Material;
+use freeform::geometry::Shape;
 use freeform::pipeline::{build_basis_with, default_solver, BasisOptions, SolverChoice};
 use freeform::progress::{Progress, Silent, TerminalProgress};
-use freeform::rkpm::{KernelType, SupportOptions};
-use freeform::sampling::{CloudVolumeOptions, Resolution};
 use std::io::IsTerminal;
 use std::path::PathBuf;
-
-#[derive(Clone, Copy, ValueEnum)]
-enum KernelArg {
-    Cubic,
-    Quartic,
-    Gaussian,
-}
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum SolverArg {
@@ -34,27 +25,9 @@ pub struct ModesArgs {
     /// .obj / .stl / .ply file (a PLY without faces is a point cloud, e.g. Gaussian splats).
     #[arg(required_unless_present = "from_matrices")]
     shape: Option<String>,
-    /// Number of RKPM kernels K.
-    #[arg(long, default_value_t = 1000)]
-    kernels: usize,
-    /// Number of non-constant modes m (m + 1 handles are computed).
-    #[arg(long, default_value_t = 16)]
-    modes: usize,
-    /// Target number of integration points [default: 50 K, clamped to 20,000..2,000,000].
-    #[arg(long, conflicts_with = "spacing")]
-    points: Option<usize>,
-    /// Integration grid spacing, metres (instead of --points).
-    #[arg(long)]
-    spacing: Option<f64>,
-    /// Kernel window function.
-    #[arg(long, value_enum, default_value = "cubic")]
-    kernel: KernelArg,
-    /// Support radius = F x distance to the n-th nearest other centre.
-    #[arg(long, default_value_t = SupportOptions::default().factor)]
-    support: f64,
-    /// The n in --support.
-    #[arg(long, default_value_t = SupportOptions::default().neighbor)]
-    support_neighbor: usize,
+    /// Discretization, material and tolerance (shared with `export` and `compare`).
+    #[command(flatten)]
+    basis: BasisArgs,
     /// Eigensolver.
     #[arg(long, value_enum, default_value = "lobpcg")]
     solver: SolverArg,
@@ -74,30 +47,6 @@ pub struct ModesArgs {
     /// even on one rank [default: when run under mpirun with more than one rank].
     #[arg(long)]
     distributed: bool,
-    /// Relative residual tolerance of the eigensolver.
-    #[arg(long, default_value_t = 1e-8)]
-    tol: f64,
-    /// Eigensolver iteration cap.
-    #[arg(long, default_value_t = 1000)]
-    max_iter: usize,
-    /// Young's modulus E, Pa.
-    #[arg(long, default_value_t = Material::default().youngs)]
-    youngs: f64,
-    /// Poisson ratio nu, in (-1, 0.5).
-    #[arg(long, default_value_t = Material::default().poisson)]
-    poisson: f64,
-    /// Density rho, kg/m^3.
-    #[arg(long, default_value_t = Material::default().density)]
-    density: f64,
-    /// Point clouds: total object volume, m^3 (default: voxel-occupancy estimate).
-    #[arg(long)]
-    volume: Option<f64>,
-    /// Point clouds: voxel edge for the volume estimate, metres (default: 2 x median spacing).
-    #[arg(long)]
-    voxel: Option<f64>,
-    /// Accept a mesh with holes (inside = winding number >= 0.5).
-    #[arg(long)]
-    allow_open_mesh: bool,
     /// Where to write the basis [default: basis.npz; eigenvectors.mtx with --from-matrices].
     #[arg(long)]
     out: Option<PathBuf>,
@@ -124,49 +73,17 @@ pub fn run(args: ModesArgs) -> CliResult {
         .clone()
         .unwrap_or_else(|| PathBuf::from("basis.npz"));
     let opts = BasisOptions {
-        kernels: args.kernels,
-        modes: args.modes,
-        resolution: match (args.points, args.spacing) {
-            (Some(n), _) => Some(Resolution::Count(n)),
-            (None, Some(h)) => Some(Resolution::Spacing(h)),
-            (None, None) => None,
-        },
-        kernel: match args.kernel {
-            KernelArg::Cubic => KernelType::Cubic,
-            KernelArg::Quartic => KernelType::Quartic,
-            KernelArg::Gaussian => KernelType::Gaussian,
-        },
-        support: SupportOptions {
-            factor: args.support,
-            neighbor: args.support_neighbor,
-        },
-        material: Material {
-            youngs: args.youngs,
-            poisson: args.poisson,
-            density: args.density,
-        },
         solver: match args.solver {
             SolverArg::Dense => SolverChoice::Dense,
             // Slepc: the pipeline gets the solver object below.
             SolverArg::Lobpcg | SolverArg::Slepc => SolverChoice::Lobpcg,
         },
-        tol: args.tol,
-        max_iter: args.max_iter,
-        cloud: CloudVolumeOptions {
-            voxel: args.voxel,
-            total_volume: args.volume,
-        },
-        ..BasisOptions::default()
+        ..args.basis.options()
     };
     // Check the parameters before reading a possibly large file.
     opts.validate()?;
     let solver = make_solver(args.solver, &args.slepc, &args.petsc_options, opts.solver)?;
-    let shape = Shape::parse(
-        &shape_arg,
-        &ShapeOptions {
-            allow_open_mesh: args.allow_open_mesh,
-        },
-    )?;
+    let shape = Shape::parse(&shape_arg, &args.basis.shape_options())?;
     let bar = TerminalProgress::new();
     let progress: &dyn Progress = if std::io::stderr().is_terminal() {
         &bar
@@ -319,9 +236,9 @@ fn from_matrices(dir: &std::path::Path, args: &ModesArgs) -> CliResult {
     let (h, m) = read_matrices(dir)?;
     let read_s = clock.elapsed();
     let request = EigenRequest {
-        nev: args.modes + 1,
-        tol: args.tol,
-        max_iter: args.max_iter,
+        nev: args.basis.modes + 1,
+        tol: args.basis.tol,
+        max_iter: args.basis.max_iter,
     };
     let clock = freeform::report::Stopwatch::start();
     let solution = solver.solve(&h, &m, &request, &freeform::progress::Silent)?;
@@ -341,7 +258,7 @@ fn from_matrices(dir: &std::path::Path, args: &ModesArgs) -> CliResult {
     let report = serde_json::json!({
         "matrices": dir.display().to_string(),
         "kernels": h.nrows(),
-        "modes": args.modes,
+        "modes": args.basis.modes,
         "nnz_hessian": h.compute_nnz(),
         "nnz_mass": m.compute_nnz(),
         "solver": solver.name(),
@@ -350,7 +267,7 @@ fn from_matrices(dir: &std::path::Path, args: &ModesArgs) -> CliResult {
         "orthonormality_error": solution.info.orthonormality_error,
         "timings_s": { "read": read_s, "eigensolve": solve_s },
         "eigen": solution.info,
-        "tol": args.tol,
+        "tol": args.basis.tol,
         "eigenvectors_file": out.display().to_string(),
     });
     if args.json {

@@ -15,16 +15,16 @@ enum KernelArg {
     Gaussian,
 }
 
+/// The discretization, material and eigensolver-tolerance flags of every command that builds
+/// H_w and M (`modes`, `export`, `compare`), with the same defaults everywhere.
 #[derive(Args)]
-pub struct ShapeArgs {
-    /// The shape: box:LX,LY,LZ, sphere:R, or a .obj / .stl / .ply file (see `modes --help`).
-    pub shape: String,
+pub struct BasisArgs {
     /// Number of RKPM kernels K.
     #[arg(long, default_value_t = 1000)]
-    kernels: usize,
-    /// Number of non-constant modes m (m + 1 pairs are computed).
+    pub kernels: usize,
+    /// Number of non-constant modes m (m + 1 handles are computed).
     #[arg(long, default_value_t = 16)]
-    modes: usize,
+    pub modes: usize,
     /// Target number of integration points [default: 50 K, clamped to 20,000..2,000,000].
     #[arg(long, conflicts_with = "spacing")]
     points: Option<usize>,
@@ -40,7 +40,7 @@ pub struct ShapeArgs {
     /// The n in --support.
     #[arg(long, default_value_t = SupportOptions::default().neighbor)]
     support_neighbor: usize,
-    /// Relative residual tolerance of the eigensolvers.
+    /// Relative residual tolerance of the eigensolver(s).
     #[arg(long, default_value_t = 1e-8)]
     pub tol: f64,
     /// Eigensolver iteration cap.
@@ -55,21 +55,22 @@ pub struct ShapeArgs {
     /// Density rho, kg/m^3.
     #[arg(long, default_value_t = Material::default().density)]
     density: f64,
-    /// Point clouds: total object volume, m^3.
+    /// Point clouds: total object volume, m^3 (default: voxel-occupancy estimate).
     #[arg(long)]
     volume: Option<f64>,
-    /// Point clouds: voxel edge for the volume estimate, metres.
+    /// Point clouds: voxel edge for the volume estimate, metres (default: 2 x median spacing).
     #[arg(long)]
     voxel: Option<f64>,
-    /// Accept a mesh with holes.
+    /// Accept a mesh with holes (inside = winding number >= 0.5).
     #[arg(long)]
     allow_open_mesh: bool,
 }
 
-impl ShapeArgs {
-    /// The pipeline options (validated) and the parsed shape.
-    pub fn build(&self) -> Result<(Shape, BasisOptions), Box<dyn std::error::Error>> {
-        let opts = BasisOptions {
+impl BasisArgs {
+    /// The pipeline options these flags ask for (not yet validated; the solver is the
+    /// default LOBPCG).
+    pub fn options(&self) -> BasisOptions {
+        BasisOptions {
             kernels: self.kernels,
             modes: self.modes,
             resolution: match (self.points, self.spacing) {
@@ -98,14 +99,33 @@ impl ShapeArgs {
                 total_volume: self.volume,
             },
             ..BasisOptions::default()
-        };
+        }
+    }
+
+    /// How to read the shape.
+    pub fn shape_options(&self) -> ShapeOptions {
+        ShapeOptions {
+            allow_open_mesh: self.allow_open_mesh,
+        }
+    }
+}
+
+/// A shape and its [`BasisArgs`] (`export`, `compare`).
+#[derive(Args)]
+pub struct ShapeArgs {
+    /// The shape: box:LX,LY,LZ, sphere:R, or a .obj / .stl / .ply file (see `modes --help`).
+    pub shape: String,
+    /// Discretization, material and tolerance.
+    #[command(flatten)]
+    pub basis: BasisArgs,
+}
+
+impl ShapeArgs {
+    /// The pipeline options (validated) and the parsed shape.
+    pub fn build(&self) -> Result<(Shape, BasisOptions), Box<dyn std::error::Error>> {
+        let opts = self.basis.options();
         opts.validate()?;
-        let shape = Shape::parse(
-            &self.shape,
-            &ShapeOptions {
-                allow_open_mesh: self.allow_open_mesh,
-            },
-        )?;
+        let shape = Shape::parse(&self.shape, &self.basis.shape_options())?;
         Ok((shape, opts))
     }
 }
