@@ -386,7 +386,20 @@ mod plot {
         if !lo.is_finite() {
             return 0.1..10.0;
         }
-        lo / 1.6..hi * 1.6
+        // Whole decades, so that both ends carry a labelled power of ten.
+        let lo = 10f64.powf((lo / 1.2).log10().floor());
+        let hi = 10f64.powf((hi * 1.2).log10().ceil());
+        lo..hi
+    }
+
+    /// A tick label: two significant digits, plain between 0.01 and 10^4.
+    fn tick(v: f64) -> String {
+        let r: f64 = format!("{v:.1e}").parse().unwrap_or(v);
+        if r != 0.0 && (1e-2..1e4).contains(&r.abs()) {
+            format!("{r}")
+        } else {
+            format!("{r:.0e}")
+        }
     }
 
     fn sorted_unique(v: impl Iterator<Item = usize>) -> Vec<usize> {
@@ -464,7 +477,10 @@ mod plot {
             .y_desc("normalized MSE vs FEM (mean |x_red - x_fem|^2 / D^2)")
             .label_style((FONT, 15))
             .axis_desc_style((FONT, 17))
-            .x_label_formatter(&|v| format!("{v}"))
+            .x_labels(12)
+            .y_labels(12)
+            .light_line_style(RGBColor(238, 238, 238))
+            .x_label_formatter(&|v| tick(*v))
             .y_label_formatter(&|v| format!("{v:.0e}"))
             .draw()?;
         // The front as a line from the cheapest to the most accurate run.
