@@ -377,6 +377,24 @@ mod plot {
         }
     }
 
+    /// A text row for each label: the first free one among the labels placed before it
+    /// whose points lie close on the log-log plot, so near-coincident variations (e.g. the
+    /// cubature runs, which share a basis and so a precompute time) do not overprint.
+    fn label_slots(at: &[(f64, f64)]) -> Vec<usize> {
+        let close = |a: (f64, f64), b: (f64, f64)| {
+            (a.0.log10() - b.0.log10()).abs() < 0.12 && (a.1.log10() - b.1.log10()).abs() < 0.15
+        };
+        let mut slots: Vec<usize> = Vec::with_capacity(at.len());
+        for (i, &p) in at.iter().enumerate() {
+            let taken: Vec<usize> = (0..i)
+                .filter(|&j| close(at[j], p))
+                .map(|j| slots[j])
+                .collect();
+            slots.push((0..).find(|k| !taken.contains(k)).unwrap_or(0));
+        }
+        slots
+    }
+
     fn log_range(values: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
         let (lo, hi) = values
             .filter(|v| v.is_finite() && *v > 0.0)
@@ -389,7 +407,8 @@ mod plot {
         // Whole decades, so that both ends carry a labelled power of ten.
         let lo = 10f64.powf((lo / 1.2).log10().floor());
         let hi = 10f64.powf((hi * 1.2).log10().ceil());
-        lo..hi
+        // A little beyond them, so the end ticks are drawn.
+        lo * 0.92..hi * 1.08
     }
 
     /// A tick label: two significant digits, plain between 0.01 and 10^4.
@@ -514,11 +533,18 @@ mod plot {
             size: 5,
             colour: colour(r.result.modes),
         }))?;
-        chart.draw_series(rows.iter().filter_map(|r| {
-            variation_label(r).map(|t| {
-                EmptyElement::at((cost.of(r), r.result.normalized_mse))
-                    + Text::new(t, (8, -16), (FONT, 13).into_font().color(&BLACK))
-            })
+        let labels: Vec<((f64, f64), String)> = rows
+            .iter()
+            .filter_map(|r| variation_label(r).map(|t| ((cost.of(r), r.result.normalized_mse), t)))
+            .collect();
+        let slots = label_slots(&labels.iter().map(|l| l.0).collect::<Vec<_>>());
+        chart.draw_series(labels.into_iter().zip(slots).map(|((at, t), slot)| {
+            EmptyElement::at(at)
+                + Text::new(
+                    t,
+                    (8, -16 + 14 * slot as i32),
+                    (FONT, 13).into_font().color(&BLACK),
+                )
         }))?;
         for &m in &ms {
             let c = colour(m);
