@@ -377,22 +377,32 @@ mod plot {
         }
     }
 
-    /// A text row for each label: the first free one among the labels placed before it
-    /// whose points lie close on the log-log plot, so near-coincident variations (e.g. the
-    /// cubature runs, which share a basis and so a precompute time) do not overprint.
-    fn label_slots(at: &[(f64, f64)]) -> Vec<usize> {
-        let close = |a: (f64, f64), b: (f64, f64)| {
-            (a.0.log10() - b.0.log10()).abs() < 0.12 && (a.1.log10() - b.1.log10()).abs() < 0.15
+    /// Vertical text offsets (pixels) of labels at pixel positions `at` with `chars`
+    /// characters each: every label goes right of its point, at the first offset from a
+    /// fixed list where its box overlaps no label placed before it, so near-coincident
+    /// variations (e.g. the cubature runs, which share a basis and so a precompute time) do
+    /// not overprint.
+    fn label_offsets(at: &[(i32, i32)], chars: &[usize]) -> Vec<i32> {
+        const CANDIDATES: [i32; 8] = [-16, 2, -30, 16, -44, 30, -58, 44];
+        const LINE: i32 = 14;
+        let boxes = |(x, y): (i32, i32), n: usize, dy: i32| {
+            (x + 8, y + dy, x + 8 + 7 * n as i32, y + dy + LINE)
         };
-        let mut slots: Vec<usize> = Vec::with_capacity(at.len());
-        for (i, &p) in at.iter().enumerate() {
-            let taken: Vec<usize> = (0..i)
-                .filter(|&j| close(at[j], p))
-                .map(|j| slots[j])
-                .collect();
-            slots.push((0..).find(|k| !taken.contains(k)).unwrap_or(0));
+        let overlap = |a: (i32, i32, i32, i32), b: (i32, i32, i32, i32)| {
+            a.0 < b.2 && b.0 < a.2 && a.1 < b.3 && b.1 < a.3
+        };
+        let mut placed: Vec<(i32, i32, i32, i32)> = Vec::with_capacity(at.len());
+        let mut out = Vec::with_capacity(at.len());
+        for (&p, &n) in at.iter().zip(chars) {
+            let dy = CANDIDATES
+                .iter()
+                .copied()
+                .find(|&dy| !placed.iter().any(|&q| overlap(boxes(p, n, dy), q)))
+                .unwrap_or(CANDIDATES[0]);
+            placed.push(boxes(p, n, dy));
+            out.push(dy);
         }
-        slots
+        out
     }
 
     fn log_range(values: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
@@ -537,14 +547,11 @@ mod plot {
             .iter()
             .filter_map(|r| variation_label(r).map(|t| ((cost.of(r), r.result.normalized_mse), t)))
             .collect();
-        let slots = label_slots(&labels.iter().map(|l| l.0).collect::<Vec<_>>());
-        chart.draw_series(labels.into_iter().zip(slots).map(|((at, t), slot)| {
-            EmptyElement::at(at)
-                + Text::new(
-                    t,
-                    (8, -16 + 14 * slot as i32),
-                    (FONT, 13).into_font().color(&BLACK),
-                )
+        let pixels: Vec<(i32, i32)> = labels.iter().map(|l| chart.backend_coord(&l.0)).collect();
+        let chars: Vec<usize> = labels.iter().map(|l| l.1.chars().count()).collect();
+        let offsets = label_offsets(&pixels, &chars);
+        chart.draw_series(labels.into_iter().zip(offsets).map(|((at, t), dy)| {
+            EmptyElement::at(at) + Text::new(t, (8, dy), (FONT, 13).into_font().color(&BLACK))
         }))?;
         for &m in &ms {
             let c = colour(m);
