@@ -28,10 +28,20 @@ impl From<TestArg> for BeamTest {
 }
 
 #[derive(Clone, Copy, ValueEnum)]
-enum HessianArg {
+pub(crate) enum HessianArg {
     Lbfgs,
     Newton,
     Fixed,
+}
+
+impl From<HessianArg> for HessianStrategy {
+    fn from(h: HessianArg) -> Self {
+        match h {
+            HessianArg::Lbfgs => HessianStrategy::Lbfgs,
+            HessianArg::Newton => HessianStrategy::Newton,
+            HessianArg::Fixed => HessianStrategy::Fixed,
+        }
+    }
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -121,11 +131,7 @@ pub fn run(args: BeamArgs) -> CliResult {
         resolution: args.points.map(Resolution::Count),
         cubature: args.cubature,
         newton: NewtonOptions {
-            hessian: match args.hessian {
-                HessianArg::Lbfgs => HessianStrategy::Lbfgs,
-                HessianArg::Newton => HessianStrategy::Newton,
-                HessianArg::Fixed => HessianStrategy::Fixed,
-            },
+            hessian: args.hessian.into(),
             tol: args.tol,
             ..NewtonOptions::default()
         },

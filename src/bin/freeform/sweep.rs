@@ -3,23 +3,16 @@
 //! a base point (design in `freeform::benchmark::sweep`); writes `sweep.csv`,
 //! `error_vs_precompute.png`, `error_vs_step.png` (and `sweep.json` with `--json`) to `--out`.
 
-use crate::beam::{progress, FemArgs, TestArg};
+use crate::beam::{progress, FemArgs, HessianArg, TestArg};
 use crate::{emit, set_threads, CliResult};
-use clap::{Args, ValueEnum};
+use clap::Args;
 use freeform::benchmark::sweep::{
     describe, run_sweep, SweepAxis, SweepReport, SweepRow, SweepSpec,
 };
 use freeform::benchmark::BeamComparison;
 use freeform::sampling::Resolution;
-use freeform::sim::{HessianStrategy, NewtonOptions};
+use freeform::sim::NewtonOptions;
 use std::path::{Path, PathBuf};
-
-#[derive(Clone, Copy, PartialEq, ValueEnum)]
-enum HessianArg {
-    Lbfgs,
-    Newton,
-    Fixed,
-}
 
 #[derive(Args)]
 pub struct SweepArgs {
@@ -106,15 +99,7 @@ pub fn run(args: SweepArgs) -> CliResult {
         kernels: args.kernels.clone(),
         resolutions: resolutions(&args)?,
         cubature: args.cubature.clone(),
-        hessian: args
-            .hessian
-            .iter()
-            .map(|h| match h {
-                HessianArg::Lbfgs => HessianStrategy::Lbfgs,
-                HessianArg::Newton => HessianStrategy::Newton,
-                HessianArg::Fixed => HessianStrategy::Fixed,
-            })
-            .collect(),
+        hessian: args.hessian.iter().map(|&h| h.into()).collect(),
         base_modes: args.base_modes,
         base_kernels: args.base_kernels,
         newton: NewtonOptions {
