@@ -4,7 +4,7 @@
 use crate::fem::beam::{run_beam_reference, BeamReference, BeamTest, FemBeamConfig};
 use crate::geometry::Shape;
 use crate::material::Region;
-use crate::pipeline::{build_basis, BasisOptions};
+use crate::pipeline::{build_basis, BasisOptions, BasisRun};
 use crate::progress::Progress;
 use crate::report::Stopwatch;
 use crate::sampling::Resolution;
@@ -14,6 +14,9 @@ use crate::{Error, Point3, Result};
 use serde::Serialize;
 use std::path::Path;
 
+pub mod pareto;
+pub mod sweep;
+
 /// The reduced model's settings for a beam run.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct ReducedBeamOptions {
@@ -21,12 +24,16 @@ pub struct ReducedBeamOptions {
     pub modes: usize,
     /// Kernels K.
     pub kernels: usize,
-    /// Integration points (None: the pipeline default, 50 K clamped).
-    pub points: Option<usize>,
+    /// Integration grid: a point count or a spacing (None: the pipeline default, 50 K
+    /// points clamped to [20,000, 2,000,000]).
+    pub resolution: Option<Resolution>,
     /// Cubature points.
     pub cubature: usize,
     /// Newton settings.
     pub newton: NewtonOptions,
+    /// Compare over the first `frames` steps only (the reduced model runs that many steps;
+    /// the FEM reference is the full run, so the motion is the benchmark's). None: all.
+    pub frames: Option<usize>,
 }
 
 impl Default for ReducedBeamOptions {
@@ -34,9 +41,10 @@ impl Default for ReducedBeamOptions {
         Self {
             modes: 16,
             kernels: 1000,
-            points: None,
+            resolution: None,
             cubature: crate::sim::cubature::DEFAULT_CUBATURE,
             newton: NewtonOptions::default(),
+            frames: None,
         }
     }
 }
@@ -58,6 +66,8 @@ pub struct BeamComparison {
     pub hessian: HessianStrategy,
     /// Newton tolerance.
     pub tol: f64,
+    /// Frames compared (steps run by the reduced model).
+    pub frames: usize,
     /// mean |x_red - x_fem|^2 / D^2 over frames and FEM nodes.
     pub normalized_mse: f64,
     /// max |x_red - x_fem| / D.
@@ -69,6 +79,8 @@ pub struct BeamComparison {
     pub max_error_first_half: f64,
     /// Basis precomputation plus reduced-model setup, s.
     pub precompute_s: f64,
+    /// The basis part of `precompute_s`, s (measured once for runs that share a basis).
+    pub basis_s: f64,
     /// Mean reduced step, ms.
     pub reduced_step_ms_mean: f64,
     /// Reduced steps that did not converge.
@@ -96,17 +108,122 @@ pub fn compare_beam(
     progress.begin("FEM reference", Some(fem.steps as u64));
     let reference: BeamReference = run_beam_reference(fem, cache_dir, progress)?;
     progress.finish();
+    let basis = beam_basis(fem, opts, progress)?;
+    simulate_beam(fem, &reference, &basis, opts, progress)
+}
+
+/// The reduced model's precomputation on a beam (integration points, material and skinning
+/// basis), with its wall time: built once by [`beam_basis`] and shared by every
+/// [`simulate_beam`] run that differs only in simulation settings (cubature, Hessian
+/// strategy, Newton tolerance, frames).
+#[derive(Debug)]
+pub struct BeamBasis {
+    /// Basis, integration points and material.
+    pub run: BasisRun,
+    /// Wall time of the build, s.
+    pub seconds: f64,
+    /// The (modes, kernels, resolution) it was built for.
+    pub key: BasisKey,
+}
+
+/// What a [`BeamBasis`] depends on among [`ReducedBeamOptions`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct BasisKey {
+    /// Modes m.
+    pub modes: usize,
+    /// Kernels K.
+    pub kernels: usize,
+    /// Integration grid (None: the default).
+    pub resolution: Option<Resolution>,
+}
+
+impl ReducedBeamOptions {
+    /// The settings the basis depends on.
+    pub fn basis_key(&self) -> BasisKey {
+        BasisKey {
+            modes: self.modes,
+            kernels: self.kernels,
+            resolution: self.resolution,
+        }
+    }
+
+    /// The pipeline settings of the basis on the beam `fem`.
+    pub fn basis_options(&self, fem: &FemBeamConfig) -> BasisOptions {
+        BasisOptions {
+            kernels: self.kernels,
+            modes: self.modes,
+            resolution: self.resolution,
+            material: fem.material,
+            ..BasisOptions::default()
+        }
+    }
+
+    /// Check every setting before any work is done (the basis options, cubature, Newton
+    /// settings, frames against `fem.steps`).
+    pub fn validate(&self, fem: &FemBeamConfig) -> Result<()> {
+        self.basis_options(fem).validate()?;
+        self.newton.validate()?;
+        if let Some(r @ Resolution::Spacing(_)) = self.resolution {
+            r.spacing(1.0)?;
+        }
+        if self.cubature == 0 {
+            return Err(Error::param(
+                "cubature",
+                0,
+                "need at least one cubature point",
+            ));
+        }
+        if let Some(f) = self.frames {
+            if f == 0 || f > fem.steps {
+                return Err(Error::param(
+                    "frames",
+                    f,
+                    format!("must lie in 1..={} (the reference's steps)", fem.steps),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Build the reduced model's basis for `opts` on the beam `fem` (the box of `fem.size`, its
+/// material), timed.
+pub fn beam_basis(
+    fem: &FemBeamConfig,
+    opts: &ReducedBeamOptions,
+    progress: &dyn Progress,
+) -> Result<BeamBasis> {
     let clock = Stopwatch::start();
     let spec = format!("box:{},{},{}", fem.size[0], fem.size[1], fem.size[2]);
     let shape = Shape::parse(&spec, &Default::default())?;
-    let basis_opts = BasisOptions {
-        kernels: opts.kernels,
-        modes: opts.modes,
-        resolution: opts.points.map(Resolution::Count),
-        material: fem.material,
-        ..BasisOptions::default()
-    };
-    let run = build_basis(&shape, &basis_opts, progress)?;
+    let run = build_basis(&shape, &opts.basis_options(fem), progress)?;
+    Ok(BeamBasis {
+        run,
+        seconds: clock.elapsed(),
+        key: opts.basis_key(),
+    })
+}
+
+/// Simulate the beam test `fem.test` with the reduced model on `basis` and compare with
+/// `reference` (made from `fem`). `precompute_s` in the result is the basis build time plus
+/// this run's model setup. `opts` must match the basis ([`BasisKey`]).
+pub fn simulate_beam(
+    fem: &FemBeamConfig,
+    reference: &BeamReference,
+    basis: &BeamBasis,
+    opts: &ReducedBeamOptions,
+    progress: &dyn Progress,
+) -> Result<BeamComparison> {
+    if basis.key != opts.basis_key() {
+        return Err(Error::param(
+            "basis",
+            format!("{:?}", basis.key),
+            format!("built for other settings than {:?}", opts.basis_key()),
+        ));
+    }
+    let steps = opts.frames.unwrap_or(fem.steps).min(reference.frames.len());
+    let clock = Stopwatch::start();
+    let run = &basis.run;
     let mut boundaries = vec![Boundary {
         region: Region::HalfSpace {
             point: [fem.held_length, 0.0, 0.0],
@@ -141,12 +258,12 @@ pub fn compare_beam(
     };
     let mut sim = ReducedSim::new(&run.basis, &run.points, &run.material, &sim_opts)?;
     let weights = run.basis.weights(&reference.rest)?;
-    let precompute_s = clock.elapsed();
-    progress.begin("reduced steps", Some(fem.steps as u64));
-    let mut frames: Vec<Vec<Point3>> = Vec::with_capacity(fem.steps);
+    let precompute_s = basis.seconds + clock.elapsed();
+    progress.begin("reduced steps", Some(steps as u64));
+    let mut frames: Vec<Vec<Point3>> = Vec::with_capacity(steps);
     let mut step_s = 0.0;
     let mut nonconverged = 0;
-    for k in 0..fem.steps {
+    for k in 0..steps {
         let r = sim.step();
         step_s += r.wall_s;
         nonconverged += usize::from(!r.solve.converged);
@@ -155,14 +272,13 @@ pub fn compare_beam(
     }
     progress.finish();
     let metric = |e: crate::fem::FemError| Error::param("beam", fem.test.name(), e.to_string());
-    let err = reference.error_of(&frames).map_err(metric)?;
+    let rest = &reference.rest;
+    let err = crate::fem::metric::trajectory_error(rest, &reference.frames[..steps], &frames)
+        .map_err(metric)?;
     let half = (frames.len() / 2).max(1).min(frames.len());
-    let first = crate::fem::metric::trajectory_error(
-        &reference.rest,
-        &reference.frames[..half],
-        &frames[..half],
-    )
-    .map_err(metric)?;
+    let first =
+        crate::fem::metric::trajectory_error(rest, &reference.frames[..half], &frames[..half])
+            .map_err(metric)?;
     Ok(BeamComparison {
         test: fem.test.name(),
         modes: opts.modes,
@@ -171,12 +287,14 @@ pub fn compare_beam(
         cubature_points: sim.cubature().len(),
         hessian: opts.newton.hessian,
         tol: opts.newton.tol,
+        frames: steps,
         normalized_mse: err.normalized_mse,
         max_error: err.max_error,
         normalized_mse_first_half: first.normalized_mse,
         max_error_first_half: first.max_error,
         precompute_s,
-        reduced_step_ms_mean: 1e3 * step_s / fem.steps.max(1) as f64,
+        basis_s: basis.seconds,
+        reduced_step_ms_mean: 1e3 * step_s / steps.max(1) as f64,
         reduced_nonconverged_steps: nonconverged,
         fem_step_ms_mean: reference.step_ms_mean(),
         fem_nodes: reference.rest.len(),

@@ -7,21 +7,41 @@ use freeform::benchmark::{compare_beam, ReducedBeamOptions};
 use freeform::fem::beam::{BeamTest, FemBeamConfig};
 use freeform::fem::ElementOrder;
 use freeform::progress::{Progress, Silent, TerminalProgress};
+use freeform::sampling::Resolution;
 use freeform::sim::{HessianStrategy, NewtonOptions};
 use std::io::IsTerminal;
 use std::path::PathBuf;
 
 #[derive(Clone, Copy, ValueEnum)]
-enum TestArg {
+pub(crate) enum TestArg {
     Bend,
     Twist,
 }
 
+impl From<TestArg> for BeamTest {
+    fn from(t: TestArg) -> Self {
+        match t {
+            TestArg::Bend => BeamTest::Bend,
+            TestArg::Twist => BeamTest::Twist,
+        }
+    }
+}
+
 #[derive(Clone, Copy, ValueEnum)]
-enum HessianArg {
+pub(crate) enum HessianArg {
     Lbfgs,
     Newton,
     Fixed,
+}
+
+impl From<HessianArg> for HessianStrategy {
+    fn from(h: HessianArg) -> Self {
+        match h {
+            HessianArg::Lbfgs => HessianStrategy::Lbfgs,
+            HessianArg::Newton => HessianStrategy::Newton,
+            HessianArg::Fixed => HessianStrategy::Fixed,
+        }
+    }
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -52,15 +72,8 @@ pub struct BeamArgs {
     /// Newton tolerance of the reduced model.
     #[arg(long, default_value_t = NewtonOptions::default().tol)]
     tol: f64,
-    /// FEM resolution (cubes per metre; 6 tets per cube) [default: the reference, 4].
-    #[arg(long)]
-    fem_resolution: Option<usize>,
-    /// FEM element order [default: quadratic, the reference].
-    #[arg(long, value_enum)]
-    fem_order: Option<OrderArg>,
-    /// Cache directory for FEM references.
-    #[arg(long, default_value = ".freeform-cache/fem")]
-    cache: PathBuf,
+    #[command(flatten)]
+    fem: FemArgs,
     /// Print the JSON report.
     #[arg(long)]
     json: bool,
@@ -69,44 +82,62 @@ pub struct BeamArgs {
     threads: Option<usize>,
 }
 
+/// The FEM reference options shared by `freeform beam` and `freeform sweep`.
+#[derive(Args)]
+pub(crate) struct FemArgs {
+    /// FEM resolution (cubes per metre; 6 tets per cube) [default: the reference, 4].
+    #[arg(long)]
+    fem_resolution: Option<usize>,
+    /// FEM element order [default: quadratic, the reference].
+    #[arg(long, value_enum)]
+    fem_order: Option<OrderArg>,
+    /// Cache directory for FEM references.
+    #[arg(long, default_value = ".freeform-cache/fem")]
+    pub(crate) cache: PathBuf,
+}
+
+impl FemArgs {
+    /// The reference definition of `test` with the overrides given.
+    pub(crate) fn config(&self, test: TestArg) -> FemBeamConfig {
+        let mut fem = FemBeamConfig::reference(test.into());
+        if let Some(r) = self.fem_resolution {
+            fem.resolution = r;
+        }
+        if let Some(o) = self.fem_order {
+            fem.solver.order = match o {
+                OrderArg::Linear => ElementOrder::Linear,
+                OrderArg::Quadratic => ElementOrder::Quadratic,
+            };
+        }
+        fem
+    }
+}
+
+/// A progress bar on a terminal, nothing otherwise.
+pub(crate) fn progress() -> Box<dyn Progress> {
+    if std::io::stderr().is_terminal() {
+        Box::new(TerminalProgress::new())
+    } else {
+        Box::new(Silent)
+    }
+}
+
 pub fn run(args: BeamArgs) -> CliResult {
     set_threads(args.threads)?;
-    let test = match args.test {
-        TestArg::Bend => BeamTest::Bend,
-        TestArg::Twist => BeamTest::Twist,
-    };
-    let mut fem = FemBeamConfig::reference(test);
-    if let Some(r) = args.fem_resolution {
-        fem.resolution = r;
-    }
-    if let Some(o) = args.fem_order {
-        fem.solver.order = match o {
-            OrderArg::Linear => ElementOrder::Linear,
-            OrderArg::Quadratic => ElementOrder::Quadratic,
-        };
-    }
+    let fem = args.fem.config(args.test);
     let opts = ReducedBeamOptions {
         modes: args.modes,
         kernels: args.kernels,
-        points: args.points,
+        resolution: args.points.map(Resolution::Count),
         cubature: args.cubature,
         newton: NewtonOptions {
-            hessian: match args.hessian {
-                HessianArg::Lbfgs => HessianStrategy::Lbfgs,
-                HessianArg::Newton => HessianStrategy::Newton,
-                HessianArg::Fixed => HessianStrategy::Fixed,
-            },
+            hessian: args.hessian.into(),
             tol: args.tol,
             ..NewtonOptions::default()
         },
+        frames: None,
     };
-    let bar = TerminalProgress::new();
-    let progress: &dyn Progress = if std::io::stderr().is_terminal() {
-        &bar
-    } else {
-        &Silent
-    };
-    let r = compare_beam(&fem, &opts, Some(&args.cache), progress)?;
+    let r = compare_beam(&fem, &opts, Some(&args.fem.cache), progress().as_ref())?;
     if args.json {
         emit(&(serde_json::to_string_pretty(&r)? + "\n"))?;
     } else {

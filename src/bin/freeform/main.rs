@@ -6,6 +6,7 @@ mod export;
 mod modes;
 mod problem;
 mod run;
+mod sweep;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -32,6 +33,9 @@ enum Command {
     Run(run::RunArgs),
     /// The standard beam benchmark: reduced model against the FEM reference (bend | twist).
     Beam(beam::BeamArgs),
+    /// The beam benchmark over m x K plus variations of points, cubature and Hessian
+    /// strategy: CSV and PNG plots of error against precompute and step time (Pareto front).
+    Sweep(sweep::SweepArgs),
     /// Build H_w and M once and compare eigensolvers on them (native LOBPCG, SLEPc, dense).
     Compare(compare::CompareArgs),
     /// Write H_w and M of a shape as MatrixMarket and PETSc binary files.
@@ -93,6 +97,7 @@ fn dispatch(command: Command) -> CliResult {
         Command::Modes(args) => modes::run(args),
         Command::Run(args) => run::run(args),
         Command::Beam(args) => beam::run(args),
+        Command::Sweep(args) => sweep::run(args),
         Command::Compare(args) => compare::run(args),
         Command::Export(args) => export::run(args),
     }
