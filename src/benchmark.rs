@@ -6,7 +6,7 @@ use crate::geometry::Shape;
 use crate::material::Region;
 use crate::pipeline::{build_basis, BasisOptions, BasisRun};
 use crate::progress::Progress;
-use crate::report::Stopwatch;
+use crate::report::{Monitors, Stopwatch};
 use crate::sampling::Resolution;
 use crate::sim::motion::Motion;
 use crate::sim::{Boundary, HessianStrategy, NewtonOptions, ReducedSim, SimOptions};
@@ -95,6 +95,12 @@ pub struct BeamComparison {
     pub fem_resolution: usize,
     /// Whether the FEM reference came from the cache.
     pub fem_cached: bool,
+    /// Conditioning and convergence monitors of the reduced run (the same keys as in the
+    /// `modes` and `run` reports).
+    pub monitors: Monitors,
+    /// The basis warnings and one per non-converged reduced step (`--strict` makes them an
+    /// error).
+    pub warnings: Vec<String>,
 }
 
 /// Run the reduced model on the beam test `fem.test` and compare it with the FEM reference
@@ -263,10 +269,21 @@ pub fn simulate_beam(
     let mut frames: Vec<Vec<Point3>> = Vec::with_capacity(steps);
     let mut step_s = 0.0;
     let mut nonconverged = 0;
+    let mut monitors = run.report.monitors.clone();
+    let mut warnings = run.report.warnings.clone();
     for k in 0..steps {
         let r = sim.step();
         step_s += r.wall_s;
         nonconverged += usize::from(!r.solve.converged);
+        monitors.add_step(&r.solve);
+        if !r.solve.converged {
+            warnings.push(format!(
+                "reduced step {} did not converge ({} iterations, residual {:.2e})",
+                k + 1,
+                r.solve.iterations,
+                r.solve.residual
+            ));
+        }
         frames.push(sim.positions(&reference.rest, &weights));
         progress.set_position(k as u64 + 1);
     }
@@ -301,5 +318,7 @@ pub fn simulate_beam(
         fem_tets: reference.tets.len(),
         fem_resolution: fem.resolution,
         fem_cached: matches!(reference.cache, crate::fem::beam::CacheStatus::Hit(_)),
+        monitors,
+        warnings,
     })
 }

@@ -80,6 +80,10 @@ pub struct BeamArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
+    /// Exit with an error (code 1, after the report) when the reduced run raised a warning:
+    /// a poorly conditioned basis or a step that did not converge.
+    #[arg(long)]
+    strict: bool,
 }
 
 /// The FEM reference options shared by `freeform beam` and `freeform sweep`.
@@ -158,6 +162,10 @@ pub fn run(args: BeamArgs) -> CliResult {
             r.fem_tets,
             if r.fem_cached { ", cached" } else { "" }
         ))?;
+        for w in &r.warnings {
+            emit(&format!("  warning: {w}\n"))?;
+        }
     }
+    freeform::error::check_strict(args.strict, &r.warnings)?;
     Ok(())
 }
