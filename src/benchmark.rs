@@ -34,6 +34,10 @@ pub struct ReducedBeamOptions {
     /// Compare over the first `frames` steps only (the reduced model runs that many steps;
     /// the FEM reference is the full run, so the motion is the benchmark's). None: all.
     pub frames: Option<usize>,
+    /// Penalty stiffness of the held (and twisted) ends, Pa/m^2 (None: the simulator's
+    /// default, `PENALTY_FACTOR` x max(rho/h^2, E/D^2)). The FEM reference holds its nodes
+    /// exactly (Dirichlet); a stiffer penalty approaches that.
+    pub hold_stiffness: Option<f64>,
 }
 
 impl Default for ReducedBeamOptions {
@@ -45,6 +49,7 @@ impl Default for ReducedBeamOptions {
             cubature: crate::sim::cubature::DEFAULT_CUBATURE,
             newton: NewtonOptions::default(),
             frames: None,
+            hold_stiffness: None,
         }
     }
 }
@@ -236,7 +241,7 @@ pub fn simulate_beam(
             normal: [-1.0, 0.0, 0.0],
         },
         motion: Motion::Fixed,
-        stiffness: None,
+        stiffness: opts.hold_stiffness,
     }];
     let dt = fem.solver.dt;
     if fem.test == BeamTest::Twist {
@@ -250,7 +255,7 @@ pub fn simulate_beam(
                 axis: [1.0, 0.0, 0.0],
                 degrees_per_second: fem.twist_degrees / (fem.steps as f64 * dt),
             },
-            stiffness: None,
+            stiffness: opts.hold_stiffness,
         });
     }
     let g = fem.solver.gravity;

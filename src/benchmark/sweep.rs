@@ -138,6 +138,7 @@ impl SweepSpec {
                 ..self.newton
             },
             frames: self.frames,
+            hold_stiffness: None,
         };
         let mut runs: Vec<PlannedRun> = Vec::new();
         let mut push = |axis, opts: ReducedBeamOptions| {

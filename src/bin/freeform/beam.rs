@@ -66,6 +66,10 @@ pub struct BeamArgs {
     /// Cubature points while simulating.
     #[arg(long, default_value_t = 5000)]
     cubature: usize,
+    /// Penalty stiffness of the held and twisted ends, Pa/m^2 [default: 1e3 x max(rho/h^2,
+    /// E/D^2)]; the FEM holds its nodes exactly.
+    #[arg(long)]
+    hold_stiffness: Option<f64>,
     /// Hessian strategy of the reduced model.
     #[arg(long, value_enum, default_value = "lbfgs")]
     hessian: HessianArg,
@@ -140,6 +144,7 @@ pub fn run(args: BeamArgs) -> CliResult {
             ..NewtonOptions::default()
         },
         frames: None,
+        hold_stiffness: args.hold_stiffness,
     };
     let r = compare_beam(&fem, &opts, Some(&args.fem.cache), progress().as_ref())?;
     if args.json {
