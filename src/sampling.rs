@@ -180,6 +180,16 @@ pub fn cloud_volumes(points: &[Point3], opts: &CloudVolumeOptions) -> Result<(Ve
         *counts.entry(key(p)).or_insert(0) += 1;
     }
     let v3 = voxel * voxel * voxel;
+    if !(v3.is_finite() && v3 > 0.0) {
+        return Err(Error::param(
+            "voxel",
+            voxel,
+            format!(
+                "a voxel of this edge has volume {v3:e} m^3, which f64 cannot represent; the \
+                 coordinates are not in metres at a usable scale: rescale the point cloud"
+            ),
+        ));
+    }
     let mut vols: Vec<f64> = points.iter().map(|p| v3 / counts[&key(p)] as f64).collect();
     if let Some(total) = opts.total_volume {
         if !(total.is_finite() && total > 0.0) {

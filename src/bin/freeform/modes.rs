@@ -309,7 +309,7 @@ fn from_matrices(dir: &std::path::Path, args: &ModesArgs) -> CliResult {
     let (h, m) = read_matrices(dir)?;
     let read_s = clock.elapsed();
     let request = EigenRequest {
-        nev: args.modes + 1,
+        nev: args.modes.saturating_add(1),
         tol: args.tol,
         max_iter: args.max_iter,
     };
