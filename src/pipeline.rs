@@ -192,6 +192,7 @@ impl BasisOptions {
         }
         self.material.validate()?;
         for o in &self.overrides {
+            o.region.validate()?;
             o.material.validate()?;
         }
         Ok(())

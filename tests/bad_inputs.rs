@@ -100,6 +100,7 @@ const MODES_FLAGS: &[Case] = &[
     (&["box:1,1,1", "--kernels", "50", "--support-neighbor", "1000"], "need more than 1000 kernels"),
     (&["box:1,1,1", "--youngs", "nan"], "youngs"),
     (&["box:1,1,1", "--youngs", "inf"], "youngs"),
+    (&["box:1,1,1", "--kernels", "50", "--points", "2000", "--youngs", "1e308"], "non-finite value"),
     (&["box:1,1,1", "--density", "-1"], "density"),
     (&["box:1,1,1", "--poisson", "nan"], "poisson"),
     (&["box:1,1,1", "--tol", "nan"], "tol"),
@@ -138,6 +139,13 @@ const RUN_SCENES: &[Case] = &[
     (&["@scene/zero_every.toml"], "output.every must be at least 1"),
     (&["@scene/bad_format.toml"], "unknown variant `gif`"),
     (&["@scene/bad_hessian.toml"], "unknown variant `magic`"),
+    (&["@scene/nan_placement.toml"], "invalid translation = [NaN, 0.0, 0.0]: must be finite"),
+    (&["@scene/nan_boundary_region.toml"], "boundary 0: invalid region"),
+    (&["@scene/zero_normal_boundary.toml"], "finite non-zero normal"),
+    (&["@scene/negative_stiffness.toml"], "stiffness (Pa/m^2) must be positive"),
+    (&["@scene/inverted_region_material.toml"], "a box needs min <= max"),
+    (&["@scene/huge_youngs.toml"], "non-finite value"),
+    (&["@scene/zero_normal_collider.toml"], "a plane needs a finite point and a non-zero normal"),
     (&["@scene/does_not_exist.toml"], "does_not_exist.toml"),
 ];
 

@@ -350,6 +350,9 @@ impl Scene {
             }
             let _checked = o.basis_options().map_err(|e| in_object(&o.name, e))?;
             for (i, b) in o.boundaries.iter().enumerate() {
+                b.region
+                    .validate()
+                    .map_err(|e| in_object(&o.name, scene_err(format!("boundary {i}: {e}"))))?;
                 b.motion
                     .validate()
                     .map_err(|e| in_object(&o.name, scene_err(format!("boundary {i}: {e}"))))?;

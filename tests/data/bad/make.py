@@ -146,6 +146,20 @@ write("scene/bad_poisson.toml", GOOD + "material = { poisson = 0.5 }\n")
 write("scene/zero_every.toml", GOOD + "[output]\nevery = 0\n")
 write("scene/bad_format.toml", GOOD + '[output]\nformats = ["gif"]\n')
 write("scene/bad_hessian.toml", GOOD + '[solver]\nhessian = "magic"\n')
+write("scene/nan_placement.toml", GOOD + "placement = { translation = [nan, 0.0, 0.0] }\n")
+write("scene/nan_boundary_region.toml", GOOD + "[[object.boundary]]\n"
+      "region = { sphere = { center = [nan, 0.0, 0.0], radius = 1.0 } }\n")
+write("scene/zero_normal_boundary.toml", GOOD + "[[object.boundary]]\n"
+      "region = { half_space = { point = [0.1, 0.0, 0.0], normal = [0.0, 0.0, 0.0] } }\n")
+write("scene/negative_stiffness.toml", GOOD + "[[object.boundary]]\n"
+      "region = { half_space = { point = [0.1, 0.0, 0.0], normal = [-1.0, 0.0, 0.0] } }\n"
+      "stiffness = -5.0\n")
+write("scene/inverted_region_material.toml", GOOD + "[[object.region_material]]\n"
+      "region = { box = { min = [0.5, 0.0, 0.0], max = [0.0, 1.0, 1.0] } }\n"
+      "material = { youngs = 1e7 }\n")
+write("scene/huge_youngs.toml", GOOD + "material = { youngs = 1e308 }\n")
+write("scene/zero_normal_collider.toml", GOOD + "[[collider]]\n"
+      "shape = { plane = { point = [0.0, -1.0, 0.0], normal = [0.0, 0.0, 0.0] } }\n")
 
 # --- MatrixMarket pairs (`freeform modes --from-matrices DIR`) -------------------------
 # A 6 x 6 diagonal SPD matrix: big enough for `--modes 1` (nev = 2 <= K - 2).
