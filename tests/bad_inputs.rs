@@ -249,7 +249,7 @@ fn run_case(
     full.extend(args.iter().map(|a| expand(a, root)));
     full.extend(["--out".to_string(), out.display().to_string()]);
     let (code, err) = freeform(&full);
-    if !code.is_some_and(|c| c != 0) {
+    if code.is_none_or(|c| c == 0) {
         return Err(format!("{full:?} should fail, exit {code:?}: {err}"));
     }
     if err.contains("panicked") {
