@@ -96,6 +96,7 @@ const MODES_FLAGS: &[Case] = &[
     (&["box:1,1,1", "--kernels", "50", "--spacing", "1e-7"], "grid cells"),
     (&["box:1,1,1", "--kernels", "50", "--spacing", "nan"], "spacing"),
     (&["box:1,1,1", "--kernels", "50", "--support", "inf"], "support factor"),
+    (&["box:1,1,1", "--kernels", "50", "--support", "1e300"], "must be at most 50"),
     (&["box:1,1,1", "--kernels", "50", "--support-neighbor", "0"], "support neighbor"),
     (&["box:1,1,1", "--kernels", "50", "--support-neighbor", "1000"], "need more than 1000 kernels"),
     (&["box:1,1,1", "--youngs", "nan"], "youngs"),
