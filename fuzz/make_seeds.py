@@ -2,7 +2,11 @@
 """Writes the hand-made part of the fuzz seed corpus (fuzz/corpus/<target>/seed-*).
 
 Run from fuzz/: `python3 make_seeds.py`. The other seeds are copies of tests/data and
-examples/ files (see docs/fuzzing.md); fuzzer findings are added as `finding-*` files.
+examples/ files (see docs/fuzzing.md); fuzzer findings are added as `finding-*` files. The
+basis seeds were written by the CLI:
+  freeform modes box:1,1,1 --kernels 12 --modes 2 --points 2000 --out corpus/basis/seed-box_k12_m2.npz
+  freeform modes box:2,1,1 --kernels 15 --modes 3 --kernel gaussian --points 2000 \
+      --out corpus/basis/seed-box_k15_m3_gaussian.npz
 """
 import os
 import shutil

@@ -491,6 +491,9 @@ fn fuzz_corpus_and_findings_replay_without_panics() {
     for (path, bytes) in fuzz_inputs("matrix_market") {
         let _ = read_matrix_market_from(&path, bytes.as_slice());
     }
+    for (path, bytes) in fuzz_inputs("basis") {
+        let _ = freeform::io::basis::load_from(&path, std::io::Cursor::new(bytes));
+    }
 }
 
 /// The parse-from-memory functions agree with the file readers on the corpus.
@@ -514,4 +517,49 @@ fn byte_parsers_match_file_readers() {
     let b = obj::parse_obj_bytes(&path, &std::fs::read(&path).unwrap(), &opts).unwrap();
     assert_eq!(a.vertices(), b.vertices());
     assert_eq!(a.triangles(), b.triangles());
+}
+
+/// A damaged basis file (the scene cache, `modes --out`) gives `Error::BasisFile` or
+/// `Error::Io`, never a panic: garbage, every truncation, and byte flips all through the file.
+#[test]
+fn damaged_basis_files_are_rejected() {
+    use freeform::rkpm::{KernelType, Kernels};
+    use freeform::skinning::Basis;
+    let dir = tempfile::tempdir().unwrap();
+    let good = dir.path().join("good.npz");
+    let basis = Basis {
+        kernels: Kernels {
+            centers: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+            ],
+            radii: vec![1.5; 4],
+            kind: KernelType::Cubic,
+        },
+        coefficients: faer::Mat::from_fn(4, 2, |i, j| (i + 3 * j) as f64),
+        eigenvalues: vec![0.0, 2.5],
+    };
+    freeform::io::basis::save(&good, &basis, &serde_json::json!({"test": true})).unwrap();
+    let bytes = std::fs::read(&good).unwrap();
+    assert!(freeform::io::basis::load(&good).is_ok());
+    let bad = dir.path().join("bad.npz");
+    let check = |data: &[u8], what: &str| {
+        std::fs::write(&bad, data).unwrap();
+        if let Err(e) = freeform::io::basis::load(&bad) {
+            let msg = e.to_string();
+            assert!(msg.contains("bad.npz"), "{what}: {msg}");
+        }
+    };
+    check(b"", "empty");
+    check(&[0x50, 0x4b, 0x03, 0x04, 0xff, 0xff], "zip magic only");
+    for len in (0..bytes.len()).step_by(3) {
+        check(&bytes[..len], &format!("truncated to {len}"));
+    }
+    for i in 0..bytes.len() {
+        let mut flipped = bytes.clone();
+        flipped[i] ^= 0x5a;
+        check(&flipped, &format!("byte {i} flipped"));
+    }
 }
