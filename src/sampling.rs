@@ -224,11 +224,18 @@ fn median_nn_distance(points: &[Point3]) -> Result<f64> {
         .filter(|&d| d > 0.0)
         .collect();
     if d.is_empty() {
-        return Err(Error::param(
-            "points",
-            points.len(),
-            "all points coincide: the cloud has no extent",
-        ));
+        // The largest edge, not the diagonal: squaring it would underflow as well.
+        let extent = crate::geometry::Aabb::from_points(points)
+            .map_or(0.0, |b| b.size().into_iter().fold(0.0, f64::max));
+        let reason = if extent > 0.0 {
+            format!(
+                "the points are too close together for f64 distances (largest bounding-box \
+                 edge {extent:e} m): rescale the point cloud to metres"
+            )
+        } else {
+            "all points coincide: the cloud has no extent".to_string()
+        };
+        return Err(Error::param("points", points.len(), reason));
     }
     d.sort_by(f64::total_cmp);
     Ok(d[d.len() / 2])

@@ -50,6 +50,8 @@ const MODES_FILES: &[Case] = &[
     (&["@ply/huge_coordinates.ply"], "coordinates are too large"),
     (&["@ply/no_vertices.ply"], "point cloud has no points"),
     (&["@ply/coincident_points.ply"], "all points coincide"),
+    (&["@ply/huge_point_cloud.ply"], "rescale the point cloud"),
+    (&["@ply/tiny_point_cloud.ply"], "rescale the point cloud"),
     // OBJ
     (&["@obj/empty.obj"], "empty.obj: empty file"),
     (&["@obj/binary.obj"], "not a text OBJ file"),

@@ -88,6 +88,9 @@ write("ply/huge_coordinates.ply",
       ply_ascii([tuple(1e300 * c for c in v) for v in CUBE_V], CUBE_F).replace("float", "double"))
 write("ply/no_vertices.ply", ply_ascii([], [], nf=0))
 write("ply/coincident_points.ply", ply_ascii([(1, 2, 3)] * 5, [], nf=0))
+for name, scale in [("huge", 1e300), ("tiny", 1e-200)]:
+    cloud = [tuple(repr(scale * rng.random()) for _ in range(3)) for _ in range(60)]
+    write("ply/%s_point_cloud.ply" % name, ply_ascii(cloud, [], nf=0).replace("float", "double"))
 
 # --- OBJ -------------------------------------------------------------------------------
 write("obj/empty.obj", b"")
