@@ -170,9 +170,9 @@ pub fn write_dense_matrix_market(
 /// expanded to both triangles; duplicate entries are summed).
 ///
 /// # Errors
-/// [`MatrixFileError::Io`]; [`MatrixFileError::Parse`] for a bad banner, an `array` or
-/// `complex` file, a non-square size, an index out of range, a malformed or non-finite value,
-/// or a wrong entry count.
+/// [`MatrixFileError::Io`]; [`MatrixFileError::Parse`] for a bad banner, a binary file, an
+/// `array` or `complex` file, a non-square size, an index out of range, a malformed or
+/// non-finite value, a wrong entry count, or a size beyond the entries read (empty rows).
 pub fn read_matrix_market(path: &Path) -> Result<SparseMatrix, MatrixFileError> {
     let file = std::fs::File::open(path).map_err(io_err(path))?;
     read_matrix_market_from(path, BufReader::new(file))
