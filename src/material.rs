@@ -103,6 +103,36 @@ pub enum Region {
 }
 
 impl Region {
+    /// Check the region's numbers: no NaN anywhere; a box needs `min <= max` on every axis
+    /// (infinite bounds are fine: half-open slabs); a sphere a positive radius; a half-space a
+    /// finite point and a finite non-zero normal.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the region and what to fix.
+    pub fn validate(&self) -> Result<()> {
+        let ok = match self {
+            Region::Box { min, max } => (0..3).all(|d| min[d] <= max[d]),
+            Region::Sphere { center, radius } => {
+                center.iter().all(|c| c.is_finite()) && *radius > 0.0
+            }
+            Region::HalfSpace { point, normal } => {
+                point.iter().all(|c| c.is_finite())
+                    && normal.iter().all(|c| c.is_finite())
+                    && normal.iter().any(|&c| c != 0.0)
+            }
+        };
+        if ok {
+            Ok(())
+        } else {
+            Err(Error::param(
+                "region",
+                format!("{self:?}"),
+                "a box needs min <= max on every axis, a sphere a finite centre and a positive \
+                 radius, a half-space a finite point and a finite non-zero normal (no NaN)",
+            ))
+        }
+    }
+
     /// Whether `x` lies in the region (boundary included).
     pub fn contains(&self, x: &Point3) -> bool {
         match self {

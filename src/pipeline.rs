@@ -104,8 +104,17 @@ impl Default for BasisOptions {
 /// in a support) so quadrature error stays below the kernel approximation error; the cap keeps
 /// K = 100,000 within memory (the issue's 2M-point sizing).
 pub fn default_points(kernels: usize) -> usize {
-    (50 * kernels).clamp(20_000, 2_000_000)
+    kernels.saturating_mul(50).clamp(20_000, 2_000_000)
 }
+
+/// Most kernels [`BasisOptions::validate`] accepts: 10 million. K = 100,000 already needs tens
+/// of GB for H_w and M; a larger request is a typo (or a unit mistake) and is rejected before
+/// anything is allocated.
+pub const MAX_KERNELS: usize = 10_000_000;
+
+/// Most integration points [`BasisOptions::validate`] accepts: 100 million (each point holds
+/// ~30 shape-function values and gradients, so this is already ~100 GB).
+pub const MAX_POINTS: usize = 100_000_000;
 
 impl BasisOptions {
     /// Check every parameter's range (before any work is done).
@@ -124,7 +133,17 @@ impl BasisOptions {
                 "ask for at least one non-constant mode",
             ));
         }
-        if self.modes + 1 >= self.kernels {
+        if self.kernels > MAX_KERNELS {
+            return Err(Error::param(
+                "kernels",
+                self.kernels,
+                format!(
+                    "more than {MAX_KERNELS} kernels would need far more memory than any \
+                     machine has; use at most a few 100,000 (default 1000)"
+                ),
+            ));
+        }
+        if self.modes.saturating_add(1) >= self.kernels {
             return Err(Error::param(
                 "modes",
                 self.modes,
@@ -153,6 +172,16 @@ impl BasisOptions {
                     format!("fewer integration points than kernels ({})", self.kernels),
                 ));
             }
+            if n > MAX_POINTS {
+                return Err(Error::param(
+                    "points",
+                    n,
+                    format!(
+                        "more than {MAX_POINTS} integration points would need far more memory \
+                         than any machine has; 50 per kernel is plenty (the default)"
+                    ),
+                ));
+            }
         }
         self.support.validate()?;
         if !(self.shape_functions.min_rcond > 0.0 && self.shape_functions.min_rcond < 1.0) {
@@ -164,6 +193,7 @@ impl BasisOptions {
         }
         self.material.validate()?;
         for o in &self.overrides {
+            o.region.validate()?;
             o.material.validate()?;
         }
         Ok(())

@@ -180,6 +180,16 @@ pub fn cloud_volumes(points: &[Point3], opts: &CloudVolumeOptions) -> Result<(Ve
         *counts.entry(key(p)).or_insert(0) += 1;
     }
     let v3 = voxel * voxel * voxel;
+    if !(v3.is_finite() && v3 > 0.0) {
+        return Err(Error::param(
+            "voxel",
+            voxel,
+            format!(
+                "a voxel of this edge has volume {v3:e} m^3, which f64 cannot represent; the \
+                 coordinates are not in metres at a usable scale: rescale the point cloud"
+            ),
+        ));
+    }
     let mut vols: Vec<f64> = points.iter().map(|p| v3 / counts[&key(p)] as f64).collect();
     if let Some(total) = opts.total_volume {
         if !(total.is_finite() && total > 0.0) {
@@ -214,11 +224,18 @@ fn median_nn_distance(points: &[Point3]) -> Result<f64> {
         .filter(|&d| d > 0.0)
         .collect();
     if d.is_empty() {
-        return Err(Error::param(
-            "points",
-            points.len(),
-            "all points coincide: the cloud has no extent",
-        ));
+        // The largest edge, not the diagonal: squaring it would underflow as well.
+        let extent = crate::geometry::Aabb::from_points(points)
+            .map_or(0.0, |b| b.size().into_iter().fold(0.0, f64::max));
+        let reason = if extent > 0.0 {
+            format!(
+                "the points are too close together for f64 distances (largest bounding-box \
+                 edge {extent:e} m): rescale the point cloud to metres"
+            )
+        } else {
+            "all points coincide: the cloud has no extent".to_string()
+        };
+        return Err(Error::param("points", points.len(), reason));
     }
     d.sort_by(f64::total_cmp);
     Ok(d[d.len() / 2])

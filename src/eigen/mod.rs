@@ -272,7 +272,7 @@ pub fn validate_problem(
             m.ncols()
         )));
     }
-    if request.nev == 0 || request.nev + 2 > k {
+    if request.nev == 0 || request.nev.saturating_add(2) > k {
         return Err(EigenError::InvalidRequest(format!(
             "nev = {} pairs (m = nev - 1 modes plus the constant one) requested for K = {k}: need \
              1 <= nev <= K - 2 (m <= K - 3)",

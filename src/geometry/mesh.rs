@@ -112,7 +112,14 @@ impl TriMesh {
         let aabb = Aabb::from_points(&referenced).expect("at least one triangle");
         let mut signed_volume = signed_volume_about(&vertices, &triangles, &aabb.center());
         let diag = aabb.diagonal();
-        if !signed_volume.is_finite() || signed_volume.abs() <= 1e-12 * diag * diag * diag {
+        if !(signed_volume.is_finite() && (diag * diag * diag).is_finite()) {
+            return Err(GeometryError::Degenerate(format!(
+                "mesh coordinates are too large (bounding box {:?} to {:?}): its volume \
+                 overflows f64; rescale the mesh to metres",
+                aabb.min, aabb.max
+            )));
+        }
+        if signed_volume.abs() <= 1e-12 * diag * diag * diag {
             return Err(GeometryError::Degenerate(format!(
                 "mesh encloses no volume (signed volume {signed_volume:.3e} m^3 with a \
                  bounding-box diagonal of {diag:.3e} m): it is flat, or its faces cancel"

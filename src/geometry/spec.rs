@@ -56,7 +56,13 @@ fn bad(spec: &str, reason: String) -> GeometryError {
     }
 }
 
-/// Parse exactly `n` comma-separated positive finite numbers.
+/// Smallest primitive size accepted, metres: below it volumes and grid spacings underflow
+/// towards f64's limits.
+const MIN_SIZE: f64 = 1e-9;
+/// Largest primitive size accepted, metres (a million km); beyond it volumes overflow.
+const MAX_SIZE: f64 = 1e9;
+
+/// Parse exactly `n` comma-separated positive finite numbers in [`MIN_SIZE`, `MAX_SIZE`].
 fn numbers(spec: &str, list: &str, n: usize, form: &str) -> Result<Vec<f64>, GeometryError> {
     if list.trim().is_empty() {
         return Err(bad(spec, format!("no numbers given; expected {form}")));
@@ -94,6 +100,14 @@ fn numbers(spec: &str, list: &str, n: usize, form: &str) -> Result<Vec<f64>, Geo
                 Err(bad(
                     spec,
                     format!("`{s}` is not positive; sizes must be > 0"),
+                ))
+            } else if !(MIN_SIZE..=MAX_SIZE).contains(&v) {
+                Err(bad(
+                    spec,
+                    format!(
+                        "`{s}` is out of range; sizes are metres between {MIN_SIZE:e} and \
+                         {MAX_SIZE:e} (rescale the shape)"
+                    ),
                 ))
             } else {
                 Ok(v)
@@ -134,6 +148,8 @@ mod tests {
         assert!(reason("box:1,,3").contains("empty number"));
         assert!(reason("box:1,-2,3").contains("`-2` is not positive"));
         assert!(reason("box:0,1,1").contains("`0` is not positive"));
+        assert!(reason("box:1e300,1,1").contains("`1e300` is out of range"));
+        assert!(reason("sphere:1e-300").contains("`1e-300` is out of range"));
         assert!(reason("sphere:nan").contains("`nan` is not finite"));
         assert!(reason("sphere:inf").contains("`inf` is not finite"));
         assert!(reason("sphere:abc").contains("`abc` is not a number"));

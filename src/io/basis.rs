@@ -128,16 +128,24 @@ pub struct LoadedBasis {
 
 /// Read a basis written by [`save`] (or by Python with the same arrays).
 pub fn load(path: &Path) -> Result<LoadedBasis> {
-    let bad = |reason: String| Error::BasisFile {
-        path: path.to_path_buf(),
-        reason,
-    };
     let file = std::fs::File::open(path).map_err(|source| Error::Io {
         path: path.to_path_buf(),
         source,
     })?;
-    let mut zip = zip::ZipArchive::new(std::io::BufReader::new(file))
-        .map_err(|e| bad(format!("not a zip/npz archive ({e})")))?;
+    load_from(path, std::io::BufReader::new(file))
+}
+
+/// Read a basis from `reader` as [`load`] reads a file; `path` only labels the errors.
+///
+/// # Errors
+/// [`Error::BasisFile`] for anything that is not a complete, consistent basis archive.
+pub fn load_from(path: &Path, reader: impl std::io::Read + std::io::Seek) -> Result<LoadedBasis> {
+    let bad = |reason: String| Error::BasisFile {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let mut zip =
+        zip::ZipArchive::new(reader).map_err(|e| bad(format!("not a zip/npz archive ({e})")))?;
     let mut read = |name: &str| -> Result<(Vec<u64>, Vec<u8>)> {
         let mut entry = zip
             .by_name(&format!("{name}.npy"))
@@ -216,6 +224,15 @@ pub fn load(path: &Path) -> Result<LoadedBasis> {
         .any(|v| !v.is_finite())
     {
         return Err(bad("contains NaN or infinite values".into()));
+    }
+    // npyz reads exactly the elements the shapes announce; checked again so that no shape
+    // arithmetic can make the indexing below go out of range.
+    if Some(centers.len()) != k.checked_mul(3) || Some(coef.len()) != k.checked_mul(m1) {
+        return Err(bad(format!(
+            "{} centre coordinates and {} coefficients do not fit K = {k}, m + 1 = {m1}",
+            centers.len(),
+            coef.len()
+        )));
     }
     let centers: Vec<Point3> = centers
         .chunks_exact(3)

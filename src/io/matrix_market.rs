@@ -68,6 +68,41 @@ fn io_err(path: &Path) -> impl Fn(std::io::Error) -> MatrixFileError + '_ {
     }
 }
 
+/// Run `write` on a buffered temporary file next to `path`, then rename it to `path`: a
+/// failed write never leaves a partial matrix under the final name.
+fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> Result<(), MatrixFileError> {
+    let tmp = super::temp_path_for(path);
+    let result = std::fs::File::create(&tmp)
+        .and_then(|file| {
+            let mut w = BufWriter::new(file);
+            write(&mut w)?;
+            w.flush()
+        })
+        .and_then(|()| std::fs::rename(&tmp, path));
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result.map_err(io_err(path))
+}
+
+/// A read error on line `line`: invalid UTF-8 (a binary file) is a parse error, the rest I/O.
+fn read_err(path: &Path, line: usize) -> impl Fn(std::io::Error) -> MatrixFileError + '_ {
+    move |source| {
+        if source.kind() == std::io::ErrorKind::InvalidData {
+            MatrixFileError::Parse {
+                path: path.to_path_buf(),
+                line,
+                reason: "not a text file (invalid UTF-8); expected a MatrixMarket file".into(),
+            }
+        } else {
+            io_err(path)(source)
+        }
+    }
+}
+
 /// Write a symmetric matrix (both triangles stored, as [`SparseMatrix`] holds H_w and M) as a
 /// MatrixMarket `coordinate real symmetric` file: the lower triangle, 1-based. `comment`
 /// lines (without the `%`) go after the banner, e.g. units.
@@ -79,8 +114,6 @@ pub fn write_matrix_market(
     a: &SparseMatrix,
     comment: &[&str],
 ) -> Result<(), MatrixFileError> {
-    let file = std::fs::File::create(path).map_err(io_err(path))?;
-    let mut w = BufWriter::new(file);
     let sym = a.symbolic();
     let lower: usize = (0..a.ncols())
         .map(|j| {
@@ -90,7 +123,7 @@ pub fn write_matrix_market(
                 .count()
         })
         .sum();
-    let mut write = || -> std::io::Result<()> {
+    write_atomically(path, |w| {
         writeln!(w, "%%MatrixMarket matrix coordinate real symmetric")?;
         for c in comment {
             writeln!(w, "% {c}")?;
@@ -104,9 +137,8 @@ pub fn write_matrix_market(
                 }
             }
         }
-        w.flush()
-    };
-    write().map_err(io_err(path))
+        Ok(())
+    })
 }
 
 /// Write a dense matrix (e.g. eigenvectors, K x (m + 1)) as a MatrixMarket `array real
@@ -119,9 +151,7 @@ pub fn write_dense_matrix_market(
     a: &faer::Mat<f64>,
     comment: &[&str],
 ) -> Result<(), MatrixFileError> {
-    let file = std::fs::File::create(path).map_err(io_err(path))?;
-    let mut w = BufWriter::new(file);
-    let mut write = || -> std::io::Result<()> {
+    write_atomically(path, |w| {
         writeln!(w, "%%MatrixMarket matrix array real general")?;
         for c in comment {
             writeln!(w, "% {c}")?;
@@ -132,28 +162,40 @@ pub fn write_dense_matrix_market(
                 writeln!(w, "{:.16e}", a[(i, j)])?;
             }
         }
-        w.flush()
-    };
-    write().map_err(io_err(path))
+        Ok(())
+    })
 }
 
 /// Read a MatrixMarket coordinate file into a square [`SparseMatrix`] (symmetric storage is
 /// expanded to both triangles; duplicate entries are summed).
 ///
 /// # Errors
-/// [`MatrixFileError::Io`]; [`MatrixFileError::Parse`] for a bad banner, an `array` or
-/// `complex` file, a non-square size, an index out of range, a malformed or non-finite value,
-/// or a wrong entry count.
+/// [`MatrixFileError::Io`]; [`MatrixFileError::Parse`] for a bad banner, a binary file, an
+/// `array` or `complex` file, a non-square size, an index out of range, a malformed or
+/// non-finite value, a wrong entry count, or a size beyond the entries read (empty rows).
 pub fn read_matrix_market(path: &Path) -> Result<SparseMatrix, MatrixFileError> {
     let file = std::fs::File::open(path).map_err(io_err(path))?;
+    read_matrix_market_from(path, BufReader::new(file))
+}
+
+/// Parse MatrixMarket content from `reader` as [`read_matrix_market`] parses a file; `path`
+/// only labels the errors. Memory stays proportional to the entries actually read, whatever
+/// sizes the header announces.
+///
+/// # Errors
+/// As [`read_matrix_market`].
+pub fn read_matrix_market_from(
+    path: &Path,
+    reader: impl BufRead,
+) -> Result<SparseMatrix, MatrixFileError> {
     let parse = |line: usize, reason: String| MatrixFileError::Parse {
         path: path.to_path_buf(),
         line,
         reason,
     };
-    let mut lines = BufReader::new(file).lines().enumerate();
+    let mut lines = reader.lines().enumerate();
     let (_, banner) = lines.next().ok_or_else(|| parse(1, "empty file".into()))?;
-    let banner = banner.map_err(io_err(path))?.to_ascii_lowercase();
+    let banner = banner.map_err(read_err(path, 1))?.to_ascii_lowercase();
     let words: Vec<&str> = banner.split_whitespace().collect();
     if words.len() != 5 || words[0] != "%%matrixmarket" || words[1] != "matrix" {
         return Err(parse(
@@ -188,7 +230,7 @@ pub fn read_matrix_market(path: &Path) -> Result<SparseMatrix, MatrixFileError> 
     let mut n = 0;
     for (no, line) in lines {
         let no = no + 1;
-        let line = line.map_err(io_err(path))?;
+        let line = line.map_err(read_err(path, no))?;
         let t = line.trim();
         if t.is_empty() || t.starts_with('%') {
             continue;
@@ -200,7 +242,8 @@ pub fn read_matrix_market(path: &Path) -> Result<SparseMatrix, MatrixFileError> 
                 Some(&[r, c, z]) if r == c => {
                     size = Some((r, z));
                     n = r;
-                    triplets.reserve(if symmetry != 0 { 2 * z } else { z });
+                    // The announced count is not trusted for memory: reserve at most ~24 MB.
+                    triplets.reserve(z.min(1 << 20));
                 }
                 Some(&[r, c, _]) => {
                     return Err(parse(
@@ -245,7 +288,7 @@ pub fn read_matrix_market(path: &Path) -> Result<SparseMatrix, MatrixFileError> 
         if symmetry != 0 && i != j {
             triplets.push((j, i, f64::from(symmetry) * v));
         }
-        if triplets.len() > 2 * nnz {
+        if triplets.len() > nnz.saturating_mul(2) {
             return Err(parse(no, format!("more entries than the {nnz} announced")));
         }
     }
@@ -261,6 +304,19 @@ pub fn read_matrix_market(path: &Path) -> Result<SparseMatrix, MatrixFileError> 
             path: path.to_path_buf(),
             line: 0,
             reason: format!("{stored} entries read, {nnz} announced"),
+        });
+    }
+    // Every row of H_w and M has a diagonal entry; a size beyond the entries read means empty
+    // rows (a singular pencil) and would make the column pointers alone exhaust memory.
+    if n > triplets.len() {
+        return Err(MatrixFileError::Parse {
+            path: path.to_path_buf(),
+            line: 0,
+            reason: format!(
+                "the matrix is {n} x {n} but has only {} stored entries, so some rows are \
+                 empty; check the size line (H_w and M need a non-zero diagonal)",
+                triplets.len()
+            ),
         });
     }
     Ok(csc_from_triplets(n, triplets))
@@ -304,9 +360,7 @@ pub fn write_petsc_binary(path: &Path, a: &SparseMatrix) -> Result<(), MatrixFil
     let n = i32::try_from(a.nrows()).map_err(|_| too_large("the size"))?;
     let sym = a.symbolic();
     let nnz = i32::try_from(sym.row_idx().len()).map_err(|_| too_large("the entry count"))?;
-    let file = std::fs::File::create(path).map_err(io_err(path))?;
-    let mut w = BufWriter::new(file);
-    let mut write = || -> std::io::Result<()> {
+    write_atomically(path, |w| {
         for h in [PETSC_MAT_FILE_CLASSID, n, n, nnz] {
             w.write_all(&h.to_be_bytes())?;
         }
@@ -320,9 +374,8 @@ pub fn write_petsc_binary(path: &Path, a: &SparseMatrix) -> Result<(), MatrixFil
         for &v in a.val() {
             w.write_all(&v.to_be_bytes())?;
         }
-        w.flush()
-    };
-    write().map_err(io_err(path))
+        Ok(())
+    })
 }
 
 /// Write H_w and M into `dir` (created if missing): `hessian.mtx`, `mass.mtx` and, when

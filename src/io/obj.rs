@@ -40,8 +40,29 @@ pub fn read_obj(path: &Path, opts: &ShapeOptions) -> Result<TriMesh, GeometryErr
 /// Read an OBJ file's vertices (V x 3, metres) and fan-triangulated faces (F x 3, zero-based)
 /// without welding or mesh validation. Errors as [`read_obj`] minus the mesh checks.
 pub fn read_obj_raw(path: &Path) -> Result<(Vec<Point3>, Vec<[u32; 3]>), GeometryError> {
-    let bytes = read_nonempty(path)?;
-    let text = std::str::from_utf8(&bytes).map_err(|e| {
+    parse_obj_raw(path, &read_nonempty(path)?)
+}
+
+/// Parse OBJ content already in memory into a validated mesh, exactly as [`read_obj`] parses
+/// a file; `name` only labels the errors.
+///
+/// # Errors
+/// As [`read_obj`], minus the file-system errors.
+pub fn parse_obj_bytes(
+    name: &Path,
+    bytes: &[u8],
+    opts: &ShapeOptions,
+) -> Result<TriMesh, GeometryError> {
+    let (vertices, triangles) = parse_obj_raw(name, bytes)?;
+    mesh_from_file_data(name, vertices, triangles, opts)
+}
+
+/// [`read_obj_raw`] on bytes in memory (`path` labels the errors).
+fn parse_obj_raw(path: &Path, bytes: &[u8]) -> Result<(Vec<Point3>, Vec<[u32; 3]>), GeometryError> {
+    if bytes.is_empty() {
+        return Err(parse_error(path, "empty file"));
+    }
+    let text = std::str::from_utf8(bytes).map_err(|e| {
         parse_error(
             path,
             format!(

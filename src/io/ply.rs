@@ -23,7 +23,7 @@ use crate::Point3;
 use ply_rs_bw::parser::Parser;
 use ply_rs_bw::ply::{Property, PropertyAccess, PropertyAccessResult, PropertyType};
 use std::fs::File;
-use std::io::{BufReader, Write};
+use std::io::{BufRead, BufReader, Write};
 use std::path::Path;
 
 /// Names accepted for the face index list.
@@ -47,7 +47,31 @@ pub struct PlyData {
 /// coordinates, bad faces; the [`crate::geometry::TriMesh::new`] or [`PointCloud::new`] errors
 /// with the path.
 pub fn read_ply(path: &Path, opts: &ShapeOptions) -> Result<Shape, GeometryError> {
-    let data = read_ply_data(path)?;
+    shape_from_data(path, read_ply_data(path)?, opts)
+}
+
+/// Parse PLY content already in memory as a [`Shape`], exactly as [`read_ply`] parses a
+/// file; `name` only labels the errors (e.g. the file or URL the bytes came from).
+///
+/// # Errors
+/// As [`read_ply`], minus the file-system errors.
+pub fn parse_ply_bytes(
+    name: &Path,
+    bytes: &[u8],
+    opts: &ShapeOptions,
+) -> Result<Shape, GeometryError> {
+    if bytes.is_empty() {
+        return Err(parse_error(name, "empty file"));
+    }
+    let data = read_ply_data_from(name, &mut std::io::Cursor::new(bytes))?;
+    shape_from_data(name, data, opts)
+}
+
+fn shape_from_data(
+    path: &Path,
+    data: PlyData,
+    opts: &ShapeOptions,
+) -> Result<Shape, GeometryError> {
     match data.triangles {
         Some(triangles) => Ok(Shape::Mesh(mesh_from_file_data(
             path,
@@ -85,9 +109,20 @@ pub fn read_ply_data(path: &Path) -> Result<PlyData, GeometryError> {
     if meta.len() == 0 {
         return Err(parse_error(path, "empty file"));
     }
-    let mut reader = BufReader::new(file);
+    read_ply_data_from(path, &mut BufReader::new(file))
+}
+
+/// Parse PLY content from `reader` (positions and faces, no shape validation); `path` only
+/// labels the errors.
+///
+/// # Errors
+/// As [`read_ply_data`], minus the file-system errors.
+pub fn read_ply_data_from(
+    path: &Path,
+    reader: &mut impl BufRead,
+) -> Result<PlyData, GeometryError> {
     let ply = Parser::<Record>::new()
-        .read_ply(&mut reader)
+        .read_ply(reader)
         .map_err(|e| parse_error(path, format!("PLY: {e}")))?;
 
     let vdef = ply

@@ -39,6 +39,31 @@ pub fn read_stl(path: &Path, opts: &ShapeOptions) -> Result<TriMesh, GeometryErr
 /// are triangle t) and the trivial triangles. Errors as [`read_stl`] minus mesh validation.
 pub fn read_stl_soup(path: &Path) -> Result<(Vec<Point3>, Vec<[u32; 3]>), GeometryError> {
     let bytes = crate::geometry::fileio::read_nonempty(path)?;
+    soup_from_bytes(path, bytes)
+}
+
+/// Parse STL content already in memory into a validated mesh, exactly as [`read_stl`] parses
+/// a file; `name` only labels the errors.
+///
+/// # Errors
+/// As [`read_stl`], minus the file-system errors.
+pub fn parse_stl_bytes(
+    name: &Path,
+    bytes: &[u8],
+    opts: &ShapeOptions,
+) -> Result<TriMesh, GeometryError> {
+    if bytes.is_empty() {
+        return Err(parse_error(name, "empty file"));
+    }
+    let (vertices, triangles) = soup_from_bytes(name, bytes.to_vec())?;
+    mesh_from_file_data(name, vertices, triangles, opts)
+}
+
+/// [`read_stl_soup`] on bytes in memory (non-empty; `path` labels the errors).
+fn soup_from_bytes(
+    path: &Path,
+    bytes: Vec<u8>,
+) -> Result<(Vec<Point3>, Vec<[u32; 3]>), GeometryError> {
     let data = classify(path, bytes)?;
     let mut cursor = Cursor::new(data.as_slice());
     let reader = stl_io::create_stl_reader(&mut cursor)

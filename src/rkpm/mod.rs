@@ -12,7 +12,7 @@ pub use shape_functions::{
     evaluate, evaluate_on, reproducing_error, ReproducingError, ShapeFunctionOptions,
     ShapeFunctions, ShapeStats,
 };
-pub use support::{support_radii, SupportOptions};
+pub use support::{support_radii, SupportOptions, MAX_SUPPORT_FACTOR};
 
 use crate::Point3;
 

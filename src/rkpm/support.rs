@@ -5,6 +5,12 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 use std::num::NonZero;
 
+/// Largest support factor accepted by [`SupportOptions::validate`]. At 50 (default neighbour
+/// 4) a support spans ~80 kernel spacings, i.e. every kernel of any practical K; far beyond,
+/// the window is flat over the whole object and the moment matrices are singular in floating
+/// point, and the coverage error would wrongly advise a larger factor.
+pub const MAX_SUPPORT_FACTOR: f64 = 50.0;
+
 /// How support radii are chosen.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SupportOptions {
@@ -29,13 +35,24 @@ impl Default for SupportOptions {
 }
 
 impl SupportOptions {
-    /// Check the ranges: factor finite and > 0, neighbour >= 1.
+    /// Check the ranges: factor finite, > 0 and at most [`MAX_SUPPORT_FACTOR`], neighbour >= 1.
     pub fn validate(&self) -> Result<()> {
         if !(self.factor.is_finite() && self.factor > 0.0) {
             return Err(Error::param(
                 "support factor",
                 self.factor,
                 "must be a positive number (default 2.0)",
+            ));
+        }
+        if self.factor > MAX_SUPPORT_FACTOR {
+            return Err(Error::param(
+                "support factor",
+                self.factor,
+                format!(
+                    "must be at most {MAX_SUPPORT_FACTOR}: larger supports cover (almost) every \
+                     kernel, so the matrices turn dense and the moment matrices lose precision; \
+                     use 1.5 to 4 (default 2.0)"
+                ),
             ));
         }
         if self.neighbor == 0 {

@@ -306,6 +306,13 @@ impl Scene {
         if s.steps == 0 {
             return Err(scene_err("simulation.steps must be at least 1".to_string()));
         }
+        if s.steps > MAX_STEPS {
+            return Err(scene_err(format!(
+                "simulation.steps = {} is more than {MAX_STEPS}: the run would take days and its \
+                 per-step summary alone gigabytes; split it into shorter runs or use a larger dt",
+                s.steps
+            )));
+        }
         if let Some(g) = s.gravity {
             if !g.iter().all(|v| v.is_finite()) {
                 return Err(scene_err(format!(
@@ -343,6 +350,9 @@ impl Scene {
             }
             let _checked = o.basis_options().map_err(|e| in_object(&o.name, e))?;
             for (i, b) in o.boundaries.iter().enumerate() {
+                b.region
+                    .validate()
+                    .map_err(|e| in_object(&o.name, scene_err(format!("boundary {i}: {e}"))))?;
                 b.motion
                     .validate()
                     .map_err(|e| in_object(&o.name, scene_err(format!("boundary {i}: {e}"))))?;
@@ -362,6 +372,9 @@ impl Scene {
         Ok(())
     }
 }
+
+/// Most time steps a scene may ask for (the summary keeps one row per step).
+pub const MAX_STEPS: usize = 10_000_000;
 
 fn scene_err(message: String) -> Error {
     Error::Scene { message }

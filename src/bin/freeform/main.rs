@@ -85,6 +85,12 @@ pub fn set_threads(threads: Option<usize>) -> CliResult {
         if t == 0 {
             return Err("--threads must be at least 1".into());
         }
+        if t > 1024 {
+            return Err(format!(
+                "--threads {t} is more than 1024; use at most the number of cores (or omit it)"
+            )
+            .into());
+        }
         rayon::ThreadPoolBuilder::new()
             .num_threads(t)
             .build_global()?;

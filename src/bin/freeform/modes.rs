@@ -236,7 +236,7 @@ fn from_matrices(dir: &std::path::Path, args: &ModesArgs) -> CliResult {
     let (h, m) = read_matrices(dir)?;
     let read_s = clock.elapsed();
     let request = EigenRequest {
-        nev: args.basis.modes + 1,
+        nev: args.basis.modes.saturating_add(1),
         tol: args.basis.tol,
         max_iter: args.basis.max_iter,
     };

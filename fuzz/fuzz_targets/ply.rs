@@ -1,0 +1,13 @@
+//! PLY reader: any bytes give a shape or a `GeometryError`, never a panic.
+#![no_main]
+
+use freeform::geometry::ShapeOptions;
+use libfuzzer_sys::fuzz_target;
+use std::path::Path;
+
+fuzz_target!(|data: &[u8]| {
+    for allow_open_mesh in [false, true] {
+        let opts = ShapeOptions { allow_open_mesh };
+        let _ = freeform::io::ply::parse_ply_bytes(Path::new("fuzz.ply"), data, &opts);
+    }
+});

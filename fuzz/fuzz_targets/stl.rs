@@ -1,0 +1,13 @@
+//! STL reader (ASCII and binary): any bytes give a mesh or a `GeometryError`, never a panic.
+#![no_main]
+
+use freeform::geometry::ShapeOptions;
+use libfuzzer_sys::fuzz_target;
+use std::path::Path;
+
+fuzz_target!(|data: &[u8]| {
+    for allow_open_mesh in [false, true] {
+        let opts = ShapeOptions { allow_open_mesh };
+        let _ = freeform::io::stl::parse_stl_bytes(Path::new("fuzz.stl"), data, &opts);
+    }
+});

@@ -1,0 +1,568 @@
+//! Bad input on every path (issue #6, part 3): the CLI (`modes`, `run`, `export`,
+//! `modes --from-matrices`) and the library API, driven by the committed corpus in
+//! `tests/data/bad/` (written by its `make.py`). Every case must exit non-zero within a few
+//! seconds, print a specific message, never panic, and leave no `--out` file behind.
+//!
+//! The second half replays the fuzzing seed corpus and every fuzzer finding
+//! (`fuzz/corpus/<target>/`, see docs/fuzzing.md) through the same parse functions the fuzz
+//! targets call, on stable, so a fixed crash stays fixed.
+
+use freeform::geometry::{GeometryError, PointCloud, Shape, ShapeOptions, TriMesh};
+use freeform::io::matrix_market::read_matrix_market_from;
+use freeform::io::{obj, ply, stl};
+use freeform::pipeline::BasisOptions;
+use freeform::scene::{RunSettings, Scene};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// Small sizes so a case that wrongly succeeds still finishes fast.
+const SMALL: &[&str] = &["--kernels", "50", "--modes", "4", "--points", "2000"];
+
+/// Longest a bad input may take to be rejected (the binary is optimized in the test profile;
+/// huge requests must fail before allocating, not after).
+const DEADLINE: Duration = Duration::from_secs(20);
+
+/// One CLI case: arguments (`@rel` is a path in the corpus copy), expected phrase in stderr
+/// (case-insensitive). `--out` is appended by [`run_case`].
+type Case = (&'static [&'static str], &'static str);
+
+#[rustfmt::skip]
+const MODES_FILES: &[Case] = &[
+    // PLY
+    (&["@ply/empty.ply"], "empty file"),
+    (&["@ply/garbage.ply"], "garbage.ply: PLY"),
+    (&["@ply/header_only.ply"], "header_only.ply: PLY"),
+    (&["@ply/no_end_header.ply"], "no_end_header.ply: PLY"),
+    (&["@ply/truncated_ascii.ply"], "expected 8, got 3"),
+    (&["@ply/truncated_binary.ply"], "truncated_binary.ply: PLY"),
+    (&["@ply/nan_ascii.ply"], "line 11: couldn't read element line"),
+    (&["@ply/inf_binary.ply"], "vertex 1 has a non-finite coordinate"),
+    (&["@ply/missing_z.ply"], "no `z` property"),
+    (&["@ply/face_out_of_range.ply"], "face 11 refers to vertex 99, but the file has 8 vertices"),
+    (&["@ply/face_negative_index.ply"], "face 11 refers to vertex -7"),
+    (&["@ply/face_two_vertices.ply"], "face 11 has 2 vertices, needs at least 3"),
+    (&["@ply/too_few_faces.ply"], "expected 20, got 12"),
+    (&["@ply/too_many_vertices_declared.ply"], "too_many_vertices_declared.ply: PLY"),
+    (&["@ply/huge_vertex_count.ply"], "expected 1000000000000000, got 8"),
+    (&["@ply/open_mesh.ply"], "not watertight (4 boundary edges"),
+    (&["@ply/flat_mesh.ply"], "encloses no volume"),
+    (&["@ply/huge_coordinates.ply"], "coordinates are too large"),
+    (&["@ply/no_vertices.ply"], "point cloud has no points"),
+    (&["@ply/coincident_points.ply"], "all points coincide"),
+    (&["@ply/huge_point_cloud.ply"], "rescale the point cloud"),
+    (&["@ply/tiny_point_cloud.ply"], "rescale the point cloud"),
+    // OBJ
+    (&["@obj/empty.obj"], "empty.obj: empty file"),
+    (&["@obj/binary.obj"], "not a text OBJ file"),
+    (&["@obj/words.obj"], "no faces (0 vertices)"),
+    (&["@obj/no_faces.obj"], "no faces (8 vertices)"),
+    (&["@obj/face_out_of_range.obj"], "line 20: face refers to vertex 9, but only 8 are defined"),
+    (&["@obj/nan_vertex.obj"], "line 8: non-finite vertex coordinate `nan`"),
+    (&["@obj/short_vertex.obj"], "line 1: vertex needs 3 coordinates, got 2"),
+    (&["@obj/open_box.obj"], "not watertight"),
+    (&["@obj/misoriented.obj"], "orientation is inconsistent"),
+    (&["@obj/flat.obj"], "encloses no volume"),
+    (&["@obj/huge_coordinates.obj"], "coordinates are too large"),
+    // STL
+    (&["@stl/empty.stl"], "empty.stl: empty file"),
+    (&["@stl/short.stl"], "too short for a binary STL"),
+    (&["@stl/garbage.stl"], "garbage.stl"),
+    (&["@stl/truncated_binary.stl"], "truncated binary STL: the header declares 12 triangles"),
+    (&["@stl/trailing_binary.stl"], "trailing data"),
+    (&["@stl/huge_count_binary.stl"], "declares 4294967295 triangles"),
+    (&["@stl/nan_binary.stl"], "STL triangle 11 has a non-finite coordinate"),
+    (&["@stl/open_binary.stl"], "not watertight"),
+    (&["@stl/bad_ascii.stl"], "bad_ascii.stl"),
+    (&["@stl/no_triangles.stl"], "no triangles"),
+    // Shape specs and paths
+    (&["@does/not/exist.ply"], "exist.ply"),
+    (&["@ply"], "unknown shape"),
+    (&["box:-1,1,1"], "`-1` is not positive"),
+    (&["box:0,1,1"], "`0` is not positive"),
+    (&["box:1e300,1,1"], "`1e300` is out of range"),
+    (&["sphere:1e-300"], "`1e-300` is out of range"),
+    (&["box:inf,1,1"], "`inf` is not finite"),
+    (&["box:1,1"], "too few numbers"),
+    (&["cylinder:1,2"], "unknown shape"),
+];
+
+#[rustfmt::skip]
+const MODES_FLAGS: &[Case] = &[
+    (&["box:1,1,1", "--kernels", "1000000000000"], "more than 10000000 kernels"),
+    (&["box:1,1,1", "--kernels", "18446744073709551615", "--modes", "4"], "kernels"),
+    (&["box:1,1,1", "--kernels", "1e12"], "invalid value '1e12' for '--kernels"),
+    (&["box:1,1,1", "--kernels", "-5"], "--kernels"),
+    (&["box:1,1,1", "--kernels", "50", "--points", "1000000000000"], "more than 100000000 integration points"),
+    (&["box:1,1,1", "--kernels", "50", "--modes", "18446744073709551615"], "m must be smaller than K - 1"),
+    (&["box:1,1,1", "--kernels", "50", "--spacing", "1e-7"], "grid cells"),
+    (&["box:1,1,1", "--kernels", "50", "--spacing", "nan"], "spacing"),
+    (&["box:1,1,1", "--kernels", "50", "--support", "inf"], "support factor"),
+    (&["box:1,1,1", "--kernels", "50", "--support", "1e300"], "must be at most 50"),
+    (&["box:1,1,1", "--kernels", "50", "--support-neighbor", "0"], "support neighbor"),
+    (&["box:1,1,1", "--kernels", "50", "--support-neighbor", "1000"], "need more than 1000 kernels"),
+    (&["box:1,1,1", "--youngs", "nan"], "youngs"),
+    (&["box:1,1,1", "--youngs", "inf"], "youngs"),
+    (&["box:1,1,1", "--kernels", "50", "--points", "2000", "--youngs", "1e308"], "non-finite value"),
+    (&["box:1,1,1", "--density", "-1"], "density"),
+    (&["box:1,1,1", "--poisson", "nan"], "poisson"),
+    (&["box:1,1,1", "--tol", "nan"], "tol"),
+    (&["box:1,1,1", "--max-iter", "0"], "max_iter"),
+    (&["box:1,1,1", "--threads", "0"], "--threads must be at least 1"),
+    (&["box:1,1,1", "--threads", "1000000"], "more than 1024"),
+    (&["@ply/coincident_points.ply", "--voxel", "-1"], "voxel"),
+    (&["@ply/inf_binary.ply", "--volume", "0"], "non-finite"),
+    (&["--kernels", "50"], "required"),
+];
+
+#[rustfmt::skip]
+const RUN_SCENES: &[Case] = &[
+    (&["@scene/empty.toml"], "missing field `simulation`"),
+    (&["@scene/garbage.toml"], "garbage.toml"),
+    (&["@scene/not_toml.toml"], "line 1"),
+    (&["@scene/unknown_top_key.toml"], "unknown field `rendering`"),
+    (&["@scene/unknown_object_key.toml"], "unknown field `kernals`"),
+    (&["@scene/wrong_type_steps.toml"], "invalid type: string \"two\""),
+    (&["@scene/negative_steps.toml"], "steps"),
+    (&["@scene/negative_dt.toml"], "simulation.dt = -0.01 must be a positive number of seconds"),
+    (&["@scene/nan_dt.toml"], "simulation.dt = NaN"),
+    (&["@scene/inf_gravity.toml"], "gravity"),
+    (&["@scene/missing_simulation.toml"], "missing field `simulation`"),
+    (&["@scene/no_objects.toml"], "no [[object]]"),
+    (&["@scene/duplicate_names.toml"], "two objects are named 'bar'"),
+    (&["@scene/bad_name.toml"], "object name '../escape'"),
+    (&["@scene/negative_box.toml"], "`-1` is not positive"),
+    (&["@scene/huge_box.toml"], "`1e300` is out of range"),
+    (&["@scene/missing_mesh.toml"], "does_not_exist.obj"),
+    (&["@scene/huge_kernels.toml"], "more than 10000000 kernels"),
+    (&["@scene/huge_points.toml"], "more than 100000000 integration points"),
+    (&["@scene/huge_steps.toml"], "simulation.steps = 1000000000000 is more than 10000000"),
+    (&["@scene/negative_youngs.toml"], "youngs"),
+    (&["@scene/bad_poisson.toml"], "poisson"),
+    (&["@scene/zero_every.toml"], "output.every must be at least 1"),
+    (&["@scene/bad_format.toml"], "unknown variant `gif`"),
+    (&["@scene/bad_hessian.toml"], "unknown variant `magic`"),
+    (&["@scene/nan_placement.toml"], "invalid translation = [NaN, 0.0, 0.0]: must be finite"),
+    (&["@scene/nan_boundary_region.toml"], "boundary 0: invalid region"),
+    (&["@scene/zero_normal_boundary.toml"], "finite non-zero normal"),
+    (&["@scene/negative_stiffness.toml"], "stiffness (Pa/m^2) must be positive"),
+    (&["@scene/inverted_region_material.toml"], "a box needs min <= max"),
+    (&["@scene/huge_youngs.toml"], "non-finite value"),
+    (&["@scene/zero_normal_collider.toml"], "a plane needs a finite point and a non-zero normal"),
+    (&["@scene/does_not_exist.toml"], "does_not_exist.toml"),
+];
+
+#[rustfmt::skip]
+const EXPORT: &[Case] = &[
+    (&["@ply/truncated_binary.ply"], "truncated_binary.ply"),
+    (&["@obj/open_box.obj"], "not watertight"),
+    (&["@stl/nan_binary.stl"], "non-finite"),
+    (&["box:-1,1,1"], "not positive"),
+    (&["box:1,1,1", "--kernels", "1000000000000"], "more than 10000000 kernels"),
+    (&["box:1,1,1", "--kernels", "50", "--points", "1000000000000"], "integration points"),
+];
+
+#[rustfmt::skip]
+const FROM_MATRICES: &[Case] = &[
+    (&["@mtx/missing_mass"], "mass.mtx"),
+    (&["@mtx/does_not_exist"], "hessian.mtx"),
+    (&["@mtx/empty"], "empty file"),
+    (&["@mtx/garbage"], "not a text file"),
+    (&["@mtx/array"], "'array' format is not supported"),
+    (&["@mtx/complex"], "field 'complex' is not supported"),
+    (&["@mtx/not_square"], "must be square"),
+    (&["@mtx/nan_value"], "value 'nan' is not a finite number"),
+    (&["@mtx/index_out_of_range"], "index '7' outside 1..=6"),
+    (&["@mtx/too_few_entries"], "5 entries read, 6 announced"),
+    (&["@mtx/huge_size"], "some rows are empty"),
+    (&["@mtx/huge_entry_count"], "3 entries read, 1000000000000000 announced"),
+    (&["@mtx/size_mismatch"], "H is 6 x 6 and M is 7 x 7"),
+    (&["@mtx/indefinite_mass"], "positive definite"),
+];
+
+/// A private copy of the corpus (runs may write caches next to scene files).
+fn corpus() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().expect("temp dir");
+    copy_dir(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bad"),
+        dir.path(),
+    );
+    dir
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap() {
+        let entry = entry.unwrap();
+        let target = to.join(entry.file_name());
+        if entry.file_type().unwrap().is_dir() {
+            copy_dir(&entry.path(), &target);
+        } else {
+            std::fs::copy(entry.path(), &target).unwrap();
+        }
+    }
+}
+
+/// Run `freeform` with a deadline; returns (exit code, stderr). A hang fails the test.
+fn freeform(args: &[String]) -> (Option<i32>, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_freeform"))
+        .args(args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run freeform");
+    let mut stderr = child.stderr.take().expect("stderr");
+    let reader = std::thread::spawn(move || {
+        let mut s = String::new();
+        std::io::Read::read_to_string(&mut stderr, &mut s).ok();
+        s
+    });
+    let start = Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("wait") {
+            break status;
+        }
+        if start.elapsed() > DEADLINE {
+            child.kill().ok();
+            child.wait().ok();
+            panic!("{args:?} still running after {DEADLINE:?}");
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    (status.code(), reader.join().expect("stderr reader"))
+}
+
+/// `@rel` becomes a path in the corpus copy.
+fn expand(arg: &str, root: &Path) -> String {
+    match arg.strip_prefix('@') {
+        Some(rel) => root.join(rel).display().to_string(),
+        None => arg.to_string(),
+    }
+}
+
+/// Run one case with `--out out`; `Err` says which of the four promises it broke.
+fn run_case(
+    prefix: &[&str],
+    args: &[&str],
+    needle: &str,
+    root: &Path,
+    out: &Path,
+) -> Result<(), String> {
+    let mut full: Vec<String> = prefix.iter().map(|s| s.to_string()).collect();
+    full.extend(args.iter().map(|a| expand(a, root)));
+    full.extend(["--out".to_string(), out.display().to_string()]);
+    let (code, err) = freeform(&full);
+    if code.is_none_or(|c| c == 0) {
+        return Err(format!("{full:?} should fail, exit {code:?}: {err}"));
+    }
+    if err.contains("panicked") {
+        return Err(format!("{full:?} panicked: {err}"));
+    }
+    if !err.to_lowercase().contains(&needle.to_lowercase()) {
+        return Err(format!("{full:?}: expected `{needle}` in: {err}"));
+    }
+    if out.exists() {
+        return Err(format!("{full:?} left {} behind", out.display()));
+    }
+    Ok(())
+}
+
+/// Run a table: `extra` flag pairs are added unless the case sets them itself; every case
+/// gets a fresh `--out` name in the corpus copy. Reports every failing case at once.
+fn run_table(prefix: &[&str], extra: &[&str], table: &[Case], out_name: &str) {
+    let dir = corpus();
+    let mut failures = Vec::new();
+    for (i, (args, needle)) in table.iter().enumerate() {
+        let mut all: Vec<&str> = args.to_vec();
+        for pair in extra.chunks(2) {
+            if !args.contains(&pair[0]) {
+                all.extend_from_slice(pair);
+            }
+        }
+        let out = dir.path().join(format!("{i}-{out_name}"));
+        if let Err(e) = run_case(prefix, &all, needle, dir.path(), &out) {
+            failures.push(e);
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{} of {} cases failed:\n{}",
+        failures.len(),
+        table.len(),
+        failures.join("\n\n")
+    );
+}
+
+#[test]
+fn modes_rejects_every_bad_shape_file() {
+    run_table(&["modes"], SMALL, MODES_FILES, "basis.npz");
+}
+
+#[test]
+fn modes_rejects_bad_and_huge_flags() {
+    run_table(&["modes"], &[], MODES_FLAGS, "basis.npz");
+}
+
+#[test]
+fn run_rejects_every_bad_scene() {
+    run_table(&["run", "--no-cache"], &[], RUN_SCENES, "frames");
+}
+
+#[test]
+fn export_rejects_bad_shapes() {
+    run_table(&["export"], SMALL, EXPORT, "matrices");
+}
+
+#[test]
+fn from_matrices_rejects_bad_matrix_files() {
+    run_table(
+        &["modes", "--modes", "1", "--from-matrices"],
+        &[],
+        FROM_MATRICES,
+        "eigenvectors.mtx",
+    );
+}
+
+/// The library gives the same typed errors as the CLI: every file case of `modes` through
+/// [`Shape::parse`], every scene case through [`Scene::load`] + [`freeform::scene::run`].
+#[test]
+fn library_api_gives_the_same_errors() {
+    let dir = corpus();
+    let root = dir.path();
+    let mut failures = Vec::new();
+    for (args, needle) in MODES_FILES {
+        let spec = expand(args[0], root);
+        let err = match Shape::parse(&spec, &ShapeOptions::default()) {
+            Ok(shape) => {
+                // Point clouds fail later, when their volumes are estimated.
+                let opts = BasisOptions {
+                    kernels: 50,
+                    modes: 4,
+                    ..BasisOptions::default()
+                };
+                match freeform::pipeline::prepare(&shape, &opts, &freeform::progress::Silent) {
+                    Ok(_) => "accepted".to_string(),
+                    Err(e) => e.to_string(),
+                }
+            }
+            Err(e) => e.to_string(),
+        };
+        if !err.to_lowercase().contains(&needle.to_lowercase()) {
+            failures.push(format!("{spec}: expected `{needle}` in: {err}"));
+        }
+    }
+    for (args, needle) in RUN_SCENES {
+        let path = PathBuf::from(expand(args[0], root));
+        let out = root.join("frames");
+        let err = match Scene::load(&path) {
+            Ok(scene) => {
+                let settings = RunSettings {
+                    base_dir: root.join("scene"),
+                    out: Some(out.clone()),
+                    strict: false,
+                };
+                let mut scene = scene;
+                scene.cache.enabled = false;
+                match freeform::scene::run(&scene, &settings, &freeform::progress::Silent) {
+                    Ok(_) => "accepted".to_string(),
+                    Err(e) => e.to_string(),
+                }
+            }
+            Err(e) => e.to_string(),
+        };
+        if !err.to_lowercase().contains(&needle.to_lowercase()) {
+            failures.push(format!("{}: expected `{needle}` in: {err}", path.display()));
+        }
+        if out.exists() {
+            failures.push(format!("{}: frames written", path.display()));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n\n"));
+}
+
+/// In-memory entry points reject bad arrays with typed errors.
+#[test]
+fn library_constructors_reject_bad_arrays() {
+    let opts = ShapeOptions::default();
+    let (v, t) = freeform::geometry::generate::box_mesh([1.0, 1.0, 1.0]);
+    let mut bad_t = t.clone();
+    bad_t[3] = [0, 1, 8];
+    assert!(matches!(
+        TriMesh::new(v.clone(), bad_t, &opts),
+        Err(GeometryError::Degenerate(m)) if m.contains("refers to vertex 8")
+    ));
+    let mut nan_v = v.clone();
+    nan_v[2][1] = f64::NAN;
+    assert!(matches!(
+        TriMesh::new(nan_v, t.clone(), &opts),
+        Err(GeometryError::Degenerate(m)) if m.contains("non-finite")
+    ));
+    let huge: Vec<_> = v.iter().map(|p| p.map(|c| c * 1e200)).collect();
+    assert!(matches!(
+        TriMesh::new(huge, t.clone(), &opts),
+        Err(GeometryError::Degenerate(m)) if m.contains("too large")
+    ));
+    assert!(matches!(
+        TriMesh::new(v.clone(), t[..11].to_vec(), &opts),
+        Err(GeometryError::NotWatertight {
+            boundary_edges: 3,
+            ..
+        })
+    ));
+    assert!(PointCloud::new(Vec::new()).is_err());
+    assert!(PointCloud::new(vec![[0.0, f64::INFINITY, 0.0]]).is_err());
+    for (opts, needle) in [
+        (
+            BasisOptions {
+                kernels: usize::MAX,
+                ..BasisOptions::default()
+            },
+            "kernels",
+        ),
+        (
+            BasisOptions {
+                modes: usize::MAX,
+                ..BasisOptions::default()
+            },
+            "modes",
+        ),
+        (
+            BasisOptions {
+                resolution: Some(freeform::sampling::Resolution::Count(usize::MAX)),
+                ..BasisOptions::default()
+            },
+            "points",
+        ),
+    ] {
+        let err = opts.validate().expect_err(needle).to_string();
+        assert!(err.contains(needle), "{err}");
+    }
+    assert_eq!(freeform::pipeline::default_points(usize::MAX), 2_000_000);
+    let text = "%%MatrixMarket matrix coordinate real general\n\
+                18446744073709551615 18446744073709551615 18446744073709551615\n1 1 1\n";
+    let err = read_matrix_market_from(Path::new("m.mtx"), text.as_bytes()).unwrap_err();
+    assert!(err.to_string().contains("announced"), "{err}");
+}
+
+/// Every file under `fuzz/corpus/<target>/` (seeds and minimized findings).
+fn fuzz_inputs(target: &str) -> Vec<(PathBuf, Vec<u8>)> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("fuzz/corpus")
+        .join(target);
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.is_file())
+        .collect();
+    files.sort();
+    assert!(!files.is_empty(), "no fuzz corpus in {}", dir.display());
+    files
+        .into_iter()
+        .map(|p| {
+            let bytes = std::fs::read(&p).unwrap();
+            (p, bytes)
+        })
+        .collect()
+}
+
+/// The fuzz targets' bodies, on stable: parse, never panic (a panic fails this test).
+#[test]
+fn fuzz_corpus_and_findings_replay_without_panics() {
+    for allow_open_mesh in [false, true] {
+        let opts = ShapeOptions { allow_open_mesh };
+        for (path, bytes) in fuzz_inputs("ply") {
+            let _ = ply::parse_ply_bytes(&path, &bytes, &opts);
+        }
+        for (path, bytes) in fuzz_inputs("obj") {
+            let _ = obj::parse_obj_bytes(&path, &bytes, &opts);
+        }
+        for (path, bytes) in fuzz_inputs("stl") {
+            let _ = stl::parse_stl_bytes(&path, &bytes, &opts);
+        }
+    }
+    for (path, bytes) in fuzz_inputs("scene") {
+        let Ok(text) = std::str::from_utf8(&bytes) else {
+            continue;
+        };
+        if let Ok(scene) = Scene::from_toml(text) {
+            let again = scene.to_toml().unwrap();
+            if let Err(e) = Scene::from_toml(&again) {
+                panic!("{}: round trip failed: {e}\n{again}", path.display());
+            }
+        }
+    }
+    for (path, bytes) in fuzz_inputs("matrix_market") {
+        let _ = read_matrix_market_from(&path, bytes.as_slice());
+    }
+    for (path, bytes) in fuzz_inputs("basis") {
+        let _ = freeform::io::basis::load_from(&path, std::io::Cursor::new(bytes));
+    }
+}
+
+/// The parse-from-memory functions agree with the file readers on the corpus.
+#[test]
+fn byte_parsers_match_file_readers() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data");
+    let opts = ShapeOptions::default();
+    for name in [
+        "tetra_ascii.ply",
+        "points_ascii.ply",
+        "splats_3dgs_tiny.ply",
+    ] {
+        let path = root.join(name);
+        let bytes = std::fs::read(&path).unwrap();
+        let a = ply::read_ply(&path, &opts).unwrap();
+        let b = ply::parse_ply_bytes(&path, &bytes, &opts).unwrap();
+        assert_eq!(a.render_points(), b.render_points(), "{name}");
+    }
+    let path = root.join("cube_quads.obj");
+    let a = obj::read_obj(&path, &opts).unwrap();
+    let b = obj::parse_obj_bytes(&path, &std::fs::read(&path).unwrap(), &opts).unwrap();
+    assert_eq!(a.vertices(), b.vertices());
+    assert_eq!(a.triangles(), b.triangles());
+}
+
+/// A damaged basis file (the scene cache, `modes --out`) gives `Error::BasisFile` or
+/// `Error::Io`, never a panic: garbage, every truncation, and byte flips all through the file.
+#[test]
+fn damaged_basis_files_are_rejected() {
+    use freeform::rkpm::{KernelType, Kernels};
+    use freeform::skinning::Basis;
+    let dir = tempfile::tempdir().unwrap();
+    let good = dir.path().join("good.npz");
+    let basis = Basis {
+        kernels: Kernels {
+            centers: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+            ],
+            radii: vec![1.5; 4],
+            kind: KernelType::Cubic,
+        },
+        coefficients: faer::Mat::from_fn(4, 2, |i, j| (i + 3 * j) as f64),
+        eigenvalues: vec![0.0, 2.5],
+    };
+    freeform::io::basis::save(&good, &basis, &serde_json::json!({"test": true})).unwrap();
+    let bytes = std::fs::read(&good).unwrap();
+    assert!(freeform::io::basis::load(&good).is_ok());
+    let bad = dir.path().join("bad.npz");
+    let check = |data: &[u8], what: &str| {
+        std::fs::write(&bad, data).unwrap();
+        if let Err(e) = freeform::io::basis::load(&bad) {
+            let msg = e.to_string();
+            assert!(msg.contains("bad.npz"), "{what}: {msg}");
+        }
+    };
+    check(b"", "empty");
+    check(&[0x50, 0x4b, 0x03, 0x04, 0xff, 0xff], "zip magic only");
+    for len in (0..bytes.len()).step_by(3) {
+        check(&bytes[..len], &format!("truncated to {len}"));
+    }
+    for i in 0..bytes.len() {
+        let mut flipped = bytes.clone();
+        flipped[i] ^= 0x5a;
+        check(&flipped, &format!("byte {i} flipped"));
+    }
+}

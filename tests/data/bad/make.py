@@ -1,0 +1,192 @@
+#!/usr/bin/env python3
+"""Writes the bad-input corpus that tests/bad_inputs.rs drives through the CLI and the library.
+
+Run from this directory: `python3 make.py`. Every file is small and deterministic; the
+expected error of each one is in the table at the top of tests/bad_inputs.rs.
+"""
+import os
+import random
+import struct
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def write(name, data):
+    path = os.path.join(HERE, name)
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    mode = "wb" if isinstance(data, bytes) else "w"
+    with open(path, mode) as f:
+        f.write(data)
+
+
+# A unit cube: 8 vertices, 12 outward triangles (0-based).
+CUBE_V = [(x, y, z) for z in (0, 1) for y in (0, 1) for x in (0, 1)]
+CUBE_F = [(0, 2, 3), (0, 3, 1), (4, 5, 7), (4, 7, 6), (0, 1, 5), (0, 5, 4),
+          (2, 6, 7), (2, 7, 3), (0, 4, 6), (0, 6, 2), (1, 3, 7), (1, 7, 5)]
+
+
+def ply_ascii(vertices, faces, nv=None, nf=None, extra_header=""):
+    nv = len(vertices) if nv is None else nv
+    nf = len(faces) if nf is None else nf
+    head = ("ply\nformat ascii 1.0\nelement vertex %d\nproperty float x\nproperty float y\n"
+            "property float z\n%selement face %d\nproperty list uchar int vertex_indices\n"
+            "end_header\n" % (nv, extra_header, nf))
+    body = "".join("%s %s %s\n" % v for v in vertices)
+    body += "".join("%d %s\n" % (len(f), " ".join(str(i) for i in f)) for f in faces)
+    return head + body
+
+
+def ply_binary_points(points, declared=None):
+    n = len(points) if declared is None else declared
+    head = ("ply\nformat binary_little_endian 1.0\nelement vertex %d\nproperty float x\n"
+            "property float y\nproperty float z\nend_header\n" % n).encode()
+    return head + b"".join(struct.pack("<3f", *p) for p in points)
+
+
+def obj(vertices, faces):
+    return ("".join("v %s %s %s\n" % v for v in vertices)
+            + "".join("f %s\n" % " ".join(str(i + 1) for i in f) for f in faces))
+
+
+def stl_binary(tris, declared=None):
+    n = len(tris) if declared is None else declared
+    out = b"freeform bad-input corpus".ljust(80, b" ") + struct.pack("<I", n)
+    for t in tris:
+        out += struct.pack("<3f", 0, 0, 0)
+        for v in t:
+            out += struct.pack("<3f", *v)
+        out += b"\0\0"
+    return out
+
+
+rng = random.Random(6)
+garbage = bytes(rng.randrange(256) for _ in range(512))
+
+# --- PLY -------------------------------------------------------------------------------
+write("ply/empty.ply", b"")
+write("ply/garbage.ply", garbage)
+write("ply/header_only.ply", "ply\n")
+write("ply/no_end_header.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n")
+write("ply/truncated_ascii.ply", ply_ascii(CUBE_V[:3], [], nv=8, nf=0))
+write("ply/truncated_binary.ply",
+      ply_binary_points([(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)], declared=8)[:-5])
+write("ply/nan_ascii.ply", ply_ascii([(0, 0, 0), ("nan", 1, 1), (1, 1, 1)], [], nf=0))
+write("ply/inf_binary.ply", ply_binary_points([(0, 0, 0), (1, float("inf"), 0), (1, 1, 1)]))
+write("ply/missing_z.ply",
+      "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+      "end_header\n0 0\n1 1\n")
+write("ply/face_out_of_range.ply", ply_ascii(CUBE_V, CUBE_F[:-1] + [(1, 7, 99)]))
+write("ply/face_negative_index.ply", ply_ascii(CUBE_V, CUBE_F[:-1] + [(1, -7, 5)]))
+write("ply/face_two_vertices.ply", ply_ascii(CUBE_V, CUBE_F[:-1] + [(1, 7)]))
+write("ply/too_few_faces.ply", ply_ascii(CUBE_V, CUBE_F, nf=20))
+write("ply/too_many_vertices_declared.ply", ply_ascii(CUBE_V, CUBE_F, nv=9))
+write("ply/huge_vertex_count.ply", ply_ascii(CUBE_V, [], nv=10**15, nf=0))
+write("ply/open_mesh.ply", ply_ascii(CUBE_V, CUBE_F[:-2]))
+write("ply/flat_mesh.ply",
+      ply_ascii([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [(0, 1, 2), (0, 2, 1)]))
+write("ply/huge_coordinates.ply",
+      ply_ascii([tuple(1e300 * c for c in v) for v in CUBE_V], CUBE_F).replace("float", "double"))
+write("ply/no_vertices.ply", ply_ascii([], [], nf=0))
+write("ply/coincident_points.ply", ply_ascii([(1, 2, 3)] * 5, [], nf=0))
+for name, scale in [("huge", 1e300), ("tiny", 1e-200)]:
+    cloud = [tuple(repr(scale * rng.random()) for _ in range(3)) for _ in range(60)]
+    write("ply/%s_point_cloud.ply" % name, ply_ascii(cloud, [], nf=0).replace("float", "double"))
+
+# --- OBJ -------------------------------------------------------------------------------
+write("obj/empty.obj", b"")
+write("obj/binary.obj", garbage)
+write("obj/words.obj", "this is not an obj file\njust words\n")
+write("obj/no_faces.obj", obj(CUBE_V, []))
+write("obj/face_out_of_range.obj", obj(CUBE_V, CUBE_F[:-1] + [(1, 7, 8)]))
+write("obj/nan_vertex.obj", obj(CUBE_V[:-1] + [("nan", 1, 1)], CUBE_F))
+write("obj/short_vertex.obj", "v 0 0\n" + obj(CUBE_V, CUBE_F))
+write("obj/open_box.obj", obj(CUBE_V, CUBE_F[:-2]))
+write("obj/misoriented.obj", obj(CUBE_V, CUBE_F[:-1] + [(1, 5, 7)]))
+write("obj/flat.obj", obj([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [(0, 1, 2), (0, 2, 1)]))
+write("obj/huge_coordinates.obj", obj([tuple(1e300 * c for c in v) for v in CUBE_V], CUBE_F))
+
+# --- STL -------------------------------------------------------------------------------
+cube_tris = [tuple(CUBE_V[i] for i in f) for f in CUBE_F]
+write("stl/empty.stl", b"")
+write("stl/short.stl", b"\x01\x02\x03\x04\x05")
+write("stl/garbage.stl", garbage)
+write("stl/truncated_binary.stl", stl_binary(cube_tris)[:-70])
+write("stl/trailing_binary.stl", stl_binary(cube_tris) + b"\0" * 7)
+write("stl/huge_count_binary.stl", stl_binary(cube_tris[:1], declared=0xFFFFFFFF))
+write("stl/nan_binary.stl",
+      stl_binary(cube_tris[:-1] + [((1, 0, 0), (float("nan"), 1, 1), (1, 0, 1))]))
+write("stl/open_binary.stl", stl_binary(cube_tris[:-1]))
+write("stl/bad_ascii.stl",
+      "solid bad\n facet normal 0 0 1\n  outer loop\n   vertex 0 0\n   vertex 1 0 0\n"
+      "   vertex 0 1 0\n  endloop\n endfacet\nendsolid bad\n")
+write("stl/no_triangles.stl", "solid nothing\nendsolid nothing\n")
+
+# --- Scenes ----------------------------------------------------------------------------
+GOOD = ('[simulation]\ndt = 0.01\nsteps = 2\n[[object]]\nname = "bar"\n'
+        'shape = "box:1,0.2,0.2"\nbasis = { kernels = 40, modes = 4, points = 2000 }\n')
+write("scene/empty.toml", "")
+write("scene/garbage.toml", garbage)
+write("scene/not_toml.toml", "this is = = not toml [[\n")
+write("scene/unknown_top_key.toml", GOOD + "[rendering]\nfancy = true\n")
+write("scene/unknown_object_key.toml", GOOD.replace('name = "bar"', 'name = "bar"\nkernals = 50'))
+write("scene/wrong_type_steps.toml", GOOD.replace("steps = 2", 'steps = "two"'))
+write("scene/negative_steps.toml", GOOD.replace("steps = 2", "steps = -2"))
+write("scene/negative_dt.toml", GOOD.replace("dt = 0.01", "dt = -0.01"))
+write("scene/nan_dt.toml", GOOD.replace("dt = 0.01", "dt = nan"))
+write("scene/inf_gravity.toml", GOOD.replace("steps = 2", "steps = 2\ngravity = [0.0, -inf, 0.0]"))
+write("scene/missing_simulation.toml", GOOD.split("\n", 3)[3])
+write("scene/no_objects.toml", "[simulation]\ndt = 0.01\nsteps = 2\n")
+write("scene/duplicate_names.toml", GOOD + GOOD.split("\n", 3)[3])
+write("scene/bad_name.toml", GOOD.replace('name = "bar"', 'name = "../escape"'))
+write("scene/negative_box.toml", GOOD.replace("box:1,0.2,0.2", "box:-1,1,1"))
+write("scene/huge_box.toml", GOOD.replace("box:1,0.2,0.2", "box:1e300,1,1"))
+write("scene/missing_mesh.toml", GOOD.replace("box:1,0.2,0.2", "does_not_exist.obj"))
+write("scene/huge_kernels.toml", GOOD.replace("kernels = 40", "kernels = 1000000000000"))
+write("scene/huge_points.toml", GOOD.replace("points = 2000", "points = 1000000000000"))
+write("scene/huge_steps.toml", GOOD.replace("steps = 2", "steps = 1000000000000"))
+write("scene/negative_youngs.toml", GOOD + "material = { youngs = -5e6 }\n")
+write("scene/bad_poisson.toml", GOOD + "material = { poisson = 0.5 }\n")
+write("scene/zero_every.toml", GOOD + "[output]\nevery = 0\n")
+write("scene/bad_format.toml", GOOD + '[output]\nformats = ["gif"]\n')
+write("scene/bad_hessian.toml", GOOD + '[solver]\nhessian = "magic"\n')
+write("scene/nan_placement.toml", GOOD + "placement = { translation = [nan, 0.0, 0.0] }\n")
+write("scene/nan_boundary_region.toml", GOOD + "[[object.boundary]]\n"
+      "region = { sphere = { center = [nan, 0.0, 0.0], radius = 1.0 } }\n")
+write("scene/zero_normal_boundary.toml", GOOD + "[[object.boundary]]\n"
+      "region = { half_space = { point = [0.1, 0.0, 0.0], normal = [0.0, 0.0, 0.0] } }\n")
+write("scene/negative_stiffness.toml", GOOD + "[[object.boundary]]\n"
+      "region = { half_space = { point = [0.1, 0.0, 0.0], normal = [-1.0, 0.0, 0.0] } }\n"
+      "stiffness = -5.0\n")
+write("scene/inverted_region_material.toml", GOOD + "[[object.region_material]]\n"
+      "region = { box = { min = [0.5, 0.0, 0.0], max = [0.0, 1.0, 1.0] } }\n"
+      "material = { youngs = 1e7 }\n")
+write("scene/huge_youngs.toml", GOOD + "material = { youngs = 1e308 }\n")
+write("scene/zero_normal_collider.toml", GOOD + "[[collider]]\n"
+      "shape = { plane = { point = [0.0, -1.0, 0.0], normal = [0.0, 0.0, 0.0] } }\n")
+
+# --- MatrixMarket pairs (`freeform modes --from-matrices DIR`) -------------------------
+# A 6 x 6 diagonal SPD matrix: big enough for `--modes 1` (nev = 2 <= K - 2).
+SPD = ("%%MatrixMarket matrix coordinate real symmetric\n6 6 6\n"
+       + "".join("%d %d 2\n" % (i, i) for i in range(1, 7)))
+def pair(name, hessian, mass=SPD):
+    if hessian is not None:
+        write("mtx/%s/hessian.mtx" % name, hessian)
+    if mass is not None:
+        write("mtx/%s/mass.mtx" % name, mass)
+
+pair("missing_mass", SPD, None)
+pair("empty", "")
+pair("garbage", garbage)
+pair("array", "%%MatrixMarket matrix array real general\n3 3\n1\n0\n0\n0\n1\n0\n0\n0\n1\n")
+pair("complex", "%%MatrixMarket matrix coordinate complex general\n3 3 1\n1 1 1 0\n")
+pair("not_square", "%%MatrixMarket matrix coordinate real general\n3 4 1\n1 1 1\n")
+pair("nan_value", SPD.replace("2 2 2\n", "2 2 nan\n"))
+pair("index_out_of_range", SPD.replace("6 6 2\n", "7 6 2\n"))
+pair("too_few_entries", SPD.replace("6 6 2\n", ""))
+pair("huge_size", "%%MatrixMarket matrix coordinate real symmetric\n"
+     "1000000000000 1000000000000 1\n1 1 1\n")
+pair("huge_entry_count", "%%MatrixMarket matrix coordinate real symmetric\n"
+     "3 3 1000000000000000\n1 1 2\n2 2 2\n3 3 2\n")
+pair("size_mismatch", SPD, "%%MatrixMarket matrix coordinate real symmetric\n7 7 7\n"
+     + "".join("%d %d 2\n" % (i, i) for i in range(1, 8)))
+pair("indefinite_mass", SPD, SPD.replace("1 1 2\n", "1 1 -2\n"))
