@@ -267,7 +267,10 @@ fn beam_reports_every_key_and_caches_the_fem_reference() {
     // The monitors count every reduced step and carry the basis conditioning.
     let m = &r["monitors"];
     assert_eq!(m["steps"], r["frames"], "{m}");
-    assert_eq!(m["newton_nonconverged_steps"], r["reduced_nonconverged_steps"]);
+    assert_eq!(
+        m["newton_nonconverged_steps"],
+        r["reduced_nonconverged_steps"]
+    );
     assert!(m["min_moment_rcond"].as_f64().unwrap() > 0.0, "{m}");
     assert!(r["warnings"].is_array());
     // 5 x 1 x 1 cubes, 6 tets each, 2 x 2 x 6 nodes.

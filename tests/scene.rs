@@ -166,7 +166,11 @@ fn only_declared_terms_are_built_and_an_unloaded_object_stays_put() {
     assert_eq!(o.terms, vec!["inertia", "elastic"]);
     // Every step takes its one mandatory iteration, which finds nothing to change.
     assert!(o.steps.iter().all(|r| r.converged && r.iterations == 1));
-    assert!(o.steps.iter().all(|r| r.energy.abs() < 1e-12), "{:?}", o.steps);
+    assert!(
+        o.steps.iter().all(|r| r.energy.abs() < 1e-12),
+        "{:?}",
+        o.steps
+    );
     assert_eq!(s.files.len(), 0);
     // Declared terms do appear.
     let scene = SceneBuilder::new(0.01, 2)
