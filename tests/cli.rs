@@ -1,15 +1,9 @@
 //! The `freeform` binary: the JSON report, and bad input giving a clear message, a non-zero
 //! exit code, no panic and no output file.
 
+mod common;
+use common::freeform;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn freeform(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_freeform"))
-        .args(args)
-        .output()
-        .expect("run freeform")
-}
 
 #[test]
 fn modes_json_report_has_every_key() {

@@ -9,7 +9,7 @@
 #![allow(clippy::needless_range_loop)] // index loops mirror the formulas
 
 mod common;
-use common::Rng;
+use common::{held_left, Rng};
 use freeform::assembly::assemble;
 use freeform::eigen::compare::{max_eigenvalue_rel_diff, max_subspace_angle};
 use freeform::geometry::{Shape, ShapeOptions};
@@ -521,17 +521,6 @@ fn bar_basis(mat: Material, modes: usize) -> BasisRun {
         &opts(60, modes, 3000, mat, SolverChoice::Dense),
     )
     .unwrap()
-}
-
-fn held_left() -> Boundary {
-    Boundary {
-        region: Region::HalfSpace {
-            point: [0.1, 0.0, 0.0],
-            normal: [-1.0, 0.0, 0.0],
-        },
-        motion: Motion::Fixed,
-        stiffness: None,
-    }
 }
 
 /// Every step: finite state, energy never above the predictor's, no accepted iteration that

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::Rng;
+use common::{held_left, Rng};
 use freeform::geometry::{Shape, ShapeOptions};
 use freeform::material::{Material, Region};
 use freeform::pipeline::{build_basis, BasisOptions, BasisRun, SolverChoice};
@@ -36,17 +36,6 @@ fn bar(kernels: usize, modes: usize, points: usize) -> BasisRun {
 
 fn sim(run: &BasisRun, opts: &SimOptions) -> ReducedSim {
     ReducedSim::new(&run.basis, &run.points, &run.material, opts).unwrap()
-}
-
-fn held_left() -> Boundary {
-    Boundary {
-        region: Region::HalfSpace {
-            point: [0.1, 0.0, 0.0],
-            normal: [-1.0, 0.0, 0.0],
-        },
-        motion: Motion::Fixed,
-        stiffness: None,
-    }
 }
 
 /// The right end (x >= 0.9) turned about the bar's axis at `degrees_per_second`.

@@ -1,15 +1,9 @@
 //! `--strict` and the monitors: warnings become errors (exit code 1, no output passed off as
 //! complete), and every report carries the same `monitors` keys.
 
+mod common;
+use common::freeform;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn freeform(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_freeform"))
-        .args(args)
-        .output()
-        .expect("run freeform")
-}
 
 fn text(b: &[u8]) -> String {
     String::from_utf8_lossy(b).into_owned()

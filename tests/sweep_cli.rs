@@ -2,15 +2,10 @@
 //! input giving a clear error (non-zero exit, no panic, no outputs). Tiny settings: a linear
 //! FEM reference at 1 cube per metre and 20 frames.
 
+mod common;
+use common::freeform;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn freeform(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_freeform"))
-        .args(args)
-        .output()
-        .expect("run freeform")
-}
+use std::process::Output;
 
 const PNG_MAGIC: [u8; 8] = [0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1a, b'\n'];
 

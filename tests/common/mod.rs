@@ -39,3 +39,23 @@ impl Rng {
         ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
     }
 }
+
+/// Run the `freeform` binary with `args` and collect its output.
+pub fn freeform(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_freeform"))
+        .args(args)
+        .output()
+        .expect("run freeform")
+}
+
+/// The bar of tests/sim.rs and tests/extremes.rs held at its left end (x <= 0.1 m).
+pub fn held_left() -> freeform::sim::Boundary {
+    freeform::sim::Boundary {
+        region: freeform::material::Region::HalfSpace {
+            point: [0.1, 0.0, 0.0],
+            normal: [-1.0, 0.0, 0.0],
+        },
+        motion: freeform::sim::motion::Motion::Fixed,
+        stiffness: None,
+    }
+}
