@@ -107,9 +107,9 @@ pub fn default_points(kernels: usize) -> usize {
     kernels.saturating_mul(50).clamp(20_000, 2_000_000)
 }
 
-/// Most kernels [`BasisOptions::validate`] accepts: 10 million. K = 100,000 already needs tens
-/// of GB for H_w and M; a larger request is a typo (or a unit mistake) and is rejected before
-/// anything is allocated.
+/// Most kernels [`BasisOptions::validate`] accepts: 10 million. K = 100,000 peaks at 4.75 GB
+/// (docs/performance.md), so 10 million would need ~500 GB; a larger request is a typo (or a
+/// unit mistake) and is rejected before anything is allocated.
 pub const MAX_KERNELS: usize = 10_000_000;
 
 /// Most integration points [`BasisOptions::validate`] accepts: 100 million (each point holds
