@@ -391,6 +391,27 @@ pub fn write_matrices(
 ) -> Result<Vec<PathBuf>, MatrixFileError> {
     std::fs::create_dir_all(dir).map_err(io_err(dir))?;
     let mut out = Vec::new();
+    match write_all(dir, hessian, mass, petsc_binary, &mut out) {
+        Ok(()) => Ok(out),
+        Err(e) => {
+            // All or nothing: a half-written set would pass for a complete export (each file
+            // is itself written atomically, so only whole files need removing).
+            for p in &out {
+                let _ = std::fs::remove_file(p);
+            }
+            Err(e)
+        }
+    }
+}
+
+/// The files of [`write_matrices`], each pushed to `out` once written.
+fn write_all(
+    dir: &Path,
+    hessian: &SparseMatrix,
+    mass: &SparseMatrix,
+    petsc_binary: bool,
+    out: &mut Vec<PathBuf>,
+) -> Result<(), MatrixFileError> {
     let h = dir.join(HESSIAN_MTX);
     write_matrix_market(
         &h,
@@ -412,7 +433,7 @@ pub fn write_matrices(
             out.push(p);
         }
     }
-    Ok(out)
+    Ok(())
 }
 
 /// Read `hessian.mtx` and `mass.mtx` from `dir` (as written by [`write_matrices`]).
@@ -453,6 +474,19 @@ mod tests {
         let nnz = h.symbolic().row_idx().len();
         assert_eq!(bytes.len(), 16 + 4 * h.nrows() + 4 * nnz + 8 * nnz);
         assert_eq!(bytes[..4], PETSC_MAT_FILE_CLASSID.to_be_bytes());
+    }
+
+    #[test]
+    fn a_failed_export_leaves_no_files() {
+        let (h, m) = q1_fem([2, 2, 2], 1.0);
+        let dir = tempfile::tempdir().unwrap();
+        // A directory where the last file goes: the two .mtx and the first .petsc are
+        // written, then the rename onto the directory fails.
+        std::fs::create_dir(dir.path().join(MASS_PETSC)).unwrap();
+        assert!(write_matrices(dir.path(), &h, &m, true).is_err());
+        for name in [HESSIAN_MTX, MASS_MTX, HESSIAN_PETSC] {
+            assert!(!dir.path().join(name).exists(), "{name} left behind");
+        }
     }
 
     #[test]
