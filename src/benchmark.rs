@@ -273,13 +273,11 @@ pub fn simulate_beam(
     progress.begin("reduced steps", Some(steps as u64));
     let mut frames: Vec<Vec<Point3>> = Vec::with_capacity(steps);
     let mut step_s = 0.0;
-    let mut nonconverged = 0;
     let mut monitors = run.report.monitors.clone();
     let mut warnings = run.report.warnings.clone();
     for k in 0..steps {
         let r = sim.step();
         step_s += r.wall_s;
-        nonconverged += usize::from(!r.solve.converged);
         monitors.add_step(&r.solve);
         if !r.solve.converged {
             warnings.push(format!(
@@ -317,7 +315,7 @@ pub fn simulate_beam(
         precompute_s,
         basis_s: basis.seconds,
         reduced_step_ms_mean: 1e3 * step_s / steps.max(1) as f64,
-        reduced_nonconverged_steps: nonconverged,
+        reduced_nonconverged_steps: monitors.newton_nonconverged_steps.unwrap_or(0),
         fem_step_ms_mean: reference.step_ms_mean(),
         fem_nodes: reference.rest.len(),
         fem_tets: reference.tets.len(),

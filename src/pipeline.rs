@@ -273,6 +273,9 @@ pub const RCOND_WARNING: f64 = 1e-4;
 /// matrices give ~1e-13).
 pub const REPRODUCING_WARNING: f64 = 1e-8;
 
+/// max |c^T M c - I| above this is reported (the solvers reach ~1e-14).
+pub const ORTHONORMALITY_WARNING: f64 = 1e-8;
+
 /// Fill `report.monitors` and add a warning for each monitor outside its healthy range:
 /// a moment matrix close to singular, reproducing identities violated, eigen-residuals
 /// above the tolerance asked for, M-orthonormality lost.
@@ -307,9 +310,6 @@ pub fn check_quality(report: &mut ModesReport) {
         ));
     }
 }
-
-/// max |c^T M c - I| above this is reported (the solvers reach ~1e-14).
-pub const ORTHONORMALITY_WARNING: f64 = 1e-8;
 
 /// Everything a precomputation produces.
 #[derive(Debug, Clone)]

@@ -549,13 +549,11 @@ fn finish_summary(mut s: ObjectSummary) -> ObjectSummary {
     s.step_ms_max = s.steps.iter().map(|r| r.wall_ms).fold(0.0, f64::max);
     s.iterations_mean = s.steps.iter().map(|r| r.iterations as f64).sum::<f64>() / n;
     s.iterations_max = s.steps.iter().map(|r| r.iterations).max().unwrap_or(0);
-    s.nonconverged_steps = s.steps.iter().filter(|r| !r.converged).count();
-    s.line_search_failures = s.steps.iter().filter(|r| r.line_search_failed).count();
-    s.line_search_cutbacks = s.steps.iter().map(|r| r.line_search_cutbacks).sum();
-    s.min_det = s
-        .steps
-        .iter()
-        .map(|r| r.min_det)
-        .fold(f64::INFINITY, f64::min);
+    // The counts were kept step by step in the monitors (`Monitors::add_step`).
+    let m = &s.monitors;
+    s.nonconverged_steps = m.newton_nonconverged_steps.unwrap_or(0);
+    s.line_search_failures = m.line_search_failures.unwrap_or(0);
+    s.line_search_cutbacks = m.line_search_cutbacks.unwrap_or(0);
+    s.min_det = m.min_det.unwrap_or(f64::INFINITY);
     s
 }
