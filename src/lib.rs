@@ -39,6 +39,7 @@ pub mod rkpm;
 pub mod sampling;
 pub mod scene;
 pub mod sim;
+mod simd;
 pub mod skinning;
 pub mod sparse;
 

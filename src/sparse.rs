@@ -19,6 +19,7 @@
 //! reductions are done over fixed-size chunks combined in order, so results do not depend on the
 //! number of threads.
 
+use crate::simd::multiversion;
 use faer::prelude::ReborrowMut;
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use faer::{Mat, MatMut, MatRef};
@@ -83,19 +84,50 @@ pub fn sym_mul_row_major(
         .for_each(|(task, ychunk)| {
             let r0 = task * ROWS_PER_TASK;
             for (lr, yrow) in ychunk.chunks_mut(ldy).enumerate() {
-                let i = r0 + lr;
-                let yrow = &mut yrow[..ncols];
-                yrow.fill(0.0);
                 // Symmetric: column i of the CSC arrays is row i.
-                let range = sym.col_range(i);
-                for (&j, &aij) in idx[range.clone()].iter().zip(&val[range]) {
-                    let xrow = &x[j * ldx..j * ldx + ncols];
-                    for (yv, &xv) in yrow.iter_mut().zip(xrow) {
-                        *yv += aij * xv;
-                    }
-                }
+                let range = sym.col_range(r0 + lr);
+                row_times_block(&idx[range.clone()], &val[range], x, ldx, &mut yrow[..ncols]);
             }
         });
+}
+
+multiversion! {
+    /// yrow = sum_t val[t] x[idx[t] * ldx..][..yrow.len()] (one row of a sparse x block product).
+    fn row_times_block(idx: &[usize], val: &[f64], x: &[f64], ldx: usize, yrow: &mut [f64]) {
+        let ncols = yrow.len();
+        yrow.fill(0.0);
+        for (&j, &aij) in idx.iter().zip(val) {
+            let xrow = &x[j * ldx..j * ldx + ncols];
+            for (yv, &xv) in yrow.iter_mut().zip(xrow) {
+                *yv += aij * xv;
+            }
+        }
+    }
+}
+
+multiversion! {
+    /// rowa = sum_t va[t] x[idx[t] * ldx..], rowb likewise with vb: two sparse rows with the
+    /// same pattern times one block, in one pass.
+    fn rows_pair_times_block(
+        idx: &[usize],
+        va: &[f64],
+        vb: &[f64],
+        x: &[f64],
+        ldx: usize,
+        rowa: &mut [f64],
+        rowb: &mut [f64],
+    ) {
+        let ncols = rowa.len();
+        rowa.fill(0.0);
+        rowb.fill(0.0);
+        for ((&j, &ai), &bi) in idx.iter().zip(va).zip(vb) {
+            let xrow = &x[j * ldx..j * ldx + ncols];
+            for ((ua, ub), &xv) in rowa.iter_mut().zip(rowb.iter_mut()).zip(xrow) {
+                *ua += ai * xv;
+                *ub += bi * xv;
+            }
+        }
+    }
 }
 
 /// `true` if `a` and `b` have the same shape and identical stored patterns (column ranges and
@@ -159,19 +191,17 @@ pub fn sym_mul_pair_row_major(
             let r0 = task * ROWS_PER_TASK;
             for (lr, (rowa, rowb)) in ca.chunks_mut(ldy).zip(cb.chunks_mut(ldy)).enumerate() {
                 let i = r0 + lr;
-                let (rowa, rowb) = (&mut rowa[..ncols], &mut rowb[..ncols]);
-                rowa.fill(0.0);
-                rowb.fill(0.0);
                 let range = sym.col_range(i);
-                let offset_b = sb.col_range(i).start;
-                for (t, &j) in idx[range.clone()].iter().enumerate() {
-                    let (ai, bi) = (va[range.start + t], vb[offset_b + t]);
-                    let xrow = &x[j * ldx..j * ldx + ncols];
-                    for ((ua, ub), &xv) in rowa.iter_mut().zip(rowb.iter_mut()).zip(xrow) {
-                        *ua += ai * xv;
-                        *ub += bi * xv;
-                    }
-                }
+                let rb = sb.col_range(i);
+                rows_pair_times_block(
+                    &idx[range.clone()],
+                    &va[range],
+                    &vb[rb],
+                    x,
+                    ldx,
+                    &mut rowa[..ncols],
+                    &mut rowb[..ncols],
+                );
             }
         });
 }

@@ -9,7 +9,7 @@ use freeform::material::{Material, Region};
 use freeform::pipeline::{build_basis, BasisOptions, BasisRun, SolverChoice};
 use freeform::progress::Silent;
 use freeform::sampling::Resolution;
-use freeform::sim::elastic::Projection;
+use freeform::sim::elastic::{Precision, Projection};
 use freeform::sim::motion::{AxisAngle, Motion};
 use freeform::sim::terms::ColliderShape;
 use freeform::sim::{
@@ -143,6 +143,44 @@ fn gradient_and_hessian_match_finite_differences() {
     assert!(
         exact_min < -1e-6 * hscale,
         "the test state should make the exact Hessian indefinite ({exact_min})"
+    );
+}
+
+#[test]
+fn single_precision_hessian_products_match_double() {
+    // 1500 cubature points: two chunks of the Hessian assembly and several sub-blocks each.
+    let run = bar(40, 4, 2000);
+    let opts = SimOptions {
+        cubature: 1500,
+        ..SimOptions::default()
+    };
+    let s = sim(&run, &opts);
+    let n = s.layout().dofs();
+    let z = random_z(n, 0.5, 11);
+    let el = s.elastic();
+    let double = el.hessian(&z, Projection::PerPoint);
+    let sampled = el.hessian_sampled(&z, Projection::PerPoint, 1, Precision::Double);
+    let single = el.hessian_sampled(&z, Projection::PerPoint, 1, Precision::Single);
+    let scale = (0..n).map(|i| double[(i, i)].abs()).fold(0.0, f64::max);
+    let mut diff: f64 = 0.0;
+    for j in 0..n {
+        for i in 0..n {
+            // Stride 1 in double is the full Hessian itself (same sums in the same order).
+            assert_eq!(sampled[(i, j)].to_bits(), double[(i, j)].to_bits());
+            assert_eq!(single[(i, j)], single[(j, i)], "single not symmetric");
+            diff = diff.max((single[(i, j)] - double[(i, j)]).abs());
+        }
+    }
+    // f32 rounds each product term to 6e-8 relative; an entry sums ~3 x 1500 terms no
+    // larger than ~the largest diagonal entry, so random rounding gives ~sqrt(4500) x 6e-8 =
+    // 4e-6 of `scale` at most. The lower bound shows the products really ran in single.
+    assert!(
+        diff <= 1e-5 * scale,
+        "single vs double: {diff:e} (scale {scale:e})"
+    );
+    assert!(
+        diff >= 1e-10 * scale,
+        "single precision made no difference: {diff:e}"
     );
 }
 

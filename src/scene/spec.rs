@@ -6,7 +6,7 @@ use crate::material::{Material, MaterialOverride};
 use crate::pipeline::{BasisOptions, SolverChoice};
 use crate::rkpm::{KernelType, SupportOptions};
 use crate::sampling::{CloudVolumeOptions, Resolution};
-use crate::sim::newton::HessianStrategy;
+use crate::sim::newton::{HessianStrategy, Precision};
 use crate::sim::{Boundary, Collider, NewtonOptions, Placement};
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -64,6 +64,9 @@ pub struct SolverSettings {
     pub refresh_iterations: usize,
     /// L-BFGS refresh: every n-th cubature point builds the new base, default 1 (all).
     pub refresh_stride: usize,
+    /// L-BFGS refresh: arithmetic of the base's dense products, `single` (default) or
+    /// `double`.
+    pub refresh_precision: Precision,
     /// Cubature points for the elastic energy, default 5000 (all points if fewer).
     pub cubature: usize,
 }
@@ -78,6 +81,7 @@ impl Default for SolverSettings {
             lbfgs_history: n.lbfgs_history,
             refresh_iterations: n.refresh_iterations,
             refresh_stride: n.refresh_stride,
+            refresh_precision: n.refresh_precision,
             cubature: crate::sim::cubature::DEFAULT_CUBATURE,
         }
     }
@@ -93,6 +97,7 @@ impl SolverSettings {
             lbfgs_history: self.lbfgs_history,
             refresh_iterations: self.refresh_iterations,
             refresh_stride: self.refresh_stride,
+            refresh_precision: self.refresh_precision,
         }
     }
 }

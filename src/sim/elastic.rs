@@ -8,23 +8,30 @@
 //! So row r of F depends on z_r only. The per-point products use that structure directly
 //! (about 30 (m + 1) flops per point for F, the same for the gradient) instead of forming
 //! 9 x 12(m + 1) blocks; the Hessian is assembled per 3 x 3 block pair (r, s) by dense
-//! matrix products over chunks of points.
+//! matrix products over chunks of points (see [`ElasticTerm::hessian`] for why the energy's
+//! structure does not reduce that work).
 
-use crate::elasticity::{hessian, hessian_psd, Mat3};
+use crate::elasticity::{hessian, hessian_psd, Mat3, Mat9};
 use crate::sim::cubature::Cubature;
 use crate::sim::lanes::{LaneData, Partial, LANES};
+use crate::simd::multiversion;
 use crate::skinning::SkinningWeights;
 use crate::{Error, Point3, Result};
+use faer::linalg::matmul::triangular::BlockStructure;
 use faer::{Accum, Mat, Par};
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 
 /// Points per work unit. Fixed (not derived from the thread count), so sums are formed in
 /// the same order on any machine: results are bit-identical across thread counts.
-const CHUNK: usize = 128;
+const CHUNK: usize = 256;
 
 /// Points per dense product in the Hessian assembly: large enough for efficient matrix
 /// products (the inner dimension is 3 x HESSIAN_CHUNK), small enough to split over threads.
 const HESSIAN_CHUNK: usize = 1024;
+
+/// Points per dense product within a chunk (the T buffer then stays in cache).
+const HESSIAN_SUB: usize = 128;
 
 /// Index arithmetic for the reduced coordinates z (12 (m + 1) entries).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -71,6 +78,11 @@ pub struct ElasticTerm {
     gw: Vec<[f64; 3]>,
     /// The same data in SIMD-friendly blocks for the energy and gradient.
     lanes: LaneData,
+    /// The constant vectors a_c for the Hessian, built on first use
+    /// ([`ElasticTerm::rest_vectors`]).
+    rest_vectors: std::sync::OnceLock<Vec<f64>>,
+    /// The same in single precision, for [`Precision::Single`].
+    rest_vectors_single: std::sync::OnceLock<Vec<f32>>,
 }
 
 /// Per-call statistics of an energy evaluation.
@@ -111,6 +123,8 @@ impl ElasticTerm {
             ),
             w: weights.values.clone(),
             gw: weights.gradients.clone(),
+            rest_vectors: std::sync::OnceLock::new(),
+            rest_vectors_single: std::sync::OnceLock::new(),
         })
     }
 
@@ -204,10 +218,22 @@ impl ElasticTerm {
     }
 
     /// The Hessian d2E/dz2, 12 (m + 1) square, with per-point Hessians optionally projected to
-    /// PSD. Cost: O(C (4 (m + 1))^2) flops for C cubature points, in dense products.
+    /// PSD. Cost: 6 C (4 (m + 1))^2 flops per 3 x 3 block pair (r, s) for C cubature points,
+    /// 4.5 pairs' worth (the three diagonal pairs are symmetric, only their upper halves are
+    /// formed): 2.4 GFLOP at m = 32, C = 5000, in dense products.
+    ///
+    /// The energy's structure does not cut that work. The mu/2 |F|^2 part has the constant
+    /// point Hessian mu I_9, but it only adds to the diagonal pairs (r, r), whose other terms
+    /// (the rank-one volumetric (lambda + mu) g_r g_r^T, and the projection's corrections) vary,
+    /// so those products stay. The volumetric part (lambda + mu) (g g^T + (J - gamma) d2J/dF2)
+    /// couples each off-diagonal pair through the skew 3 x 3 matrix of a row of F, a full
+    /// n4 x 3C x n4 product like the general case. And the PSD projection changes most points
+    /// (at rest one eigenvalue of each twist pair is exactly 0 and rounding tips it either
+    /// way; in a bent beam state 85% of the points had a negative one), so no fixed split
+    /// survives it.
     pub fn hessian(&self, z: &[f64], projection: Projection) -> Mat<f64> {
         let all: Vec<usize> = (0..self.len()).collect();
-        self.hessian_on(z, projection, &all, 1.0)
+        self.hessian_on(z, projection, &all, 1.0, Precision::Double)
     }
 
     /// An approximation of [`ElasticTerm::hessian`] from every `stride`-th cubature point,
@@ -215,102 +241,268 @@ impl ElasticTerm {
     /// The cubature points are in farthest-point order (or a regular grid), so the sample
     /// spreads over the whole object. Used as a quasi-Newton base, never as the Newton
     /// Hessian.
-    pub fn hessian_sampled(&self, z: &[f64], projection: Projection, stride: usize) -> Mat<f64> {
+    /// `precision` chooses the arithmetic of the dense products ([`Precision`]).
+    pub fn hessian_sampled(
+        &self,
+        z: &[f64],
+        projection: Projection,
+        stride: usize,
+        precision: Precision,
+    ) -> Mat<f64> {
         let idx: Vec<usize> = (0..self.len()).step_by(stride.max(1)).collect();
         let total: f64 = self.volumes.iter().sum();
         let part: f64 = idx.iter().map(|&c| self.volumes[c]).sum();
         let scale = if part > 0.0 { total / part } else { 1.0 };
-        self.hessian_on(z, projection, &idx, scale)
+        self.hessian_on(z, projection, &idx, scale, precision)
     }
 
     /// The Hessian from the cubature points `idx`, volumes multiplied by `scale`.
-    fn hessian_on(&self, z: &[f64], projection: Projection, idx: &[usize], scale: f64) -> Mat<f64> {
+    ///
+    /// Three phases: (1) the scaled per-point 9 x 9 Hessians (in parallel over points);
+    /// (2) one task per (chunk of points, block pair (r, s)): T = A C^(rs) and the product
+    /// T A^T (only the upper triangle for r = s), with A the constant vectors a_c
+    /// ([`ElasticTerm::rest_vectors`]); the tasks are many and small, so two threads stay
+    /// busy to the end; (3) the chunk results summed in chunk order (the same sums for any
+    /// thread count) and mirrored.
+    fn hessian_on(
+        &self,
+        z: &[f64],
+        projection: Projection,
+        idx: &[usize],
+        scale: f64,
+        precision: Precision,
+    ) -> Mat<f64> {
         let n4 = self.layout.row_len();
-        let nh = self.layout.handles;
-        let parts: Vec<[Mat<f64>; 6]> = idx
-            .par_chunks(HESSIAN_CHUNK)
-            .map(|range| {
-                let cols = 3 * range.len();
-                // A: the vectors a_c of each point (column 3 p + c), column-major in a plain
-                // buffer so the T loop below runs over contiguous slices;
-                // T^(rs): column 3 p + d = sum_c v H[3r + c][3s + d] a_(3p + c).
-                let mut a = vec![0.0; n4 * cols];
-                let mut h9 = Vec::with_capacity(range.len());
-                for (p, &c) in range.iter().enumerate() {
-                    let x = self.points[c];
-                    let xh = [x[0], x[1], x[2], 1.0];
-                    for col in 0..3 {
-                        let ac = &mut a[(3 * p + col) * n4..(3 * p + col + 1) * n4];
-                        for j in 0..nh {
-                            let wj = self.w[c * nh + j];
-                            let g = self.gw[c * nh + j][col];
-                            for (q, xq) in xh.iter().enumerate() {
-                                ac[4 * j + q] = g * xq + if q == col { wj } else { 0.0 };
-                            }
-                        }
-                    }
-                    let f = self.deformation_gradient(c, z);
-                    let (l, m) = (self.lambda[c], self.mu[c]);
-                    let h = match projection {
-                        Projection::None => hessian(&f, l, m),
-                        Projection::PerPoint => hessian_psd(&f, l, m),
-                    };
-                    h9.push((scale * self.volumes[c], h));
-                }
-                let a_ref = faer::MatRef::from_column_major_slice(&a, n4, cols);
-                let mut blocks: [Mat<f64>; 6] = std::array::from_fn(|_| Mat::zeros(n4, n4));
-                let mut t = vec![0.0; n4 * cols];
-                for (b, (r, s)) in BLOCKS.iter().enumerate() {
-                    for (p, (v, h)) in h9.iter().enumerate() {
-                        let ap = &a[3 * p * n4..(3 * p + 3) * n4];
-                        let (a0, rest) = ap.split_at(n4);
-                        let (a1, a2) = rest.split_at(n4);
-                        for d in 0..3 {
-                            let c0 = v * h[3 * r][3 * s + d];
-                            let c1 = v * h[3 * r + 1][3 * s + d];
-                            let c2 = v * h[3 * r + 2][3 * s + d];
-                            let td = &mut t[(3 * p + d) * n4..(3 * p + d + 1) * n4];
-                            for i in 0..n4 {
-                                td[i] = c0 * a0[i] + c1 * a1[i] + c2 * a2[i];
-                            }
-                        }
-                    }
-                    faer::linalg::matmul::matmul(
-                        blocks[b].as_mut(),
-                        Accum::Replace,
-                        faer::MatRef::from_column_major_slice(&t, n4, cols),
-                        a_ref.transpose(),
-                        1.0,
-                        Par::Seq,
-                    );
-                }
-                blocks
+        let h9: Vec<Mat9> = idx
+            .par_iter()
+            .with_min_len(64)
+            .map(|&c| {
+                let f = self.deformation_gradient(c, z);
+                let (l, m) = (self.lambda[c], self.mu[c]);
+                let mut h = match projection {
+                    Projection::None => hessian(&f, l, m),
+                    Projection::PerPoint => hessian_psd(&f, l, m),
+                };
+                let v = scale * self.volumes[c];
+                h.iter_mut().flatten().for_each(|e| *e *= v);
+                h
             })
             .collect();
         let n = self.layout.dofs();
         let mut out = Mat::<f64>::zeros(n, n);
-        for blocks in &parts {
-            for (b, (r, s)) in BLOCKS.iter().enumerate() {
-                for q in 0..n4 {
-                    for p in 0..n4 {
-                        out[(r * n4 + p, s * n4 + q)] += blocks[b][(p, q)];
-                    }
-                }
+        match precision {
+            Precision::Double => {
+                let products = self.block_products(self.rest_vectors(), &h9, idx);
+                add_products(&products, n4, &mut out);
+            }
+            Precision::Single => {
+                let products = self.block_products(self.rest_vectors_single(), &h9, idx);
+                add_products(&products, n4, &mut out);
             }
         }
-        // Mirror the upper block triangle; symmetrize the diagonal blocks exactly.
-        for i in 0..n {
-            for j in 0..i {
-                let v = if i / n4 == j / n4 {
-                    0.5 * (out[(i, j)] + out[(j, i)])
-                } else {
-                    out[(j, i)]
-                };
-                out[(i, j)] = v;
-                out[(j, i)] = v;
+        // Mirror the upper triangle.
+        for j in 0..n {
+            for i in 0..j {
+                out[(j, i)] = out[(i, j)];
             }
         }
         out
+    }
+
+    /// Phase 2 of [`ElasticTerm::hessian_on`]: (block pair index, product) per task, in
+    /// chunk order. `a` holds the vectors a_c of all cubature points (or of `idx` only when
+    /// `idx` is not all of them: then gathered here).
+    fn block_products<T: Scalar>(
+        &self,
+        cached: &[T],
+        h9: &[Mat9],
+        idx: &[usize],
+    ) -> Vec<(usize, Mat<T>)> {
+        let n4 = self.layout.row_len();
+        let all = idx.len() == self.len() && idx.iter().enumerate().all(|(i, &c)| i == c);
+        let gathered: Vec<T>;
+        let a: &[T] = if all {
+            cached
+        } else {
+            gathered = idx
+                .iter()
+                .flat_map(|&c| &cached[3 * c * n4..3 * (c + 1) * n4])
+                .copied()
+                .collect();
+            &gathered
+        };
+        let chunks = idx.len().div_ceil(HESSIAN_CHUNK);
+        let tasks: Vec<(usize, usize)> = (0..chunks)
+            .flat_map(|k| (0..BLOCKS.len()).map(move |b| (k, b)))
+            .collect();
+        tasks
+            .par_iter()
+            .map(|&(k, b)| {
+                let points = k * HESSIAN_CHUNK..((k + 1) * HESSIAN_CHUNK).min(idx.len());
+                let ak = &a[3 * points.start * n4..3 * points.end * n4];
+                (b, block_product(ak, &h9[points], BLOCKS[b], n4))
+            })
+            .collect()
+    }
+
+    /// The vectors a_c of every cubature point, n4 x 3 C column-major (column 3 p + c is
+    /// a_c of point p, with a_c[4 j + q] = dW_j/dX_c Xh_q + W_j delta_qc): constant, so
+    /// built on the first Hessian and kept (12 (m + 1) C values, 16 MB for m = 32 and
+    /// C = 5000).
+    fn rest_vectors(&self) -> &[f64] {
+        self.rest_vectors.get_or_init(|| self.build_rest_vectors())
+    }
+
+    /// [`ElasticTerm::rest_vectors`] rounded to single precision (half the memory again).
+    fn rest_vectors_single(&self) -> &[f32] {
+        self.rest_vectors_single
+            .get_or_init(|| self.rest_vectors().iter().map(|&v| v as f32).collect())
+    }
+
+    fn build_rest_vectors(&self) -> Vec<f64> {
+        let n4 = self.layout.row_len();
+        let nh = self.layout.handles;
+        let mut a = vec![0.0; 3 * n4 * self.len()];
+        a.par_chunks_mut(3 * n4).enumerate().for_each(|(c, ap)| {
+            let x = self.points[c];
+            let xh = [x[0], x[1], x[2], 1.0];
+            for (col, ac) in ap.chunks_exact_mut(n4).enumerate() {
+                for j in 0..nh {
+                    let wj = self.w[c * nh + j];
+                    let g = self.gw[c * nh + j][col];
+                    for (q, xq) in xh.iter().enumerate() {
+                        ac[4 * j + q] = g * xq + if q == col { wj } else { 0.0 };
+                    }
+                }
+            }
+        });
+        a
+    }
+}
+
+/// Add the block-pair products (in the order given) into the upper triangle of `out`.
+fn add_products<T: Scalar>(products: &[(usize, Mat<T>)], n4: usize, out: &mut Mat<f64>) {
+    for (b, prod) in products {
+        let (r, s) = BLOCKS[*b];
+        for q in 0..n4 {
+            // Diagonal pairs: only the upper triangle (p <= q) was computed.
+            let rows = if r == s { q + 1 } else { n4 };
+            for p in 0..rows {
+                out[(r * n4 + p, s * n4 + q)] += prod[(p, q)].into();
+            }
+        }
+    }
+}
+
+/// Arithmetic of the Hessian's dense products (the per-point 9 x 9 Hessians and the final
+/// sums are always double).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Precision {
+    /// f64 products: the Hessian to rounding (Newton always uses this).
+    #[default]
+    Double,
+    /// f32 products, about twice as fast: entries carry relative errors of ~1e-6 of their
+    /// size. Enough for a quasi-Newton base matrix, which only needs to be a good SPD
+    /// model (a base that fails to factorize is rebuilt in double).
+    Single,
+}
+
+/// The element types of the dense products.
+trait Scalar: faer::traits::ComplexField + Copy + Into<f64> + Send + Sync + 'static {
+    fn from_f64(v: f64) -> Self;
+    /// td = c0 a0 + c1 a1 + c2 a2 (see [`combine3_f64`]).
+    fn combine3(td: &mut [Self], a: &[Self], c: [Self; 3]);
+}
+
+impl Scalar for f64 {
+    fn from_f64(v: f64) -> Self {
+        v
+    }
+    fn combine3(td: &mut [Self], a: &[Self], c: [Self; 3]) {
+        combine3_f64(td, a, c)
+    }
+}
+
+impl Scalar for f32 {
+    fn from_f64(v: f64) -> Self {
+        v as f32
+    }
+    fn combine3(td: &mut [Self], a: &[Self], c: [Self; 3]) {
+        combine3_f32(td, a, c)
+    }
+}
+
+/// sum_p A_p C_p^(rs) A_p^T over the points p of one chunk, n4 x n4 (upper triangle only
+/// when r = s), with A_p the n4 x 3 columns of point p in `a` and C_p^(rs) the (r, s)
+/// 3 x 3 block of point p's (volume-weighted) Hessian `h9[p]`.
+fn block_product<T: Scalar>(a: &[T], h9: &[Mat9], (r, s): (usize, usize), n4: usize) -> Mat<T> {
+    let structure = if r == s {
+        BlockStructure::TriangularUpper
+    } else {
+        BlockStructure::Rectangular
+    };
+    let points = h9.len();
+    let sub = HESSIAN_SUB.min(points).max(1);
+    // T for `sub` points at a time, small enough to stay in cache.
+    let mut t = vec![T::from_f64(0.0); n4 * 3 * sub];
+    let mut out = Mat::<T>::zeros(n4, n4);
+    for (k, first) in (0..points).step_by(sub).enumerate() {
+        let last = (first + sub).min(points);
+        let cols = 3 * (last - first);
+        for (p, h) in h9[first..last].iter().enumerate() {
+            let ap = &a[3 * (first + p) * n4..(3 * (first + p) + 3) * n4];
+            for d in 0..3 {
+                let c = [
+                    h[3 * r][3 * s + d],
+                    h[3 * r + 1][3 * s + d],
+                    h[3 * r + 2][3 * s + d],
+                ]
+                .map(T::from_f64);
+                T::combine3(&mut t[(3 * p + d) * n4..(3 * p + d + 1) * n4], ap, c);
+            }
+        }
+        let am = faer::MatRef::from_column_major_slice(&a[3 * first * n4..3 * last * n4], n4, cols);
+        let tm = faer::MatRef::from_column_major_slice(&t[..n4 * cols], n4, cols);
+        // out += T A^T; for r = s the product is symmetric (C^(rr) is), so its upper half
+        // is all we need.
+        faer::linalg::matmul::triangular::matmul(
+            out.as_mut(),
+            structure,
+            if k == 0 { Accum::Replace } else { Accum::Add },
+            tm,
+            BlockStructure::Rectangular,
+            am.transpose(),
+            BlockStructure::Rectangular,
+            T::from_f64(1.0),
+            Par::Seq,
+        );
+    }
+    out
+}
+
+multiversion! {
+    /// td = c0 a0 + c1 a1 + c2 a2, where `a` holds a0, a1, a2 one after the other (each the
+    /// length of `td`).
+    fn combine3_f64(td: &mut [f64], a: &[f64], c: [f64; 3]) {
+        let n = td.len();
+        let (a0, rest) = a.split_at(n);
+        let (a1, a2) = rest.split_at(n);
+        for (((t, x), y), w) in td.iter_mut().zip(a0).zip(a1).zip(&a2[..n]) {
+            *t = c[0] * x + c[1] * y + c[2] * w;
+        }
+    }
+}
+
+multiversion! {
+    /// [`combine3_f64`] in single precision.
+    fn combine3_f32(td: &mut [f32], a: &[f32], c: [f32; 3]) {
+        let n = td.len();
+        let (a0, rest) = a.split_at(n);
+        let (a1, a2) = rest.split_at(n);
+        for (((t, x), y), w) in td.iter_mut().zip(a0).zip(a1).zip(&a2[..n]) {
+            *t = c[0] * x + c[1] * y + c[2] * w;
+        }
     }
 }
 

@@ -25,6 +25,7 @@
 //! below tol x D, and accepting the predictor would leave the object hanging in the air
 //! (measured: a beam under gravity did not move at h = 1e-4 s; docs/limits.md).
 
+pub use crate::sim::elastic::Precision;
 use faer::linalg::solvers::{Llt, Solve};
 use faer::{Mat, Side};
 use serde::{Deserialize, Serialize};
@@ -73,6 +74,11 @@ pub struct NewtonOptions {
     /// a cheaper, still PSD model of the Hessian, but a looser one (more iterations, and the
     /// convergence measure uses it). Default 1: all points (docs/performance.md measures 4).
     pub refresh_stride: usize,
+    /// L-BFGS: arithmetic of the refreshed base's dense products. Default `single`: about
+    /// twice as fast, and a quasi-Newton base only needs to be a good SPD model (a base that
+    /// does not factorize is rebuilt in `double` before falling back to the rest matrix).
+    /// docs/performance.md measures both.
+    pub refresh_precision: Precision,
 }
 
 impl Default for NewtonOptions {
@@ -84,6 +90,7 @@ impl Default for NewtonOptions {
             lbfgs_history: 8,
             refresh_iterations: 10,
             refresh_stride: 1,
+            refresh_precision: Precision::Single,
         }
     }
 }
@@ -109,7 +116,7 @@ impl NewtonOptions {
             return Err(crate::Error::param(
                 "refresh_stride",
                 0,
-                "the Hessian refresh stride must be at least 1 (default 4)",
+                "the Hessian refresh stride must be at least 1 (default 1)",
             ));
         }
         if self.hessian == HessianStrategy::Lbfgs && self.lbfgs_history == 0 {
@@ -145,9 +152,10 @@ pub trait Potential {
     /// PSD approximation of the Hessian at z.
     fn hessian(&self, z: &[f64]) -> Mat<f64>;
     /// A cheaper PSD approximation for quasi-Newton bases (default: [`Potential::hessian`]);
-    /// `stride` as in [`NewtonOptions::refresh_stride`].
-    fn base_hessian(&self, z: &[f64], stride: usize) -> Mat<f64> {
-        let _ = stride;
+    /// `stride` and `precision` as in [`NewtonOptions::refresh_stride`] and
+    /// [`NewtonOptions::refresh_precision`].
+    fn base_hessian(&self, z: &[f64], stride: usize, precision: Precision) -> Mat<f64> {
+        let _ = (stride, precision);
         self.hessian(z)
     }
 }
@@ -269,13 +277,27 @@ pub fn minimize(
             // Slow progress: the base matrix is too far from the current Hessian (large
             // rotations, contact). Rebuild it here; later steps keep using it.
             let sw = Stopwatch::start();
-            let h = pot.base_hessian(z, opts.refresh_stride);
+            let h = pot.base_hessian(z, opts.refresh_stride, opts.refresh_precision);
             rep.hessian_s += sw.elapsed();
             let sw = Stopwatch::start();
             rep.factorizations += 1;
-            match h.llt(Side::Lower) {
-                Ok(f) => state.base = Some(f),
-                Err(_) => rep.cholesky_fallbacks += 1,
+            let mut factor = h.llt(Side::Lower).ok();
+            rep.solve_s += sw.elapsed();
+            if factor.is_none() && opts.refresh_precision == Precision::Single {
+                // Single-precision rounding can break positive definiteness of a badly
+                // conditioned system: rebuild in double before giving up.
+                let sw = Stopwatch::start();
+                let h = pot.base_hessian(z, opts.refresh_stride, Precision::Double);
+                rep.hessian_s += sw.elapsed();
+                let sw = Stopwatch::start();
+                rep.factorizations += 1;
+                factor = h.llt(Side::Lower).ok();
+                rep.solve_s += sw.elapsed();
+            }
+            let sw = Stopwatch::start();
+            match factor {
+                Some(f) => state.base = Some(f),
+                None => rep.cholesky_fallbacks += 1,
             }
             state.pairs.clear();
             rep.solve_s += sw.elapsed();

@@ -8,7 +8,7 @@ use crate::material::{MaterialField, Region};
 use crate::report::Stopwatch;
 use crate::sampling::IntegrationPoints;
 use crate::sim::cubature::{self, Cubature, DEFAULT_CUBATURE};
-use crate::sim::elastic::{ElasticTerm, Layout, Projection};
+use crate::sim::elastic::{ElasticTerm, Layout, Precision, Projection};
 use crate::sim::motion::{rotation_matrix, AxisAngle, Motion, Rigid};
 use crate::sim::newton::{self, EvalInfo, NewtonOptions, Potential, SolveReport, SolverContext};
 use crate::sim::terms::{
@@ -583,17 +583,15 @@ impl Potential for StepPotential<'_> {
     }
 
     fn hessian(&self, z: &[f64]) -> Mat<f64> {
-        self.base_hessian(z, 1)
+        self.base_hessian(z, 1, Precision::Double)
     }
 
-    fn base_hessian(&self, z: &[f64], stride: usize) -> Mat<f64> {
+    fn base_hessian(&self, z: &[f64], stride: usize, precision: Precision) -> Mat<f64> {
         let s = self.sim;
         let l = s.layout;
-        let mut h = if stride <= 1 {
-            s.elastic.hessian(z, Projection::PerPoint)
-        } else {
-            s.elastic.hessian_sampled(z, Projection::PerPoint, stride)
-        };
+        let mut h = s
+            .elastic
+            .hessian_sampled(z, Projection::PerPoint, stride, precision);
         add_block_diagonal(l, &s.mass.bb, 1.0 / (s.dt * s.dt), &mut h);
         for b in &s.boundaries {
             add_block_diagonal(l, &b.moments.bb, 1.0, &mut h);

@@ -11,6 +11,7 @@
 //! by the caller by factoring A + alpha diag(A) with a growing alpha (Manteuffel's shift).
 
 use super::workspace::{Block, ROW_CHUNK};
+use crate::simd::multiversion;
 use crate::sparse::SparseMatrix;
 use rayon::prelude::*;
 
@@ -160,33 +161,41 @@ impl IncompleteCholesky {
 
     /// (L L^T)^-1 in place on a row-major n x `width` slab (row stride `width`).
     fn solve_slab(&self, data: &mut [f64], width: usize) {
-        let n = self.ptr.len() - 1;
+        solve_slab(&self.ptr, &self.idx, &self.val, data, width);
+    }
+}
+
+multiversion! {
+    /// (L L^T)^-1 in place on a row-major n x `width` slab, L in compressed rows (`ptr`,
+    /// `idx`, `val`, the diagonal last in each row).
+    fn solve_slab(ptr: &[usize], idx: &[usize], val: &[f64], data: &mut [f64], width: usize) {
+        let n = ptr.len() - 1;
         // Forward: L y = b.
         for i in 0..n {
-            let (start, end) = (self.ptr[i], self.ptr[i + 1]);
+            let (start, end) = (ptr[i], ptr[i + 1]);
             let (before, rest) = data.split_at_mut(i * width);
             let yi = &mut rest[..width];
             for p in start..end - 1 {
-                let k = self.idx[p];
-                let l = self.val[p];
+                let k = idx[p];
+                let l = val[p];
                 let yk = &before[k * width..(k + 1) * width];
                 for (a, &b) in yi.iter_mut().zip(yk) {
                     *a -= l * b;
                 }
             }
-            let inv = 1.0 / self.val[end - 1];
+            let inv = 1.0 / val[end - 1];
             yi.iter_mut().for_each(|a| *a *= inv);
         }
         // Backward: L^T x = y (column-oriented sweep over the rows of L).
         for i in (0..n).rev() {
-            let (start, end) = (self.ptr[i], self.ptr[i + 1]);
+            let (start, end) = (ptr[i], ptr[i + 1]);
             let (before, rest) = data.split_at_mut(i * width);
             let xi = &mut rest[..width];
-            let inv = 1.0 / self.val[end - 1];
+            let inv = 1.0 / val[end - 1];
             xi.iter_mut().for_each(|a| *a *= inv);
             for p in start..end - 1 {
-                let k = self.idx[p];
-                let l = self.val[p];
+                let k = idx[p];
+                let l = val[p];
                 let yk = &mut before[k * width..(k + 1) * width];
                 for (a, &b) in yk.iter_mut().zip(xi.iter()) {
                     *a -= l * b;

@@ -1,0 +1,45 @@
+//! Run-time CPU dispatch for the hot loops: the crate is built for baseline x86-64 (SSE2), so
+//! the few loops that dominate (sparse block products, triangular solves, the reduced energy)
+//! are compiled a second time with AVX2 + FMA and chosen when the CPU has them. Results of
+//! the two versions agree to rounding (the loops are plain sums; LLVM does not fuse
+//! multiply-adds on its own).
+
+/// True when the CPU has AVX2 and FMA (x86-64; the standard library caches the check).
+#[inline]
+pub(crate) fn avx2_fma() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// Define a free function whose body is compiled twice, for baseline x86-64 and with
+/// AVX2 + FMA, and dispatched at run time with [`avx2_fma`]. No return value (results go
+/// through `&mut` arguments).
+macro_rules! multiversion {
+    ($(#[$m:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?) $body:block) => {
+        $(#[$m])*
+        $vis fn $name($($arg: $ty),*) {
+            #[inline(always)]
+            fn generic($($arg: $ty),*) $body
+            #[cfg(target_arch = "x86_64")]
+            #[target_feature(enable = "avx2,fma")]
+            unsafe fn avx2($($arg: $ty),*) {
+                generic($($arg),*)
+            }
+            #[cfg(target_arch = "x86_64")]
+            {
+                if $crate::simd::avx2_fma() {
+                    // SAFETY: the CPU has the features `avx2` is compiled for.
+                    return unsafe { avx2($($arg),*) };
+                }
+            }
+            generic($($arg),*)
+        }
+    };
+}
+pub(crate) use multiversion;
