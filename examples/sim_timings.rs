@@ -14,7 +14,7 @@ use freeform::material::Region;
 use freeform::pipeline::{build_basis, BasisOptions, BasisRun};
 use freeform::progress::Silent;
 use freeform::report::Stopwatch;
-use freeform::sim::elastic::Projection;
+use freeform::sim::elastic::{Precision, Projection};
 use freeform::sim::motion::Motion;
 use freeform::sim::{Boundary, HessianStrategy, NewtonOptions, ReducedSim, SimOptions};
 use freeform::Point3;
@@ -171,6 +171,30 @@ fn main() {
                     max_dist(&o.probe, &reference.probe)
                 );
             }
+        }
+    }
+    println!("\nL-BFGS refresh precision (twist, tol 1e-6):\n");
+    println!("| m | refresh precision | step ms | iterations | Hessian ms | max distance to the tol 1e-9 state (m) |");
+    println!("|---|---|---|---|---|---|");
+    for m in [16, 32] {
+        let run = beam(m);
+        let reference = simulate(
+            &run,
+            &options(true, HessianStrategy::Lbfgs, 1e-9, 5000),
+            steps,
+            &probe,
+        );
+        for precision in [Precision::Single, Precision::Double] {
+            let mut opts = options(true, HessianStrategy::Lbfgs, 1e-6, 5000);
+            opts.newton.refresh_precision = precision;
+            let o = simulate(&run, &opts, steps, &probe);
+            println!(
+                "| {m} | {precision:?} | {:.2} | {:.2} | {:.2} | {:.1e} |",
+                o.step_ms,
+                o.iterations,
+                o.hess_ms,
+                max_dist(&o.probe, &reference.probe)
+            );
         }
     }
     println!("\nGrowth (bend, lbfgs, tol 1e-6):\n");
