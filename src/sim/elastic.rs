@@ -481,30 +481,25 @@ fn block_product<T: Scalar>(a: &[T], h9: &[Mat9], (r, s): (usize, usize), n4: us
     out
 }
 
-multiversion! {
-    /// td = c0 a0 + c1 a1 + c2 a2, where `a` holds a0, a1, a2 one after the other (each the
-    /// length of `td`).
-    fn combine3_f64(td: &mut [f64], a: &[f64], c: [f64; 3]) {
-        let n = td.len();
-        let (a0, rest) = a.split_at(n);
-        let (a1, a2) = rest.split_at(n);
-        for (((t, x), y), w) in td.iter_mut().zip(a0).zip(a1).zip(&a2[..n]) {
-            *t = c[0] * x + c[1] * y + c[2] * w;
+/// `fn $name(td, a, c)`: td = c0 a0 + c1 a1 + c2 a2 for element type `$t`, where `a` holds
+/// a0, a1, a2 one after the other (each the length of `td`); multiversioned.
+macro_rules! combine3 {
+    ($name:ident, $t:ty) => {
+        multiversion! {
+            /// td = c0 a0 + c1 a1 + c2 a2 (a = [a0; a1; a2]).
+            fn $name(td: &mut [$t], a: &[$t], c: [$t; 3]) {
+                let n = td.len();
+                let (a0, rest) = a.split_at(n);
+                let (a1, a2) = rest.split_at(n);
+                for (((t, x), y), w) in td.iter_mut().zip(a0).zip(a1).zip(&a2[..n]) {
+                    *t = c[0] * x + c[1] * y + c[2] * w;
+                }
+            }
         }
-    }
+    };
 }
-
-multiversion! {
-    /// [`combine3_f64`] in single precision.
-    fn combine3_f32(td: &mut [f32], a: &[f32], c: [f32; 3]) {
-        let n = td.len();
-        let (a0, rest) = a.split_at(n);
-        let (a1, a2) = rest.split_at(n);
-        for (((t, x), y), w) in td.iter_mut().zip(a0).zip(a1).zip(&a2[..n]) {
-            *t = c[0] * x + c[1] * y + c[2] * w;
-        }
-    }
-}
+combine3!(combine3_f64, f64);
+combine3!(combine3_f32, f32);
 
 /// The (r, s) block pairs with r <= s.
 const BLOCKS: [(usize, usize); 6] = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
