@@ -221,8 +221,25 @@ proptest! {
         let (sf, stats) = evaluate(&kernels, &points, &ShapeFunctionOptions::default());
         prop_assert!(sf.phi.iter().all(|v| v.is_finite()));
         prop_assert!(sf.grad.iter().flatten().all(|v| v.is_finite()));
-        // Accepted points (rcond >= 1e-6) amplify round-off by at most 1e6: 1e-9.
+        // Accepted points (rcond >= 1e-6) amplify round-off by at most 1e6: 1e-9 for the
+        // values. The gradients pick up the conditioning through d(M^-1) = -M^-1 dM M^-1 and
+        // the scaled terms |grad phi| r are larger (steep Gaussian flanks), so their bound
+        // follows the case's own conditioning: C eps / rcond, with rcond the smallest
+        // accepted one (>= 1e-6; `min_rcond` also counts rejected points). Over 3000 random
+        // cases the largest gradient error x rcond / eps was 183 (1.1e-9 at worst in CI,
+        // pinned in properties.proptest-regressions); C = 2000 leaves a 10x margin.
         let err = reproducing_error(&kernels, &points, &sf);
-        prop_assert!(err.max() <= 1e-9, "{err:?} ({} failed points)", stats.failed.len());
+        prop_assert!(
+            err.partition_of_unity.max(err.linear) <= 1e-9,
+            "{err:?} ({} failed points)",
+            stats.failed.len()
+        );
+        let gradient_bound = 2e3 * f64::EPSILON / stats.min_rcond.max(1e-6);
+        prop_assert!(
+            err.gradient_sum.max(err.gradient_linear) <= gradient_bound,
+            "{err:?} > {gradient_bound:e} (min rcond {:e}, {} failed points)",
+            stats.min_rcond,
+            stats.failed.len()
+        );
     }
 }
