@@ -1,8 +1,9 @@
 //! Run-time CPU dispatch for the hot loops: the crate is built for baseline x86-64 (SSE2), so
-//! the few loops that dominate (sparse block products, triangular solves, the reduced energy)
-//! are compiled a second time with AVX2 + FMA and chosen when the CPU has them. Results of
-//! the two versions agree to rounding (the loops are plain sums; LLVM does not fuse
-//! multiply-adds on its own).
+//! the few loops that dominate (sparse block products, triangular solves, the reduced
+//! Hessian's combine step) are compiled a second time with AVX2 + FMA and chosen when the CPU
+//! has them. The two versions give identical results (the loops are plain sums; LLVM does
+//! not fuse multiply-adds on its own). The reduced energy kernel (`sim::lanes`) uses the same
+//! check but dispatches itself, since its fast version also switches to `mul_add`.
 
 /// True when the CPU has AVX2 and FMA (x86-64; the standard library caches the check).
 #[inline]

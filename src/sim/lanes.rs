@@ -96,9 +96,7 @@ impl LaneData {
     ) -> Partial {
         #[cfg(target_arch = "x86_64")]
         {
-            if std::arch::is_x86_feature_detected!("avx2")
-                && std::arch::is_x86_feature_detected!("fma")
-            {
+            if crate::simd::avx2_fma() {
                 // SAFETY: the CPU supports the features the function is compiled for.
                 return unsafe { self.eval_avx2(range, z, grad) };
             }

@@ -227,6 +227,26 @@ pub struct QuasiNewtonState {
     base: Option<Llt<f64>>,
 }
 
+/// Build the quasi-Newton base Hessian at `z` and factorize it (None: not positive
+/// definite), with the time and the factorization counted in `rep`.
+fn refreshed_base(
+    pot: &dyn Potential,
+    z: &[f64],
+    stride: usize,
+    precision: Precision,
+    rep: &mut SolveReport,
+) -> Option<Llt<f64>> {
+    use crate::report::Stopwatch;
+    let sw = Stopwatch::start();
+    let h = pot.base_hessian(z, stride, precision);
+    rep.hessian_s += sw.elapsed();
+    let sw = Stopwatch::start();
+    rep.factorizations += 1;
+    let factor = h.llt(Side::Lower).ok();
+    rep.solve_s += sw.elapsed();
+    factor
+}
+
 /// Minimise `pot` starting from `z` (updated in place); `state` carries the quasi-Newton memory between
 /// calls.
 pub fn minimize(
@@ -276,23 +296,17 @@ pub fn minimize(
         {
             // Slow progress: the base matrix is too far from the current Hessian (large
             // rotations, contact). Rebuild it here; later steps keep using it.
-            let sw = Stopwatch::start();
-            let h = pot.base_hessian(z, opts.refresh_stride, opts.refresh_precision);
-            rep.hessian_s += sw.elapsed();
-            let sw = Stopwatch::start();
-            rep.factorizations += 1;
-            let mut factor = h.llt(Side::Lower).ok();
-            rep.solve_s += sw.elapsed();
+            let mut factor = refreshed_base(
+                pot,
+                z,
+                opts.refresh_stride,
+                opts.refresh_precision,
+                &mut rep,
+            );
             if factor.is_none() && opts.refresh_precision == Precision::Single {
                 // Single-precision rounding can break positive definiteness of a badly
                 // conditioned system: rebuild in double before giving up.
-                let sw = Stopwatch::start();
-                let h = pot.base_hessian(z, opts.refresh_stride, Precision::Double);
-                rep.hessian_s += sw.elapsed();
-                let sw = Stopwatch::start();
-                rep.factorizations += 1;
-                factor = h.llt(Side::Lower).ok();
-                rep.solve_s += sw.elapsed();
+                factor = refreshed_base(pot, z, opts.refresh_stride, Precision::Double, &mut rep);
             }
             let sw = Stopwatch::start();
             match factor {
@@ -414,4 +428,63 @@ pub fn minimize(
     rep.energy = e;
     rep.info = info;
     rep
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// E = 1/2 z^T A z - b^T z with A = diag(2, 5); its single-precision base Hessian is
+    /// deliberately indefinite, the double one exact.
+    struct Quadratic;
+
+    const A: [f64; 2] = [2.0, 5.0];
+    const B: [f64; 2] = [1.0, -3.0];
+
+    impl Potential for Quadratic {
+        fn energy_gradient(&self, z: &[f64], grad: &mut [f64]) -> (f64, EvalInfo) {
+            let mut e = 0.0;
+            for i in 0..2 {
+                grad[i] = A[i] * z[i] - B[i];
+                e += 0.5 * A[i] * z[i] * z[i] - B[i] * z[i];
+            }
+            (e, EvalInfo::default())
+        }
+        fn hessian(&self, _z: &[f64]) -> Mat<f64> {
+            Mat::from_fn(2, 2, |i, j| if i == j { A[i] } else { 0.0 })
+        }
+        fn base_hessian(&self, z: &[f64], _stride: usize, precision: Precision) -> Mat<f64> {
+            match precision {
+                Precision::Single => Mat::from_fn(2, 2, |i, j| if i == j { -1.0 } else { 0.0 }),
+                Precision::Double => self.hessian(z),
+            }
+        }
+    }
+
+    #[test]
+    fn a_single_precision_base_that_fails_to_factorize_is_rebuilt_in_double() {
+        let rest = Mat::<f64>::identity(2, 2).llt(Side::Lower).unwrap();
+        let measure = |d: &[f64]| d.iter().map(|v| v.abs()).fold(0.0, f64::max);
+        let options = NewtonOptions {
+            refresh_iterations: 1,
+            ..NewtonOptions::default()
+        };
+        assert_eq!(options.refresh_precision, Precision::Single);
+        let ctx = SolverContext {
+            rest: &rest,
+            measure: &measure,
+            options: &options,
+        };
+        let mut z = vec![0.0; 2];
+        let rep = minimize(&Quadratic, &mut z, &ctx, &mut QuasiNewtonState::default());
+        // The first refresh factorizes twice (single fails, double succeeds), and no step
+        // falls back to the rest matrix.
+        assert!(rep.converged);
+        assert_eq!(rep.cholesky_fallbacks, 0);
+        assert_eq!(rep.factorizations, 2 * rep.iterations);
+        // With the exact Hessian as base, L-BFGS takes the Newton step: z = A^-1 b.
+        for i in 0..2 {
+            assert!((z[i] - B[i] / A[i]).abs() < 1e-12, "z = {z:?}");
+        }
+    }
 }
