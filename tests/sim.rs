@@ -572,3 +572,34 @@ fn bad_simulation_parameters_are_errors() {
     })
     .contains("non-zero normal"));
 }
+
+#[test]
+fn precomputed_weights_give_the_same_run_and_are_checked() {
+    let run = bar(40, 4, 2000);
+    let opts = SimOptions {
+        gravity: Some([0.0, -9.81, 0.0]),
+        cubature: 500,
+        boundaries: vec![held_left()],
+        ..SimOptions::default()
+    };
+    let w = run.basis.weights(&run.points.points).unwrap();
+    let mut a = sim(&run, &opts);
+    let mut b =
+        ReducedSim::with_weights(&run.basis, &run.points, &run.material, &w, &opts).unwrap();
+    for _ in 0..3 {
+        a.step();
+        b.step();
+    }
+    // The same weights, the same arithmetic: bit-identical states.
+    assert_eq!(a.z, b.z);
+    // Weights of other points (the first half only) are rejected, not silently misused.
+    let half = run
+        .basis
+        .weights(&run.points.points[..run.points.len() / 2])
+        .unwrap();
+    let err = ReducedSim::with_weights(&run.basis, &run.points, &run.material, &half, &opts)
+        .err()
+        .expect("must fail")
+        .to_string();
+    assert!(err.contains("skinning weights"), "{err}");
+}

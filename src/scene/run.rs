@@ -332,25 +332,30 @@ fn prepare(
         colliders: scene.colliders.clone(),
         placement: spec.placement,
     };
-    let sim = ReducedSim::new(&basis, &points, &material, &opts).map_err(ctx)?;
-    let (render, triangles) = match &shape {
-        Shape::Mesh(m) => (m.vertices().to_vec(), Some(m.triangles().to_vec())),
-        other => (
-            other
-                .render_points()
-                .map(|p| p.to_vec())
-                .unwrap_or_else(|| points.points.clone()),
-            None,
-        ),
+    // The weights at the integration points feed the simulator; a primitive is also drawn
+    // at those points, so it reuses them instead of evaluating the basis twice.
+    let ip_weights = basis.weights(&points.points).map_err(ctx)?;
+    let sim =
+        ReducedSim::with_weights(&basis, &points, &material, &ip_weights, &opts).map_err(ctx)?;
+    let (render, triangles, own) = match &shape {
+        Shape::Mesh(m) => (m.vertices().to_vec(), Some(m.triangles().to_vec()), true),
+        other => match other.render_points() {
+            Some(p) => (p.to_vec(), None, true),
+            None => (points.points.clone(), None, false),
+        },
     };
-    let weights = basis.weights(&render).map_err(|e| {
-        ctx(Error::Scene {
-            message: format!(
-                "the skinning weights cannot be evaluated at the render points ({e}); \
-                 more kernels or a larger support factor cover them"
-            ),
-        })
-    })?;
+    let weights = if own {
+        basis.weights(&render).map_err(|e| {
+            ctx(Error::Scene {
+                message: format!(
+                    "the skinning weights cannot be evaluated at the render points ({e}); \
+                     more kernels or a larger support factor cover them"
+                ),
+            })
+        })?
+    } else {
+        ip_weights
+    };
     progress.finish();
     let summary = ObjectSummary {
         name: spec.name.clone(),

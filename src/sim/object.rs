@@ -159,6 +159,21 @@ impl ReducedSim {
         material: &MaterialField,
         opts: &SimOptions,
     ) -> Result<ReducedSim> {
+        let all = basis.weights(&ip.points)?;
+        Self::with_weights(basis, ip, material, &all, opts)
+    }
+
+    /// [`ReducedSim::new`] with the skinning weights (values and gradients) at the
+    /// integration points already evaluated, `weights = basis.weights(&ip.points)`: for callers
+    /// that also need them elsewhere (the scene runner draws primitives at their integration
+    /// points), so they are computed once.
+    pub fn with_weights(
+        basis: &Basis,
+        ip: &IntegrationPoints,
+        material: &MaterialField,
+        weights: &SkinningWeights,
+        opts: &SimOptions,
+    ) -> Result<ReducedSim> {
         positive("dt", opts.dt, "the time step (seconds)")?;
         opts.newton.validate()?;
         if let Some(g) = opts.gravity {
@@ -174,18 +189,28 @@ impl ReducedSim {
                 got: material.len(),
             });
         }
-        let all = basis.weights(&ip.points)?;
+        if weights.modes != basis.modes()
+            || weights.points() != n
+            || weights.gradients.len() != weights.values.len()
+        {
+            return Err(Error::LengthMismatch {
+                what: "skinning weights (integration points x modes, with gradients)",
+                expected: n * basis.modes(),
+                got: weights.gradients.len().min(weights.values.len()),
+            });
+        }
+        let all = weights;
         let layout = Layout {
             handles: basis.modes(),
         };
         let cub = cubature::select(ip, material, opts.cubature)?;
-        let cw = subset(&all, &cub.source);
+        let cw = subset(all, &cub.source);
         let elastic = ElasticTerm::new(&cub, &cw)?;
         let idx: Vec<usize> = (0..n).collect();
         let rho_v: Vec<f64> = (0..n)
             .map(|i| material.density[i] * ip.volumes[i])
             .collect();
-        let mass = Moments::new(&ip.points, &all, &idx, &rho_v);
+        let mass = Moments::new(&ip.points, all, &idx, &rho_v);
         let aabb = crate::geometry::Aabb::from_points(&ip.points)
             .ok_or_else(|| Error::param("points", 0, "the object has no integration points"))?;
         let diag = aabb.diagonal().max(f64::MIN_POSITIVE);
@@ -217,7 +242,7 @@ impl ReducedSim {
             boundaries.push(BoundaryTerm {
                 motion: spec.motion.clone(),
                 stiffness: k,
-                moments: Moments::new(&ip.points, &all, &pts, &coef),
+                moments: Moments::new(&ip.points, all, &pts, &coef),
                 points: pts,
                 placement,
             });
