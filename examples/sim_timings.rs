@@ -2,7 +2,8 @@
 //! printed as the markdown tables of docs/performance.md:
 //! strategies x m for the bend and the twist (K = 1000, 5000 cubature points, 200 steps),
 //! the distance of each run's final state from a tight-tolerance reference, the growth with m
-//! and with the cubature count, and the per-iteration cost split.
+//! and with the cubature count, and the per-iteration cost split; then the L-BFGS twist repeated
+//! (5 runs, each after a one-call gauge of the machine's speed) to show the run-to-run spread.
 //!
 //!     cargo run --release --example sim_timings [-- quick]
 //!
@@ -114,6 +115,30 @@ fn simulate(run: &BasisRun, opts: &SimOptions, steps: usize, probe: &[Point3]) -
     o
 }
 
+/// Milliseconds per elastic energy + gradient of `run`'s beam (5000 cubature points) at a
+/// fixed non-rest state, the mean of 50 calls after 5 warm-up calls.
+fn gauge(run: &BasisRun) -> f64 {
+    let s = ReducedSim::new(
+        &run.basis,
+        &run.points,
+        &run.material,
+        &options(false, HessianStrategy::Lbfgs, 1e-6, 5000),
+    )
+    .expect("sim");
+    let z: Vec<f64> = (0..s.z.len())
+        .map(|i| 1e-3 * ((i % 7) as f64 - 3.0))
+        .collect();
+    let mut g = vec![0.0; z.len()];
+    for _ in 0..5 {
+        s.elastic().energy_gradient(&z, &mut g);
+    }
+    let t = Stopwatch::start();
+    for _ in 0..50 {
+        s.elastic().energy_gradient(&z, &mut g);
+    }
+    t.elapsed() / 50.0 * 1e3
+}
+
 fn max_dist(a: &[Point3], b: &[Point3]) -> f64 {
     a.iter()
         .zip(b)
@@ -172,6 +197,40 @@ fn main() {
                 );
             }
         }
+    }
+    // The same run several times, each after a gauge of the machine's speed at that moment
+    // (one energy + gradient at m = 32): on a shared machine the spread between runs is larger
+    // than most of the differences being measured.
+    let runs = if quick { 2 } else { 5 };
+    println!("\nRepeatability (twist, lbfgs, tol 1e-6, {runs} runs of {steps} steps):\n");
+    println!("| m | step ms per run | median | min | max | gauge ms per run (one m = 32 energy+gradient) |");
+    println!("|---|---|---|---|---|---|");
+    let gauge_run = beam(32);
+    for m in [16, 32] {
+        let run = beam(m);
+        let opts = options(true, HessianStrategy::Lbfgs, 1e-6, 5000);
+        let mut ms = Vec::new();
+        let mut gauges = Vec::new();
+        for _ in 0..runs {
+            gauges.push(gauge(&gauge_run));
+            ms.push(simulate(&run, &opts, steps, &probe).step_ms);
+        }
+        let list = |v: &[f64]| {
+            v.iter()
+                .map(|x| format!("{x:.2}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let mut sorted = ms.clone();
+        sorted.sort_by(f64::total_cmp);
+        println!(
+            "| {m} | {} | {:.2} | {:.2} | {:.2} | {} |",
+            list(&ms),
+            sorted[sorted.len() / 2],
+            sorted[0],
+            sorted[sorted.len() - 1],
+            list(&gauges)
+        );
     }
     println!("\nL-BFGS refresh precision (twist, tol 1e-6):\n");
     println!("| m | refresh precision | step ms | iterations | Hessian ms | max distance to the tol 1e-9 state (m) |");
