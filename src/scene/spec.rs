@@ -6,7 +6,7 @@ use crate::material::{Material, MaterialOverride};
 use crate::pipeline::{BasisOptions, SolverChoice};
 use crate::rkpm::{KernelType, SupportOptions};
 use crate::sampling::{CloudVolumeOptions, Resolution};
-use crate::sim::newton::{HessianStrategy, Precision};
+use crate::sim::newton::{HessianStrategy, InitialGuess, Precision};
 use crate::sim::{Boundary, Collider, NewtonOptions, Placement};
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -67,6 +67,8 @@ pub struct SolverSettings {
     /// L-BFGS refresh: arithmetic of the base's dense products, `single` (default) or
     /// `double`.
     pub refresh_precision: Precision,
+    /// Start of each step's minimisation, `velocity` (default) or `extrapolate`.
+    pub initial_guess: InitialGuess,
     /// Cubature points for the elastic energy, default 5000 (all points if fewer).
     pub cubature: usize,
 }
@@ -82,6 +84,7 @@ impl Default for SolverSettings {
             refresh_iterations: n.refresh_iterations,
             refresh_stride: n.refresh_stride,
             refresh_precision: n.refresh_precision,
+            initial_guess: n.initial_guess,
             cubature: crate::sim::cubature::DEFAULT_CUBATURE,
         }
     }
@@ -98,6 +101,7 @@ impl SolverSettings {
             refresh_iterations: self.refresh_iterations,
             refresh_stride: self.refresh_stride,
             refresh_precision: self.refresh_precision,
+            initial_guess: self.initial_guess,
         }
     }
 }

@@ -18,5 +18,5 @@ pub mod newton;
 pub mod object;
 pub mod terms;
 
-pub use newton::{HessianStrategy, NewtonOptions};
+pub use newton::{HessianStrategy, InitialGuess, NewtonOptions};
 pub use object::{Boundary, Collider, Placement, ReducedSim, SimOptions, StepReport};

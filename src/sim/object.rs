@@ -10,7 +10,9 @@ use crate::sampling::IntegrationPoints;
 use crate::sim::cubature::{self, Cubature, DEFAULT_CUBATURE};
 use crate::sim::elastic::{ElasticTerm, Layout, Precision, Projection};
 use crate::sim::motion::{rotation_matrix, AxisAngle, Motion, Rigid};
-use crate::sim::newton::{self, EvalInfo, NewtonOptions, Potential, SolveReport, SolverContext};
+use crate::sim::newton::{
+    self, EvalInfo, InitialGuess, NewtonOptions, Potential, SolveReport, SolverContext,
+};
 use crate::sim::terms::{
     add_block_diagonal, add_block_product, BoundaryTerm, ColliderShape, ContactTerm, Moments,
 };
@@ -132,6 +134,8 @@ pub struct ReducedSim {
     pub z: Vec<f64>,
     /// Reduced velocity dz/dt.
     pub zdot: Vec<f64>,
+    /// zdot of the previous step (for [`InitialGuess::Extrapolate`]).
+    zdot_prev: Vec<f64>,
     /// Simulated time, s.
     pub time: f64,
     /// Steps taken.
@@ -297,6 +301,7 @@ impl ReducedSim {
             cubature: cub,
             z: vec![0.0; layout.dofs()],
             zdot: vec![0.0; layout.dofs()],
+            zdot_prev: vec![0.0; layout.dofs()],
             time: 0.0,
             steps: 0,
             history: Default::default(),
@@ -413,6 +418,11 @@ impl ReducedSim {
             .map(|(z, v)| z + self.dt * v)
             .collect();
         let mut z = zpred.clone();
+        if self.options.initial_guess == InitialGuess::Extrapolate && self.steps > 0 {
+            for i in 0..z.len() {
+                z[i] += self.dt * (self.zdot[i] - self.zdot_prev[i]);
+            }
+        }
         let mut history = std::mem::take(&mut self.history);
         let pot = StepPotential {
             sim: self,
@@ -436,6 +446,7 @@ impl ReducedSim {
         };
         let solve = newton::minimize(&pot, &mut z, &ctx, &mut history);
         self.history = history;
+        self.zdot_prev.copy_from_slice(&self.zdot);
         for i in 0..z.len() {
             self.zdot[i] = (z[i] - self.z[i]) / self.dt;
         }
