@@ -94,6 +94,24 @@ pub enum Error {
         /// What is wrong.
         reason: String,
     },
+    /// An array of a basis file decompresses to more bytes than it can legitimately hold (a
+    /// damaged archive or a "zip bomb"); see [`crate::io::basis`] for the limits.
+    #[error(
+        "{path}: array `{array}` of the basis file is larger than its limit of {limit} bytes \
+         (the archive declares {declared} bytes); the file is damaged or not a freeform basis"
+    )]
+    BasisArrayTooLarge {
+        /// File involved.
+        path: PathBuf,
+        /// The array (zip entry without `.npy`), e.g. `coefficients`.
+        array: &'static str,
+        /// The limit that was exceeded: `.npy` header allowance plus the most data the array
+        /// can hold, bytes.
+        limit: u64,
+        /// The uncompressed size the archive declares for the entry, bytes (a damaged or
+        /// hostile archive may understate it).
+        declared: u64,
+    },
     /// `--strict` (or `strict: true` in the settings) was asked for and a monitor raised a
     /// warning: poor conditioning, a non-converged solve, a failed line search.
     #[error("strict mode: {} warning(s), the first: {}", warnings.len(), warnings.first().map(String::as_str).unwrap_or("-"))]

@@ -36,8 +36,9 @@ const MODES_FILES: &[Case] = &[
     (&["@ply/no_end_header.ply"], "no_end_header.ply: PLY"),
     (&["@ply/truncated_ascii.ply"], "expected 8, got 3"),
     (&["@ply/truncated_binary.ply"], "truncated_binary.ply: PLY"),
-    (&["@ply/nan_ascii.ply"], "line 11: couldn't read element line"),
-    (&["@ply/inf_binary.ply"], "vertex 1 has a non-finite coordinate"),
+    (&["@ply/nan_ascii.ply"], "nan_ascii.ply: PLY line 11: vertex 1 has a non-finite coordinate x = 'nan'; remove or fix that vertex"),
+    (&["@ply/inf_binary.ply"], "inf_binary.ply: PLY vertex 1 has a non-finite coordinate y = inf; remove or fix that vertex"),
+    (&["@ply/nan_binary.ply"], "nan_binary.ply: PLY vertex 2 has a non-finite coordinate z = NaN; remove or fix that vertex"),
     (&["@ply/missing_z.ply"], "no `z` property"),
     (&["@ply/face_out_of_range.ply"], "face 11 refers to vertex 99, but the file has 8 vertices"),
     (&["@ply/face_negative_index.ply"], "face 11 refers to vertex -7"),
@@ -565,4 +566,194 @@ fn damaged_basis_files_are_rejected() {
         flipped[i] ^= 0x5a;
         check(&flipped, &format!("byte {i} flipped"));
     }
+}
+
+/// The entries of a basis archive, in order: (name, uncompressed bytes).
+fn zip_entries(bytes: &[u8]) -> Vec<(String, Vec<u8>)> {
+    use std::io::Read;
+    let mut zip = zip::ZipArchive::new(std::io::Cursor::new(bytes)).unwrap();
+    (0..zip.len())
+        .map(|i| {
+            let mut entry = zip.by_index(i).unwrap();
+            let mut data = Vec::new();
+            entry.read_to_end(&mut data).unwrap();
+            (entry.name().to_string(), data)
+        })
+        .collect()
+}
+
+/// A zip of `entries`, each deflated (as `numpy.savez_compressed` writes).
+fn deflated_zip(entries: &[(String, Vec<u8>)]) -> Vec<u8> {
+    use std::io::Write;
+    let mut zip = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
+    let opts = zip::write::SimpleFileOptions::default()
+        .compression_method(zip::CompressionMethod::Deflated);
+    for (name, data) in entries {
+        zip.start_file(name.as_str(), opts).unwrap();
+        zip.write_all(data).unwrap();
+    }
+    zip.finish().unwrap().into_inner()
+}
+
+/// Overwrite the uncompressed size that the local header and the central directory declare for
+/// entry `name` (classic 32-bit fields: the archives here are small).
+fn set_declared_size(archive: &mut [u8], name: &str, size: u32) {
+    let mut patched = 0;
+    // (signature, offset of the uncompressed size, offset of the name length, offset of the name)
+    for (sig, size_at, len_at, name_at) in
+        [(*b"PK\x03\x04", 22, 26, 30), (*b"PK\x01\x02", 24, 28, 46)]
+    {
+        for i in 0..archive.len().saturating_sub(name_at) {
+            if archive[i..i + 4] != sig {
+                continue;
+            }
+            let len = u16::from_le_bytes([archive[i + len_at], archive[i + len_at + 1]]) as usize;
+            if archive.get(i + name_at..i + name_at + len) == Some(name.as_bytes()) {
+                archive[i + size_at..i + size_at + 4].copy_from_slice(&size.to_le_bytes());
+                patched += 1;
+            }
+        }
+    }
+    assert_eq!(
+        patched, 2,
+        "{name}: local header and central directory entry"
+    );
+}
+
+/// A basis archive whose entry expands beyond what its array can hold ("zip bomb") is rejected
+/// with `Error::BasisArrayTooLarge` naming the file, the array and the limit, whether the archive
+/// declares the true size or understates it; the same basis within the limits, stored or
+/// deflated, loads unchanged.
+#[test]
+fn basis_array_beyond_its_limit_is_rejected() {
+    use freeform::io::basis;
+    use freeform::rkpm::{KernelType, Kernels};
+    use freeform::skinning::Basis;
+    let dir = tempfile::tempdir().unwrap();
+    let good = dir.path().join("good.npz");
+    // K = 4 kernels, m + 1 = 2 columns.
+    let original = Basis {
+        kernels: Kernels {
+            centers: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+            ],
+            radii: vec![1.5; 4],
+            kind: KernelType::Quartic,
+        },
+        coefficients: faer::Mat::from_fn(4, 2, |i, j| 0.25 + (i + 3 * j) as f64),
+        eigenvalues: vec![0.0, 2.5],
+    };
+    basis::save(&good, &original, &serde_json::json!({"test": true})).unwrap();
+    let entries = zip_entries(&std::fs::read(&good).unwrap());
+    let load = |name: &str, archive: &[u8]| {
+        let path = dir.path().join(name);
+        std::fs::write(&path, archive).unwrap();
+        basis::load(&path)
+    };
+    let same = |loaded: basis::LoadedBasis, what: &str| {
+        assert_eq!(loaded.basis.kernels, original.kernels, "{what}");
+        assert_eq!(loaded.basis.coefficients, original.coefficients, "{what}");
+        assert_eq!(loaded.basis.eigenvalues, original.eigenvalues, "{what}");
+        assert_eq!(loaded.metadata["test"], true, "{what}");
+    };
+    same(basis::load(&good).unwrap(), "stored, as saved");
+    same(
+        load("deflated.npz", &deflated_zip(&entries)).unwrap(),
+        "deflated",
+    );
+
+    // Limits worked out by hand: the 128 KiB header allowance plus the data bytes, 8 for
+    // `format_version` (one int64) and 8 K^2 = 128 for `coefficients` (K = 4).
+    const VERSION_LIMIT: u64 = 128 * 1024 + 8;
+    const COEFFICIENT_LIMIT: u64 = 128 * 1024 + 8 * 4 * 4;
+    // `name` padded with zeros to `len` bytes, every other entry as saved.
+    let padded = |name: &str, len: u64| -> Vec<(String, Vec<u8>)> {
+        let mut e = entries.clone();
+        let entry = e.iter_mut().find(|(n, _)| n == name).unwrap();
+        entry.1.resize(len as usize, 0);
+        e
+    };
+    let check = |result: freeform::Result<basis::LoadedBasis>,
+                 file: &str,
+                 array: &str,
+                 limit: u64,
+                 declared: u64| {
+        let e = match result {
+            Err(e) => e,
+            Ok(_) => panic!("{file}: loaded, expected BasisArrayTooLarge"),
+        };
+        let msg = e.to_string();
+        match e {
+            freeform::Error::BasisArrayTooLarge {
+                path,
+                array: a,
+                limit: l,
+                declared: d,
+            } => {
+                assert_eq!(path, dir.path().join(file));
+                assert_eq!((a, l, d), (array, limit, declared), "{msg}");
+                let expected = format!(
+                    "{}: array `{array}` of the basis file is larger than its limit of {limit} \
+                     bytes (the archive declares {declared} bytes); the file is damaged or not \
+                     a freeform basis",
+                    path.display()
+                );
+                assert_eq!(msg, expected);
+            }
+            other => panic!("{file}: expected BasisArrayTooLarge, got {other:?}"),
+        }
+    };
+
+    // 1 MiB of `format_version`, honestly declared: rejected before decompressing. Deflate makes
+    // it a bomb: the archive is far smaller than what it expands to.
+    let bomb = deflated_zip(&padded("format_version.npy", 1 << 20));
+    assert!(
+        bomb.len() < (1 << 20) / 50,
+        "archive of {} bytes",
+        bomb.len()
+    );
+    check(
+        load("bomb.npz", &bomb),
+        "bomb.npz",
+        "format_version",
+        VERSION_LIMIT,
+        1 << 20,
+    );
+
+    // `coefficients` at exactly its limit passes the size check (and is then read as the
+    // K x 2 array its header announces); one byte more is rejected, although the archive
+    // understates it as the original entry's size: caught while decompressing.
+    let at_limit = deflated_zip(&padded("coefficients.npy", COEFFICIENT_LIMIT));
+    same(
+        load("at_limit.npz", &at_limit).unwrap(),
+        "coefficients at the limit",
+    );
+    let honest_len = entries
+        .iter()
+        .find(|(n, _)| n == "coefficients.npy")
+        .map(|(_, d)| d.len() as u32)
+        .unwrap();
+    let mut liar = deflated_zip(&padded("coefficients.npy", COEFFICIENT_LIMIT + 1));
+    set_declared_size(&mut liar, "coefficients.npy", honest_len);
+    check(
+        load("liar.npz", &liar),
+        "liar.npz",
+        "coefficients",
+        COEFFICIENT_LIMIT,
+        u64::from(honest_len),
+    );
+    // A big liar, 64 MiB of zeros in a small file, is stopped the same way.
+    let mut big = deflated_zip(&padded("coefficients.npy", 64 << 20));
+    set_declared_size(&mut big, "coefficients.npy", honest_len);
+    assert!(big.len() < 1 << 20, "archive of {} bytes", big.len());
+    check(
+        load("big_liar.npz", &big),
+        "big_liar.npz",
+        "coefficients",
+        COEFFICIENT_LIMIT,
+        u64::from(honest_len),
+    );
 }

@@ -826,6 +826,129 @@ fn gaussian_splat_ply_reads_xyz_exactly_and_skips_the_rest() {
     expect_parse_error(&cut, "PLY");
 }
 
+/// Three-vertex ASCII PLY point cloud (`float` x y z) whose second vertex
+/// line (file line 10) is `bad`.
+fn ascii_points_with(bad: &str) -> Vec<u8> {
+    format!(
+        "ply\nformat ascii 1.0\ncomment three points\nelement vertex 3\nproperty float x\n\
+         property float y\nproperty float z\nend_header\n0 0 0\n{bad}\n1 1 1\n"
+    )
+    .into_bytes()
+}
+
+/// The reason of a `GeometryError::Parse` for `bytes` written to `name`, checking the path.
+fn parse_reason(name: &str, bytes: &[u8]) -> String {
+    let dir = tmp();
+    let p = write(dir.path(), name, bytes);
+    match parse(&p) {
+        Err(GeometryError::Parse { path, reason }) => {
+            assert_eq!(path, p);
+            reason
+        }
+        other => panic!("{name}: expected a Parse error, got {other:?}"),
+    }
+}
+
+#[test]
+fn ply_ascii_non_numbers_name_the_line_vertex_and_value() {
+    // The header has 8 lines, so vertex 1 is on line 10. Expected texts written out by hand.
+    for (line, expected) in [
+        (
+            "nan 1 1",
+            "PLY line 10: vertex 1 has a non-finite coordinate x = 'nan'; remove or fix that vertex",
+        ),
+        (
+            "1 -inf 1",
+            "PLY line 10: vertex 1 has a non-finite coordinate y = '-inf'; remove or fix that \
+             vertex",
+        ),
+        (
+            "1 1 NaN",
+            "PLY line 10: vertex 1 has a non-finite coordinate z = 'NaN'; remove or fix that vertex",
+        ),
+        (
+            "1 abc 1",
+            "PLY line 10: vertex 1 has a non-numeric coordinate y = 'abc'; remove or fix that \
+             vertex",
+        ),
+        // Valid grammar, but beyond f32: ply-rs-bw reads it as infinity.
+        (
+            "1e39 1 1",
+            "PLY line 10: vertex 1 has a non-finite coordinate x = '1e39'; remove or fix that \
+             vertex",
+        ),
+        (
+            "1 1",
+            "PLY line 10: vertex 1 ends before its property z; give every vertex all 3 properties",
+        ),
+    ] {
+        let reason = parse_reason("bad_vertex.ply", &ascii_points_with(line));
+        assert_eq!(reason, expected, "line `{line}`");
+    }
+    // A bad face index is named the same way (9 header lines, 4 vertices: face 1 is line 15).
+    let mesh = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n\
+                property float z\nelement face 2\nproperty list uchar int vertex_indices\n\
+                end_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 one 3\n";
+    assert_eq!(
+        parse_reason("bad_face.ply", mesh.as_bytes()),
+        "PLY line 15: face 1 has a non-numeric value vertex_indices = 'one'; remove or fix that \
+         face"
+    );
+    // The same file with good numbers still reads (the check is not over-eager).
+    let dir = tmp();
+    let good = write(dir.path(), "good.ply", &ascii_points_with("0.5 -2 3e2"));
+    let cloud = read_ply_points(&good).unwrap();
+    assert_eq!(cloud.points()[1], [0.5, -2.0, 300.0]);
+}
+
+/// Binary little-endian PLY point cloud with `double` coordinates, built byte by byte.
+fn binary_points(points: &[Point3]) -> Vec<u8> {
+    let mut bytes = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty double x\n\
+         property double y\nproperty double z\nend_header\n",
+        points.len()
+    )
+    .into_bytes();
+    for p in points {
+        for c in p {
+            bytes.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    bytes
+}
+
+#[test]
+fn ply_binary_nan_names_the_vertex_axis_and_value() {
+    let mut points = vec![
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+    ];
+    points[2][2] = f64::NAN;
+    assert_eq!(
+        parse_reason("nan.ply", &binary_points(&points)),
+        "PLY vertex 2 has a non-finite coordinate z = NaN; remove or fix that vertex"
+    );
+    points[2][2] = 0.0;
+    points[3][0] = f64::NEG_INFINITY;
+    assert_eq!(
+        parse_reason("inf.ply", &binary_points(&points)),
+        "PLY vertex 3 has a non-finite coordinate x = -inf; remove or fix that vertex"
+    );
+    // Our own float writer: a NaN point written as binary `float` is caught on reading too.
+    let dir = tmp();
+    let p = dir.path().join("written.ply");
+    write_ply_points(&p, &[[0.0; 3], [f64::NAN, 1.0, 2.0]], &[]).unwrap();
+    match read_ply_points(&p) {
+        Err(GeometryError::Parse { reason, .. }) => assert_eq!(
+            reason,
+            "PLY vertex 1 has a non-finite coordinate x = NaN; remove or fix that vertex"
+        ),
+        other => panic!("expected a Parse error, got {other:?}"),
+    }
+}
+
 #[test]
 fn ply_writer_round_trips_and_validates() {
     let dir = tmp();

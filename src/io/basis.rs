@@ -12,7 +12,25 @@
 //! | `metadata` | uint8, (bytes,) | UTF-8 JSON: every parameter that produced the basis |
 //!
 //! Python: `z = numpy.load("basis.npz"); json.loads(bytes(z["metadata"]))`.
+//!
+//! Reading bounds every array before it is decompressed, so a damaged archive or a "zip bomb"
+//! (a small deflated entry that expands without end) cannot exhaust memory: each entry may hold
+//! an `.npy` header of at most [`NPY_HEADER_ALLOWANCE`] bytes plus the data its shape can
+//! legitimately need, given the arrays read before it:
+//!
+//! | array | data bytes at most |
+//! |---|---|
+//! | `format_version`, `kernel_type` | 8 |
+//! | `centers` | 24 x [`MAX_KERNELS`] (240 MB) |
+//! | `radii` | 8 K |
+//! | `coefficients` | min(8 K^2, [`MAX_COEFFICIENT_BYTES`]) (16 GiB) |
+//! | `eigenvalues` | 8 (m+1) |
+//! | `metadata` | [`MAX_METADATA_BYTES`] (64 MiB) |
+//!
+//! An entry whose declared size is above its limit, or whose data runs past it whatever the
+//! archive declares, gives [`Error::BasisArrayTooLarge`].
 
+use crate::pipeline::MAX_KERNELS;
 use crate::rkpm::{KernelType, Kernels};
 use crate::skinning::Basis;
 use crate::{Error, Point3, Result};
@@ -23,6 +41,26 @@ use std::path::Path;
 
 /// Version written into `format_version`.
 pub const FORMAT_VERSION: i64 = 1;
+
+/// Bytes allowed for the `.npy` header of each array, on top of its data: 128 KiB. npyz writes
+/// 128 bytes for each of these arrays (magic, version, length and a short dictionary padded to
+/// 64-byte alignment, as numpy does); a version-1 header is at most 10 + 65,535 bytes, so this
+/// admits any version-1 header and a version-2 or -3 header of the same size.
+pub const NPY_HEADER_ALLOWANCE: u64 = 128 * 1024;
+
+/// Most bytes of `coefficients` data: 16 GiB, e.g. K = 1,000,000 kernels with m + 1 = 2,147
+/// columns or K = 10,000,000 with 214. The coefficients are the one array whose size the others
+/// do not fix (m + 1 <= K is the only other bound: c^T M c = I needs independent columns), and a
+/// basis beyond this could not have been computed where it is read: LOBPCG holds at least three
+/// K x (m+1) blocks and the RKPM operators ~48 kB per kernel (docs/limits.md).
+pub const MAX_COEFFICIENT_BYTES: u64 = 16 << 30;
+
+// A K = 1,000,000 basis with 500 modes (4 GB of coefficients) must load.
+const _: () = assert!(8 * 1_000_000 * 501 <= MAX_COEFFICIENT_BYTES);
+
+/// Most bytes of the `metadata` array: 64 MiB. The CLI writes about 1 kB of JSON (the options
+/// and a few diagnostics); the margin leaves room for whatever a user stores from Python.
+pub const MAX_METADATA_BYTES: u64 = 64 << 20;
 
 fn kernel_code(k: KernelType) -> i64 {
     match k {
@@ -138,7 +176,9 @@ pub fn load(path: &Path) -> Result<LoadedBasis> {
 /// Read a basis from `reader` as [`load`] reads a file; `path` only labels the errors.
 ///
 /// # Errors
-/// [`Error::BasisFile`] for anything that is not a complete, consistent basis archive.
+/// [`Error::BasisArrayTooLarge`] for an array larger than its limit (see the module
+/// documentation); [`Error::BasisFile`] for anything else that is not a complete, consistent
+/// basis archive.
 pub fn load_from(path: &Path, reader: impl std::io::Read + std::io::Seek) -> Result<LoadedBasis> {
     let bad = |reason: String| Error::BasisFile {
         path: path.to_path_buf(),
@@ -146,14 +186,32 @@ pub fn load_from(path: &Path, reader: impl std::io::Read + std::io::Seek) -> Res
     };
     let mut zip =
         zip::ZipArchive::new(reader).map_err(|e| bad(format!("not a zip/npz archive ({e})")))?;
-    let mut read = |name: &str| -> Result<(Vec<u64>, Vec<u8>)> {
-        let mut entry = zip
+    // `max_data`: the most data bytes the array can legitimately hold (module documentation).
+    let mut read = |name: &'static str, max_data: u64| -> Result<(Vec<u64>, Vec<u8>)> {
+        let entry = zip
             .by_name(&format!("{name}.npy"))
             .map_err(|_| bad(format!("missing array `{name}`")))?;
+        let limit = NPY_HEADER_ALLOWANCE.saturating_add(max_data);
+        let declared = entry.size();
+        let too_large = || Error::BasisArrayTooLarge {
+            path: path.to_path_buf(),
+            array: name,
+            limit,
+            declared,
+        };
+        if declared > limit {
+            return Err(too_large());
+        }
+        // The declared size may lie: read at most one byte past the limit and look. Nothing is
+        // reserved from the declared size, so memory follows the bytes actually decompressed.
         let mut bytes = Vec::new();
         entry
+            .take(limit.saturating_add(1))
             .read_to_end(&mut bytes)
             .map_err(|e| bad(format!("array `{name}`: {e}")))?;
+        if bytes.len() as u64 > limit {
+            return Err(too_large());
+        }
         let npy =
             npyz::NpyFile::new(&bytes[..]).map_err(|e| bad(format!("array `{name}`: {e}")))?;
         Ok((npy.shape().to_vec(), bytes))
@@ -168,20 +226,21 @@ pub fn load_from(path: &Path, reader: impl std::io::Read + std::io::Seek) -> Res
         decode::<i64>(bytes).map_err(|e| bad(format!("array `{name}` is not int64: {e}")))
     };
 
-    let (_, b) = read("format_version")?;
+    let (_, b) = read("format_version", 8)?;
     let version = i64s("format_version", &b)?;
     if version.first() != Some(&FORMAT_VERSION) {
         return Err(bad(format!(
             "format_version {version:?}; this build reads version {FORMAT_VERSION}"
         )));
     }
-    let (cs, b) = read("centers")?;
+    let (cs, b) = read("centers", 24 * MAX_KERNELS as u64)?;
     let centers = f64s("centers", &b)?;
     if cs.len() != 2 || cs[1] != 3 {
         return Err(bad(format!("centers has shape {cs:?}, expected (K, 3)")));
     }
     let k = cs[0] as usize;
-    let (_, b) = read("radii")?;
+    let k64 = k as u64;
+    let (_, b) = read("radii", k64.saturating_mul(8))?;
     let radii = f64s("radii", &b)?;
     if radii.len() != k {
         return Err(bad(format!(
@@ -189,14 +248,18 @@ pub fn load_from(path: &Path, reader: impl std::io::Read + std::io::Seek) -> Res
             radii.len()
         )));
     }
-    let (_, b) = read("kernel_type")?;
+    let (_, b) = read("kernel_type", 8)?;
     let kind = match i64s("kernel_type", &b)?.first() {
         Some(0) => KernelType::Cubic,
         Some(1) => KernelType::Quartic,
         Some(2) => KernelType::Gaussian,
         other => return Err(bad(format!("unknown kernel_type {other:?}"))),
     };
-    let (shape, b) = read("coefficients")?;
+    let coefficient_bytes = k64
+        .saturating_mul(k64)
+        .saturating_mul(8)
+        .min(MAX_COEFFICIENT_BYTES);
+    let (shape, b) = read("coefficients", coefficient_bytes)?;
     let coef = f64s("coefficients", &b)?;
     if shape.len() != 2 || shape[0] as usize != k {
         return Err(bad(format!(
@@ -204,7 +267,7 @@ pub fn load_from(path: &Path, reader: impl std::io::Read + std::io::Seek) -> Res
         )));
     }
     let m1 = shape[1] as usize;
-    let (_, b) = read("eigenvalues")?;
+    let (_, b) = read("eigenvalues", (m1 as u64).saturating_mul(8))?;
     let eigenvalues = f64s("eigenvalues", &b)?;
     if eigenvalues.len() != m1 {
         return Err(bad(format!(
@@ -212,7 +275,7 @@ pub fn load_from(path: &Path, reader: impl std::io::Read + std::io::Seek) -> Res
             eigenvalues.len()
         )));
     }
-    let (_, b) = read("metadata")?;
+    let (_, b) = read("metadata", MAX_METADATA_BYTES)?;
     let meta_bytes = decode::<u8>(&b).map_err(|e| bad(format!("metadata: {e}")))?;
     let metadata = serde_json::from_slice(&meta_bytes)
         .map_err(|e| bad(format!("metadata is not JSON: {e}")))?;

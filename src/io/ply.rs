@@ -10,7 +10,11 @@
 //!   vertex (exact for planar polygons, see [`crate::io::obj`]); bit-identical vertices are
 //!   welded. Without faces (or with `element face 0`) the file is a point cloud.
 //! - Errors name the element and index; truncated payloads, wrong counts, non-finite
-//!   coordinates and out-of-range indices are all reported, never panicking.
+//!   coordinates and out-of-range indices are all reported, never panicking. In an ASCII
+//!   payload a value that is not a finite number of its property's type (`nan`, `inf`, a word,
+//!   `1e39` for a `float`) is reported with its line, element, property and text, e.g.
+//!   `PLY line 11: vertex 1 has a non-finite coordinate x = 'nan'; remove or fix that vertex`;
+//!   a binary NaN or Inf coordinate names the vertex, the axis and the value.
 //!
 //! Writing: [`write_ply_points`] (binary little endian, `float` properties) and
 //! [`write_ply_points_with`] / [`write_ply_mesh`] with explicit [`PlyWriteOptions`].
@@ -20,8 +24,11 @@ use crate::geometry::fileio::{
 };
 use crate::geometry::{GeometryError, PointCloud, Shape, ShapeOptions};
 use crate::Point3;
-use ply_rs_bw::parser::Parser;
-use ply_rs_bw::ply::{Property, PropertyAccess, PropertyAccessResult, PropertyType};
+use ply_rs_bw::parser::{Parser, Reader};
+use ply_rs_bw::ply::{
+    ElementDef, Encoding, Header, Payload, Property, PropertyAccess, PropertyAccessResult,
+    PropertyType, ScalarType,
+};
 use std::fs::File;
 use std::io::{BufRead, BufReader, Write};
 use std::path::Path;
@@ -121,12 +128,22 @@ pub fn read_ply_data_from(
     path: &Path,
     reader: &mut impl BufRead,
 ) -> Result<PlyData, GeometryError> {
-    let ply = Parser::<Record>::new()
-        .read_ply(reader)
+    let parser = Parser::<Record>::new();
+    let mut reader = Reader::new(reader);
+    let header = parser
+        .read_header(&mut reader)
         .map_err(|e| parse_error(path, format!("PLY: {e}")))?;
+    // ASCII payloads are read line by line here (each line parsed by ply-rs-bw) so that a
+    // value the grammar rejects (`nan`, `inf`, a word) is reported by line, element and
+    // token instead of as the grammar's expected-token dump.
+    let payload = match header.encoding {
+        Encoding::Ascii => read_ascii_payload(path, &parser, &mut reader, &header)?,
+        Encoding::BinaryLittleEndian | Encoding::BinaryBigEndian => parser
+            .read_payload(&mut reader, &header)
+            .map_err(|e| parse_error(path, format!("PLY: {e}")))?,
+    };
 
-    let vdef = ply
-        .header
+    let vdef = header
         .elements
         .get("vertex")
         .ok_or_else(|| parse_error(path, "PLY has no `vertex` element"))?;
@@ -147,16 +164,25 @@ pub fn read_ply_data_from(
             }
         }
     }
-    let records = ply.payload.get("vertex").map(Vec::as_slice).unwrap_or(&[]);
+    let records = payload.get("vertex").map(Vec::as_slice).unwrap_or(&[]);
     let points: Vec<Point3> = records.iter().map(|r| r.xyz).collect();
+    // ASCII vertices were checked with their line numbers; this catches binary NaN and Inf.
     if let Some(i) = first_non_finite(&points) {
+        let (axis, value) = ["x", "y", "z"]
+            .into_iter()
+            .zip(points[i])
+            .find(|(_, v)| !v.is_finite())
+            .unwrap_or(("x", points[i][0]));
         return Err(parse_error(
             path,
-            format!("PLY vertex {i} has a non-finite coordinate {:?}", points[i]),
+            format!(
+                "PLY vertex {i} has a non-finite coordinate {axis} = {value}; remove or fix \
+                 that vertex"
+            ),
         ));
     }
 
-    let faces = match ply.header.elements.get("face") {
+    let faces = match header.elements.get("face") {
         Some(fdef) if fdef.count > 0 => {
             if !FACE_LISTS.iter().any(|n| fdef.properties.contains_key(*n)) {
                 return Err(parse_error(
@@ -164,7 +190,7 @@ pub fn read_ply_data_from(
                     "PLY face element has no `vertex_indices` (or `vertex_index`) list",
                 ));
             }
-            ply.payload.get("face").map(Vec::as_slice).unwrap_or(&[])
+            payload.get("face").map(Vec::as_slice).unwrap_or(&[])
         }
         _ => &[],
     };
@@ -174,6 +200,180 @@ pub fn read_ply_data_from(
         Some(triangulate(path, faces, points.len())?)
     };
     Ok(PlyData { points, triangles })
+}
+
+/// Most elements reserved up front for one ASCII element list: the header's count is not trusted
+/// (`element vertex 1000000000000000` in a small file must fail at the end of the file, not in
+/// the allocator); beyond this the vector grows as lines are actually read. 65,536 records of
+/// 48 bytes are 3 MB, small next to the text that fills them.
+const MAX_ASCII_PREALLOCATION: usize = 1 << 16;
+
+/// Read an ASCII payload element by element, one line per element, in header order.
+fn read_ascii_payload(
+    path: &Path,
+    parser: &Parser<Record>,
+    reader: &mut Reader<impl BufRead>,
+    header: &Header,
+) -> Result<Payload<Record>, GeometryError> {
+    // The reader stands on the first payload line (1-based) after the header.
+    let mut line_no = reader.line();
+    let mut payload = Payload::with_capacity(header.elements.len());
+    let mut line = String::new();
+    for (name, def) in &header.elements {
+        let mut records = Vec::with_capacity(def.count.min(MAX_ASCII_PREALLOCATION));
+        for i in 0..def.count {
+            line.clear();
+            let read = reader
+                .get_mut()
+                .read_line(&mut line)
+                .map_err(|e| parse_error(path, format!("PLY line {line_no}: {e}")))?;
+            if read == 0 {
+                return Err(parse_error(
+                    path,
+                    format!(
+                        "PLY line {line_no}: unexpected end of file in element `{name}` \
+                         (expected {}, got {i})",
+                        def.count
+                    ),
+                ));
+            }
+            let record = match parser.read_ascii_element(&line, def) {
+                Ok(r) => r,
+                Err(e) => return Err(ascii_element_error(path, line_no, def, i, &line, &e)),
+            };
+            if name == "vertex" && !record.xyz.iter().all(|c| c.is_finite()) {
+                // A number too large for its type (`1e39` as `float`) parses to infinity.
+                let e = "a coordinate is not finite";
+                return Err(ascii_element_error(path, line_no, def, i, &line, &e));
+            }
+            records.push(record);
+            line_no += 1;
+        }
+        payload.insert(name.clone(), records);
+    }
+    Ok(payload)
+}
+
+/// A short error for ASCII element `index` on line `line_no` that failed to parse (`cause`):
+/// the property and token at fault where one can be found, else the parser's first line.
+fn ascii_element_error(
+    path: &Path,
+    line_no: usize,
+    def: &ElementDef,
+    index: usize,
+    line: &str,
+    cause: &dyn std::fmt::Display,
+) -> GeometryError {
+    let element = &def.name;
+    let reason = match find_bad_token(line, def) {
+        TokenCheck::Bad {
+            property,
+            token,
+            problem,
+        } => {
+            let what = if element == "vertex" && ["x", "y", "z"].contains(&property) {
+                "coordinate"
+            } else {
+                "value"
+            };
+            format!(
+                "{element} {index} has a {problem} {what} {property} = '{token}'; remove or fix \
+                 that {element}"
+            )
+        }
+        TokenCheck::Missing { property } => format!(
+            "{element} {index} ends before its property {property}; give every {element} all \
+             {} properties",
+            def.properties.len()
+        ),
+        TokenCheck::Fine => {
+            let cause = cause.to_string();
+            let first = cause.lines().next().unwrap_or_default().trim();
+            format!("cannot read {element} {index}: {first}")
+        }
+    };
+    parse_error(path, format!("PLY line {line_no}: {reason}"))
+}
+
+/// The first token of an ASCII element line that its property's type cannot hold.
+#[derive(Debug, PartialEq)]
+enum TokenCheck<'a> {
+    /// `token` (for `property`) is `problem` ("non-finite", "non-numeric", "non-integer").
+    Bad {
+        property: &'a str,
+        token: &'a str,
+        problem: &'static str,
+    },
+    /// The line ends before `property`.
+    Missing { property: &'a str },
+    /// Every property has a valid token.
+    Fine,
+}
+
+/// Walk the tokens of `line` along the properties of `def` (a list consumes its count, then that
+/// many items) and report the first one its type cannot hold.
+fn find_bad_token<'a>(line: &'a str, def: &'a ElementDef) -> TokenCheck<'a> {
+    let mut tokens = line.split_ascii_whitespace();
+    for (property, p) in &def.properties {
+        let property = property.as_str();
+        let (count_type, item_type) = match &p.data_type {
+            PropertyType::Scalar(t) => (None, t),
+            PropertyType::List(count, item) => (Some(count), item),
+        };
+        let count = match count_type {
+            None => 1,
+            Some(t) => {
+                let Some(token) = tokens.next() else {
+                    return TokenCheck::Missing { property };
+                };
+                if let Some(problem) = token_problem(token, t) {
+                    return TokenCheck::Bad {
+                        property,
+                        token,
+                        problem,
+                    };
+                }
+                // A count that is no usize (negative) leaves the grammar's error to speak.
+                match token.parse::<usize>() {
+                    Ok(n) => n,
+                    Err(_) => return TokenCheck::Fine,
+                }
+            }
+        };
+        for _ in 0..count {
+            let Some(token) = tokens.next() else {
+                return TokenCheck::Missing { property };
+            };
+            if let Some(problem) = token_problem(token, item_type) {
+                return TokenCheck::Bad {
+                    property,
+                    token,
+                    problem,
+                };
+            }
+        }
+    }
+    TokenCheck::Fine
+}
+
+/// Why `token` is not a value of type `t`, if it is not.
+fn token_problem(token: &str, t: &ScalarType) -> Option<&'static str> {
+    let finite = match t {
+        ScalarType::Float => token.parse::<f32>().map(f32::is_finite),
+        ScalarType::Double => token.parse::<f64>().map(f64::is_finite),
+        _ => {
+            return match token.parse::<i64>() {
+                Ok(_) => None,
+                Err(_) if token.parse::<f64>().is_ok() => Some("non-integer"),
+                Err(_) => Some("non-numeric"),
+            }
+        }
+    };
+    match finite {
+        Ok(true) => None,
+        Ok(false) => Some("non-finite"),
+        Err(_) => Some("non-numeric"),
+    }
 }
 
 /// Fan-triangulate the face lists, checking sizes and index ranges.

@@ -72,6 +72,7 @@ write("ply/truncated_binary.ply",
       ply_binary_points([(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)], declared=8)[:-5])
 write("ply/nan_ascii.ply", ply_ascii([(0, 0, 0), ("nan", 1, 1), (1, 1, 1)], [], nf=0))
 write("ply/inf_binary.ply", ply_binary_points([(0, 0, 0), (1, float("inf"), 0), (1, 1, 1)]))
+write("ply/nan_binary.ply", ply_binary_points([(0, 0, 0), (1, 1, 0), (1, 1, float("nan"))]))
 write("ply/missing_z.ply",
       "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
       "end_header\n0 0\n1 1\n")
