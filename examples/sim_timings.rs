@@ -10,14 +10,14 @@
 //! `quick` runs 50 steps and skips full Newton at m = 32; the full run skips `fixed` on the
 //! twist (it hits the iteration cap on most steps there).
 
+use freeform::benchmark::beam_sim_options;
+use freeform::fem::beam::{BeamTest, FemBeamConfig};
 use freeform::geometry::{Shape, ShapeOptions};
-use freeform::material::Region;
 use freeform::pipeline::{build_basis, BasisOptions, BasisRun};
 use freeform::progress::Silent;
 use freeform::report::Stopwatch;
 use freeform::sim::elastic::{Precision, Projection};
-use freeform::sim::motion::Motion;
-use freeform::sim::{Boundary, HessianStrategy, NewtonOptions, ReducedSim, SimOptions};
+use freeform::sim::{HessianStrategy, NewtonOptions, ReducedSim, SimOptions};
 use freeform::Point3;
 
 struct Outcome {
@@ -41,40 +41,20 @@ fn beam(m: usize) -> BasisRun {
     build_basis(&shape, &opts, &Silent).expect("basis")
 }
 
+/// The standard bend or twist (design.md section 3) with strategy `h` at tolerance `tol`.
 fn options(twist: bool, h: HessianStrategy, tol: f64, cubature: usize) -> SimOptions {
-    let mut b = vec![Boundary {
-        region: Region::HalfSpace {
-            point: [if twist { 0.25 } else { 0.5 }, 0.0, 0.0],
-            normal: [-1.0, 0.0, 0.0],
-        },
-        motion: Motion::Fixed,
-        stiffness: None,
-    }];
-    if twist {
-        b.push(Boundary {
-            region: Region::HalfSpace {
-                point: [4.75, 0.0, 0.0],
-                normal: [1.0, 0.0, 0.0],
-            },
-            motion: Motion::Rotate {
-                pivot: [0.0, 0.5, 0.5],
-                axis: [1.0, 0.0, 0.0],
-                degrees_per_second: 360.0,
-            },
-            stiffness: None,
-        });
-    }
-    SimOptions {
-        gravity: (!twist).then_some([0.0, -9.81, 0.0]),
-        cubature,
-        boundaries: b,
-        newton: NewtonOptions {
-            hessian: h,
-            tol,
-            ..NewtonOptions::default()
-        },
-        ..SimOptions::default()
-    }
+    let test = if twist {
+        BeamTest::Twist
+    } else {
+        BeamTest::Bend
+    };
+    let newton = NewtonOptions {
+        hessian: h,
+        tol,
+        ..NewtonOptions::default()
+    };
+    // The FEM resolution does not enter the reduced model's options.
+    beam_sim_options(&FemBeamConfig::standard(test, 1), cubature, newton, None)
 }
 
 fn simulate(run: &BasisRun, opts: &SimOptions, steps: usize, probe: &[Point3]) -> Outcome {

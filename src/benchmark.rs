@@ -215,6 +215,51 @@ pub fn beam_basis(
     })
 }
 
+/// The reduced simulation of the beam test `fem.test` (design.md section 3): time step and
+/// gravity of `fem.solver`, the left `held_length` metres held and, for the twist, the right
+/// `twist_length` metres turned about the beam's axis by `twist_degrees` over `fem.steps`
+/// steps; penalty stiffness `stiffness` (Pa/m^2; None: the default that scales with the
+/// material and the step), `cubature` points, solver `newton`.
+pub fn beam_sim_options(
+    fem: &FemBeamConfig,
+    cubature: usize,
+    newton: NewtonOptions,
+    stiffness: Option<f64>,
+) -> SimOptions {
+    let mut boundaries = vec![Boundary {
+        region: Region::HalfSpace {
+            point: [fem.held_length, 0.0, 0.0],
+            normal: [-1.0, 0.0, 0.0],
+        },
+        motion: Motion::Fixed,
+        stiffness,
+    }];
+    let dt = fem.solver.dt;
+    if fem.test == BeamTest::Twist {
+        boundaries.push(Boundary {
+            region: Region::HalfSpace {
+                point: [fem.size[0] - fem.twist_length, 0.0, 0.0],
+                normal: [1.0, 0.0, 0.0],
+            },
+            motion: Motion::Rotate {
+                pivot: [0.0, 0.5 * fem.size[1], 0.5 * fem.size[2]],
+                axis: [1.0, 0.0, 0.0],
+                degrees_per_second: fem.twist_degrees / (fem.steps as f64 * dt),
+            },
+            stiffness,
+        });
+    }
+    let g = fem.solver.gravity;
+    SimOptions {
+        dt,
+        gravity: g.iter().any(|v| *v != 0.0).then_some(g),
+        cubature,
+        newton,
+        boundaries,
+        ..SimOptions::default()
+    }
+}
+
 /// Simulate the beam test `fem.test` with the reduced model on `basis` and compare with
 /// `reference` (made from `fem`). `precompute_s` in the result is the basis build time plus
 /// this run's model setup. `opts` must match the basis ([`BasisKey`]).
@@ -235,38 +280,7 @@ pub fn simulate_beam(
     let steps = opts.frames.unwrap_or(fem.steps).min(reference.frames.len());
     let clock = Stopwatch::start();
     let run = &basis.run;
-    let mut boundaries = vec![Boundary {
-        region: Region::HalfSpace {
-            point: [fem.held_length, 0.0, 0.0],
-            normal: [-1.0, 0.0, 0.0],
-        },
-        motion: Motion::Fixed,
-        stiffness: opts.hold_stiffness,
-    }];
-    let dt = fem.solver.dt;
-    if fem.test == BeamTest::Twist {
-        boundaries.push(Boundary {
-            region: Region::HalfSpace {
-                point: [fem.size[0] - fem.twist_length, 0.0, 0.0],
-                normal: [1.0, 0.0, 0.0],
-            },
-            motion: Motion::Rotate {
-                pivot: [0.0, 0.5 * fem.size[1], 0.5 * fem.size[2]],
-                axis: [1.0, 0.0, 0.0],
-                degrees_per_second: fem.twist_degrees / (fem.steps as f64 * dt),
-            },
-            stiffness: opts.hold_stiffness,
-        });
-    }
-    let g = fem.solver.gravity;
-    let sim_opts = SimOptions {
-        dt,
-        gravity: g.iter().any(|v| *v != 0.0).then_some(g),
-        cubature: opts.cubature,
-        newton: opts.newton,
-        boundaries,
-        ..SimOptions::default()
-    };
+    let sim_opts = beam_sim_options(fem, opts.cubature, opts.newton, opts.hold_stiffness);
     let mut sim = ReducedSim::new(&run.basis, &run.points, &run.material, &sim_opts)?;
     let weights = run.basis.weights(&reference.rest)?;
     let precompute_s = basis.seconds + clock.elapsed();
