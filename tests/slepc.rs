@@ -216,3 +216,68 @@ fn petsc_reads_our_binary_export_exactly() {
         other => panic!("expected a PETSc error, got {:?}", other.map(|_| ())),
     }
 }
+
+/// SLEPc's LOBPCG loses B-orthogonality and LAPACK's sygvd rejects the projected pencil. The
+/// smallest case found with the `lobpcg-gamg` preset: K = 80 (SLEPc needs K >= 5 x the block
+/// size 16) and 19 pairs, i.e. more pairs than one block holds (scanned K = 80..3000, m = 8..32;
+/// it breaks down here and at K = 100 with m >= 24, K = 2800 and 3000 with m = 32, but not at
+/// K = 90 or with m <= 15). The advice in the message is checked too: the default SLEPc
+/// configuration and the native LOBPCG solve the same problem and agree with the dense solver.
+#[test]
+fn lobpcg_breakdown_is_a_typed_error_with_advice() {
+    use freeform::eigen::compare::max_eigenvalue_rel_diff;
+    use freeform::eigen::lobpcg::Lobpcg;
+    use freeform::geometry::{Shape, ShapeOptions};
+    use freeform::pipeline::{prepare, BasisOptions};
+    let shape = Shape::parse("box:5,1,1", &ShapeOptions::default()).unwrap();
+    let opts = BasisOptions {
+        kernels: 80,
+        modes: 18,
+        ..BasisOptions::default()
+    };
+    let p = prepare(&shape, &opts, &Silent).unwrap();
+    let (h, m) = (&p.assembled.hessian, &p.assembled.mass);
+    let req = EigenRequest {
+        nev: 19,
+        tol: 1e-8,
+        max_iter: 1000,
+    };
+    let lobpcg = SlepcSolver::new(SlepcOptions::parse("lobpcg-gamg").unwrap());
+    match lobpcg.solve(h, m, &req, &Silent) {
+        Err(
+            ref e @ EigenError::SlepcLobpcgBreakdown {
+                ref routine,
+                info,
+                k,
+                nev,
+                block_size,
+                ref message,
+            },
+        ) => {
+            assert_eq!(routine, "sygvd", "{message}");
+            // info > projected size (at most 3 x block size): a leading minor of the projected
+            // M is not positive definite, i.e. B-orthogonality was lost.
+            assert!(info > 3 * 16, "{message}");
+            assert_eq!((k, nev, block_size), (80, 19, Some(16)));
+            let text = e.to_string();
+            // One block of 19 would need K >= 95 (SLEPc's limit): not advised here.
+            assert!(
+                text.contains("SLEPc's LOBPCG broke down")
+                    && text.contains("--slepc ks-sinvert")
+                    && text.contains("--solver lobpcg")
+                    && !text.contains("blocksize"),
+                "{text}"
+            );
+        }
+        Err(other) => panic!("expected the LOBPCG breakdown, got {other}"),
+        Ok(sol) => panic!("SLEPc's LOBPCG no longer breaks down here: {:?}", sol.info),
+    }
+    // PETSc is usable afterwards, and both advised solvers solve the same problem.
+    let dense = DenseSolver.solve(h, m, &req, &Silent).unwrap();
+    let ks = SlepcSolver::default().solve(h, m, &req, &Silent).unwrap();
+    let native = Lobpcg::default().solve(h, m, &req, &Silent).unwrap();
+    for (name, sol) in [("ks-sinvert", &ks), ("native lobpcg", &native)] {
+        let diff = max_eigenvalue_rel_diff(&sol.values, &dense.values);
+        assert!(diff < 1e-8, "{name} vs dense: {diff:e}");
+    }
+}

@@ -146,3 +146,41 @@ fn distributed_assembly_on_one_rank_is_the_same_problem() {
         .to_string()
         .contains("distributed assembly: 1 rank(s)"));
 }
+
+/// What a user sees when SLEPc's LOBPCG breaks down (see tests/slepc.rs for the size): one
+/// line on stderr naming the breakdown and the ways out, exit status 1, no abort and no PETSc
+/// output.
+#[test]
+fn lobpcg_breakdown_is_reported_not_aborted() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_freeform"))
+        .args([
+            "modes",
+            "box:5,1,1",
+            "--kernels",
+            "80",
+            "--modes",
+            "18",
+            "--solver",
+            "slepc",
+            "--slepc",
+            "lobpcg-gamg",
+            "--out",
+        ])
+        .arg(dir.path().join("basis.npz"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    let error: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error:")).collect();
+    assert_eq!(error.len(), 1, "{stderr}");
+    assert!(
+        error[0].starts_with("error: SLEPc's LOBPCG broke down: loss of B-orthogonality")
+            && error[0].contains("LAPACK sygvd info=")
+            && error[0].contains("--slepc ks-sinvert")
+            && error[0].contains("--solver lobpcg"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("PETSC ERROR"), "{stderr}");
+    assert!(!dir.path().join("basis.npz").exists());
+}

@@ -813,6 +813,18 @@ impl<'s> Eps<'s> {
         check("EPSSolve", unsafe { sys::EPSSolve(self.raw) })
     }
 
+    /// Block size of SLEPc's LOBPCG (`EPSLOBPCGGetBlockSize`): the one set by
+    /// `-eps_lobpcg_blocksize`, or after setup SLEPc's default min(16, nev). 0 before setup
+    /// when none was set. An error if the solver type is not `lobpcg`.
+    pub fn lobpcg_block_size(&self) -> Result<usize> {
+        let mut bs: sys::PetscInt = 0;
+        // SAFETY: valid handle, out-pointer; PETSc reports a non-LOBPCG type as an error.
+        check("EPSLOBPCGGetBlockSize", unsafe {
+            sys::EPSLOBPCGGetBlockSize(self.raw, &mut bs)
+        })?;
+        Ok(bs.max(0) as usize)
+    }
+
     /// Converged eigenpairs available.
     pub fn converged(&self) -> Result<usize> {
         let mut n: sys::PetscInt = 0;

@@ -19,6 +19,10 @@
 //! [`SlepcOptions::petsc_options`] (or the `PETSC_OPTIONS` environment variable) override
 //! any of these choices. Residuals and M-orthonormality are recomputed by
 //! [`super::check_solution`], not taken from SLEPc.
+//!
+//! SLEPc's LOBPCG can lose B-orthogonality when it works through several blocks; LAPACK's
+//! `sygvd` then fails in its Rayleigh-Ritz step and the solve ends with
+//! [`EigenError::SlepcLobpcgBreakdown`], whose message names the alternatives (docs/slepc.md).
 
 use super::{
     check_solution, validate_problem, EigenError, EigenInfo, EigenRequest, EigenSolution,
@@ -305,6 +309,48 @@ fn backend(e: petsc::PetscError) -> EigenError {
     }
 }
 
+/// A LAPACK failure as SLEPc words it (`SlepcCheckLapackInfo`): "Error in LAPACK subroutine
+/// sygvd: info=74" gives `("sygvd", 74)`.
+fn lapack_failure(message: &str) -> Option<(String, i64)> {
+    let rest = message.split("Error in LAPACK subroutine ").nth(1)?;
+    let (routine, rest) = rest.split_once(": info=")?;
+    let digits: String = rest
+        .chars()
+        .enumerate()
+        .take_while(|&(i, c)| c.is_ascii_digit() || (i == 0 && c == '-'))
+        .map(|(_, c)| c)
+        .collect();
+    let info = digits.parse().ok()?;
+    let routine = routine.trim();
+    (!routine.is_empty() && !routine.contains(char::is_whitespace))
+        .then(|| (routine.to_string(), info))
+}
+
+/// What a failed `EPSSolve` means for the user. A LAPACK failure inside SLEPc's LOBPCG
+/// (`EPSSolve_LOBPCG` in the call chain; in practice `sygvd` in its Rayleigh-Ritz step, after
+/// the basis lost B-orthogonality) becomes [`EigenError::SlepcLobpcgBreakdown`] with the
+/// ways out; anything else stays [`EigenError::Backend`] with PETSc's message.
+fn solve_error(
+    e: petsc::PetscError,
+    k: usize,
+    nev: usize,
+    block_size: Option<usize>,
+) -> EigenError {
+    if e.message.contains("EPSSolve_LOBPCG()") {
+        if let Some((routine, info)) = lapack_failure(&e.message) {
+            return EigenError::SlepcLobpcgBreakdown {
+                routine,
+                info,
+                k,
+                nev,
+                block_size,
+                message: e.to_string(),
+            };
+        }
+    }
+    backend(e)
+}
+
 /// Option names (`-eps_type`) in an options string: tokens starting with `-` and a letter.
 fn option_names(options: &str) -> Vec<&str> {
     options
@@ -322,7 +368,8 @@ fn option_names(options: &str) -> Vec<&str> {
 /// (H Pa m, M m^3). Eigenvectors are gathered onto every rank.
 ///
 /// # Errors
-/// [`EigenError::Backend`] with PETSc's message for any PETSc/SLEPc failure.
+/// [`EigenError::SlepcLobpcgBreakdown`] when SLEPc's LOBPCG breaks down in its Rayleigh-Ritz
+/// step; [`EigenError::Backend`] with PETSc's message for any other PETSc/SLEPc failure.
 pub fn solve_rows(
     k: usize,
     h: &RowBlock,
@@ -366,7 +413,15 @@ pub fn solve_rows(
         eps.set_convergence_test(petsc::Convergence::Norm)
             .map_err(backend)?;
     }
-    eps.solve().map_err(backend)?;
+    if let Err(e) = eps.solve() {
+        // After a failed solve SLEPc still reports the block size it set up (LOBPCG only).
+        let block_size = if chosen_type == "lobpcg" {
+            eps.lobpcg_block_size().ok().filter(|&b| b > 0)
+        } else {
+            None
+        };
+        return Err(solve_error(e, k, request.nev, block_size));
+    }
     let converged = eps.converged().map_err(backend)?;
     let iterations = eps.iterations().map_err(backend)?;
     let mut x = hm.create_vector().map_err(backend)?;
@@ -541,6 +596,103 @@ mod tests {
                 assert_eq!(next, n);
             }
         }
+    }
+
+    /// The failure as SLEPc 3.18 reported it for `modes box:5,1,1 --kernels 3000 --modes 32
+    /// --solver slepc --slepc lobpcg-gamg` (message recorded by our error handler).
+    fn sygvd_failure() -> petsc::PetscError {
+        petsc::PetscError {
+            code: 76,
+            call: "EPSSolve",
+            message: "Error in LAPACK subroutine sygvd: info=74 [DSSolve_GHEP() at \
+                      ./src/sys/classes/ds/impls/ghep/dsghep.c:131] <- DSSolve() <- \
+                      EPSSolve_LOBPCG() <- EPSSolve()"
+                .to_string(),
+        }
+    }
+
+    #[test]
+    fn lapack_failures_are_parsed() {
+        assert_eq!(
+            lapack_failure(&sygvd_failure().message),
+            Some(("sygvd".to_string(), 74))
+        );
+        assert_eq!(
+            lapack_failure("Error in LAPACK subroutine syevr: info=-3 [x]"),
+            Some(("syevr".to_string(), -3))
+        );
+        assert_eq!(lapack_failure("Unknown EPS type given: bogus"), None);
+        assert_eq!(lapack_failure("Error in LAPACK subroutine : info=x"), None);
+    }
+
+    #[test]
+    fn a_lobpcg_sygvd_failure_becomes_the_breakdown_error() {
+        match solve_error(sygvd_failure(), 3000, 33, Some(16)) {
+            EigenError::SlepcLobpcgBreakdown {
+                routine,
+                info,
+                k,
+                nev,
+                block_size,
+                message,
+            } => {
+                assert_eq!(
+                    (routine.as_str(), info, k, nev, block_size),
+                    ("sygvd", 74, 3000, 33, Some(16))
+                );
+                assert!(message.contains("DSSolve_GHEP"), "{message}");
+            }
+            other => panic!("expected the LOBPCG breakdown, got {other:?}"),
+        }
+        let text = solve_error(sygvd_failure(), 3000, 33, Some(16)).to_string();
+        for needle in [
+            "SLEPc's LOBPCG broke down",
+            "loss of B-orthogonality in the Rayleigh-Ritz step",
+            "LAPACK sygvd info=74",
+            "block size 16",
+            "--slepc ks-sinvert",
+            "--solver lobpcg",
+            "\"-eps_lobpcg_blocksize 33\") or ask for fewer modes",
+        ] {
+            assert!(text.contains(needle), "{needle:?} missing in: {text}");
+        }
+        // Already one block for all pairs: the block-size advice is left out.
+        let single = EigenError::SlepcLobpcgBreakdown {
+            routine: "sygvd".to_string(),
+            info: 60,
+            k: 3000,
+            nev: 8,
+            block_size: Some(8),
+            message: String::new(),
+        }
+        .to_string();
+        assert!(
+            single.ends_with("to keep SLEPc's LOBPCG, ask for fewer modes")
+                && !single.contains("blocksize"),
+            "{single}"
+        );
+        // K too small for one block of 33 (SLEPc needs K >= 5 x block size): left out too.
+        let small = solve_error(sygvd_failure(), 150, 33, Some(16)).to_string();
+        assert!(
+            small.ends_with("ask for fewer modes") && !small.contains("blocksize"),
+            "{small}"
+        );
+        // The same LAPACK failure under another solver is not LOBPCG's: PETSc's message stays.
+        let mut other = sygvd_failure();
+        other.message = other
+            .message
+            .replace("EPSSolve_LOBPCG", "EPSSolve_KrylovSchur");
+        assert!(matches!(
+            solve_error(other, 3000, 33, None),
+            EigenError::Backend { .. }
+        ));
+        // So does a non-LAPACK error inside LOBPCG.
+        let mut other = sygvd_failure();
+        other.message = "Out of memory [EPSSolve_LOBPCG()] <- EPSSolve()".to_string();
+        assert!(matches!(
+            solve_error(other, 3000, 33, None),
+            EigenError::Backend { .. }
+        ));
     }
 
     #[test]
