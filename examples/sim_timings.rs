@@ -3,7 +3,8 @@
 //! strategies x m for the bend and the twist (K = 1000, 5000 cubature points, 200 steps),
 //! the distance of each run's final state from a tight-tolerance reference, the growth with m
 //! and with the cubature count, and the per-iteration cost split; then the L-BFGS twist repeated
-//! (5 runs, each after a one-call gauge of the machine's speed) to show the run-to-run spread.
+//! (5 runs, each after a one-call gauge of the machine's speed) to show the run-to-run spread,
+//! and both initial guesses (`NewtonOptions::initial_guess`).
 //!
 //!     cargo run --release --example sim_timings [-- quick]
 //!
@@ -17,7 +18,7 @@ use freeform::pipeline::{build_basis, BasisOptions, BasisRun};
 use freeform::progress::Silent;
 use freeform::report::Stopwatch;
 use freeform::sim::elastic::{Precision, Projection};
-use freeform::sim::{HessianStrategy, NewtonOptions, ReducedSim, SimOptions};
+use freeform::sim::{HessianStrategy, InitialGuess, NewtonOptions, ReducedSim, SimOptions};
 use freeform::Point3;
 
 struct Outcome {
@@ -28,6 +29,8 @@ struct Outcome {
     grad_ms: f64,
     hess_ms: f64,
     solve_ms: f64,
+    cutbacks: f64,
+    factorizations: f64,
     probe: Vec<Point3>,
 }
 
@@ -67,6 +70,8 @@ fn simulate(run: &BasisRun, opts: &SimOptions, steps: usize, probe: &[Point3]) -
         grad_ms: 0.0,
         hess_ms: 0.0,
         solve_ms: 0.0,
+        cutbacks: 0.0,
+        factorizations: 0.0,
         probe: Vec::new(),
     };
     for _ in 0..steps {
@@ -77,6 +82,8 @@ fn simulate(run: &BasisRun, opts: &SimOptions, steps: usize, probe: &[Point3]) -
         o.grad_ms += r.solve.gradient_s * 1e3;
         o.hess_ms += r.solve.hessian_s * 1e3;
         o.solve_ms += r.solve.solve_s * 1e3;
+        o.cutbacks += r.solve.line_search_cutbacks as f64;
+        o.factorizations += r.solve.factorizations as f64;
         o.nonconverged += usize::from(!r.solve.converged);
     }
     let n = steps as f64;
@@ -87,6 +94,8 @@ fn simulate(run: &BasisRun, opts: &SimOptions, steps: usize, probe: &[Point3]) -
         &mut o.grad_ms,
         &mut o.hess_ms,
         &mut o.solve_ms,
+        &mut o.cutbacks,
+        &mut o.factorizations,
     ] {
         *v /= n;
     }
@@ -234,6 +243,36 @@ fn main() {
                 o.hess_ms,
                 max_dist(&o.probe, &reference.probe)
             );
+        }
+    }
+    println!("\nInitial guess (lbfgs, tol 1e-6):\n");
+    println!("| test | m | initial guess | step ms | iterations | evaluations | line-search cutbacks | refreshes | max distance to the tol 1e-9 state (m) |");
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for m in [16, 32] {
+        let run = beam(m);
+        for twist in [false, true] {
+            let name = if twist { "twist" } else { "bend" };
+            let reference = simulate(
+                &run,
+                &options(twist, HessianStrategy::Lbfgs, 1e-9, 5000),
+                steps,
+                &probe,
+            );
+            for guess in [InitialGuess::Velocity, InitialGuess::Extrapolate] {
+                let mut opts = options(twist, HessianStrategy::Lbfgs, 1e-6, 5000);
+                opts.newton.initial_guess = guess;
+                let o = simulate(&run, &opts, steps, &probe);
+                println!(
+                    "| {name} | {m} | {} | {:.2} | {:.2} | {:.2} | {:.3} | {:.3} | {:.1e} |",
+                    guess.name(),
+                    o.step_ms,
+                    o.iterations,
+                    o.evaluations,
+                    o.cutbacks,
+                    o.factorizations,
+                    max_dist(&o.probe, &reference.probe)
+                );
+            }
         }
     }
     println!("\nGrowth (bend, lbfgs, tol 1e-6):\n");
