@@ -20,10 +20,11 @@
 //! rotations S overestimates the stiffness of rotated material, so it can stop early: prefer
 //! `Lbfgs` there (docs/performance.md has the measurements).
 //!
-//! Every step takes at least one iteration, even when the predictor already meets the
-//! tolerance: with small time steps the whole per-step change (g h^2 for gravity) can be
-//! below tol x D, and accepting the predictor would leave the object hanging in the air
-//! (measured: a beam under gravity did not move at h = 1e-4 s; docs/limits.md).
+//! Every step takes at least one iteration, even when its starting point (the initial guess,
+//! [`InitialGuess`]) already meets the tolerance: with small time steps the whole per-step
+//! change (g h^2 for gravity) can be below tol x D, and accepting the velocity predictor
+//! would leave the object hanging in the air (measured: a beam under gravity did not move at
+//! h = 1e-4 s; docs/limits.md).
 
 pub use crate::sim::elastic::Precision;
 use faer::linalg::solvers::{Llt, Solve};
@@ -202,7 +203,8 @@ pub struct SolveReport {
     pub residual: f64,
     /// Final energy, J.
     pub energy: f64,
-    /// Energy at the start of the step (the predictor), J: `energy` <= this up to rounding.
+    /// Energy at the start of the step (the initial guess), J: `energy` <= this up to
+    /// rounding.
     pub initial_energy: f64,
     /// Largest energy increase accepted by one iteration's line search, J (0 when every
     /// iteration decreased the energy; positive only within the energy's rounding level,
@@ -431,7 +433,7 @@ pub fn minimize(
                 continue;
             }
             if rep.residual <= opts.tol {
-                // The forced first iteration found nothing to improve: the predictor was
+                // The forced first iteration found nothing to improve: the initial guess was
                 // already the minimiser to within rounding.
                 rep.converged = true;
             } else {
