@@ -67,7 +67,7 @@ pub struct SolverSettings {
     /// L-BFGS refresh: arithmetic of the base's dense products, `single` (default) or
     /// `double`.
     pub refresh_precision: Precision,
-    /// Start of each step's minimisation, `velocity` (default) or `extrapolate`.
+    /// Start of each step's minimisation, `extrapolate` (default) or `velocity`.
     pub initial_guess: InitialGuess,
     /// Cubature points for the elastic energy, default 5000 (all points if fewer).
     pub cubature: usize,

@@ -300,7 +300,6 @@ pub fn minimize(
     rep.initial_energy = e;
     let mut trial = vec![0.0; n];
     let mut tgrad = vec![0.0; n];
-
     loop {
         // The convergence measure uses the best Hessian model at hand: the latest factorized
         // Hessian (Newton; L-BFGS after a refresh), else the rest matrix S.

@@ -132,9 +132,11 @@ pub struct ReducedSim {
     cubature: Cubature,
     /// Reduced coordinates z, 12 (m + 1).
     pub z: Vec<f64>,
-    /// Reduced velocity dz/dt.
+    /// Reduced velocity dz/dt. It may be set between steps (a kick); with
+    /// [`InitialGuess::Extrapolate`] the next step then starts from an extrapolation that
+    /// includes the change, which moves only that step's starting point.
     pub zdot: Vec<f64>,
-    /// zdot of the previous step (for [`InitialGuess::Extrapolate`]).
+    /// zdot before the last step (for [`InitialGuess::Extrapolate`]).
     zdot_prev: Vec<f64>,
     /// Simulated time, s.
     pub time: f64,
