@@ -104,6 +104,30 @@ fn simulate(run: &BasisRun, opts: &SimOptions, steps: usize, probe: &[Point3]) -
     o
 }
 
+/// Each labelled option set of `list` simulated on the bend or twist, with its largest probe
+/// distance from the tol 1e-9 L-BFGS run (the converged trajectory).
+fn variants(
+    run: &BasisRun,
+    twist: bool,
+    steps: usize,
+    probe: &[Point3],
+    list: &[(String, SimOptions)],
+) -> Vec<(String, Outcome, f64)> {
+    let reference = simulate(
+        run,
+        &options(twist, HessianStrategy::Lbfgs, 1e-9, 5000),
+        steps,
+        probe,
+    );
+    list.iter()
+        .map(|(label, opts)| {
+            let o = simulate(run, opts, steps, probe);
+            let d = max_dist(&o.probe, &reference.probe);
+            (label.clone(), o, d)
+        })
+        .collect()
+}
+
 /// Milliseconds per elastic energy + gradient of `run`'s beam (5000 cubature points) at a
 /// fixed non-rest state, the mean of 50 calls after 5 warm-up calls.
 fn gauge(run: &BasisRun) -> f64 {
@@ -226,22 +250,15 @@ fn main() {
     println!("|---|---|---|---|---|---|");
     for m in [16, 32] {
         let run = beam(m);
-        let reference = simulate(
-            &run,
-            &options(true, HessianStrategy::Lbfgs, 1e-9, 5000),
-            steps,
-            &probe,
-        );
-        for precision in [Precision::Single, Precision::Double] {
+        let list = [Precision::Single, Precision::Double].map(|precision| {
             let mut opts = options(true, HessianStrategy::Lbfgs, 1e-6, 5000);
             opts.newton.refresh_precision = precision;
-            let o = simulate(&run, &opts, steps, &probe);
+            (format!("{precision:?}"), opts)
+        });
+        for (label, o, dist) in variants(&run, true, steps, &probe, &list) {
             println!(
-                "| {m} | {precision:?} | {:.2} | {:.2} | {:.2} | {:.1e} |",
-                o.step_ms,
-                o.iterations,
-                o.hess_ms,
-                max_dist(&o.probe, &reference.probe)
+                "| {m} | {label} | {:.2} | {:.2} | {:.2} | {dist:.1e} |",
+                o.step_ms, o.iterations, o.hess_ms,
             );
         }
     }
@@ -252,25 +269,15 @@ fn main() {
         let run = beam(m);
         for twist in [false, true] {
             let name = if twist { "twist" } else { "bend" };
-            let reference = simulate(
-                &run,
-                &options(twist, HessianStrategy::Lbfgs, 1e-9, 5000),
-                steps,
-                &probe,
-            );
-            for guess in [InitialGuess::Velocity, InitialGuess::Extrapolate] {
+            let list = [InitialGuess::Velocity, InitialGuess::Extrapolate].map(|guess| {
                 let mut opts = options(twist, HessianStrategy::Lbfgs, 1e-6, 5000);
                 opts.newton.initial_guess = guess;
-                let o = simulate(&run, &opts, steps, &probe);
+                (guess.name().to_string(), opts)
+            });
+            for (label, o, dist) in variants(&run, twist, steps, &probe, &list) {
                 println!(
-                    "| {name} | {m} | {} | {:.2} | {:.2} | {:.2} | {:.3} | {:.3} | {:.1e} |",
-                    guess.name(),
-                    o.step_ms,
-                    o.iterations,
-                    o.evaluations,
-                    o.cutbacks,
-                    o.factorizations,
-                    max_dist(&o.probe, &reference.probe)
+                    "| {name} | {m} | {label} | {:.2} | {:.2} | {:.2} | {:.3} | {:.3} | {dist:.1e} |",
+                    o.step_ms, o.iterations, o.evaluations, o.cutbacks, o.factorizations,
                 );
             }
         }

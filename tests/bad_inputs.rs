@@ -523,16 +523,11 @@ fn byte_parsers_match_file_readers() {
     assert_eq!(a.triangles(), b.triangles());
 }
 
-/// A damaged basis file (the scene cache, `modes --out`) gives `Error::BasisFile` or
-/// `Error::Io`, never a panic: garbage, every truncation, and byte flips all through the file.
-#[test]
-fn damaged_basis_files_are_rejected() {
-    use freeform::rkpm::{KernelType, Kernels};
-    use freeform::skinning::Basis;
-    let dir = tempfile::tempdir().unwrap();
-    let good = dir.path().join("good.npz");
-    let basis = Basis {
-        kernels: Kernels {
+/// A basis of K = 4 kernels (the origin and the unit points on the axes, radius 1.5) and
+/// m + 1 = 2 columns with coefficients `offset + i + 3 j`.
+fn tiny_basis(kind: freeform::rkpm::KernelType, offset: f64) -> freeform::skinning::Basis {
+    freeform::skinning::Basis {
+        kernels: freeform::rkpm::Kernels {
             centers: vec![
                 [0.0, 0.0, 0.0],
                 [1.0, 0.0, 0.0],
@@ -540,11 +535,21 @@ fn damaged_basis_files_are_rejected() {
                 [0.0, 0.0, 1.0],
             ],
             radii: vec![1.5; 4],
-            kind: KernelType::Cubic,
+            kind,
         },
-        coefficients: faer::Mat::from_fn(4, 2, |i, j| (i + 3 * j) as f64),
+        coefficients: faer::Mat::from_fn(4, 2, |i, j| offset + (i + 3 * j) as f64),
         eigenvalues: vec![0.0, 2.5],
-    };
+    }
+}
+
+/// A damaged basis file (the scene cache, `modes --out`) gives `Error::BasisFile` or
+/// `Error::Io`, never a panic: garbage, every truncation, and byte flips all through the file.
+#[test]
+fn damaged_basis_files_are_rejected() {
+    use freeform::rkpm::KernelType;
+    let dir = tempfile::tempdir().unwrap();
+    let good = dir.path().join("good.npz");
+    let basis = tiny_basis(KernelType::Cubic, 0.0);
     freeform::io::basis::save(&good, &basis, &serde_json::json!({"test": true})).unwrap();
     let bytes = std::fs::read(&good).unwrap();
     assert!(freeform::io::basis::load(&good).is_ok());
@@ -627,25 +632,10 @@ fn set_declared_size(archive: &mut [u8], name: &str, size: u32) {
 #[test]
 fn basis_array_beyond_its_limit_is_rejected() {
     use freeform::io::basis;
-    use freeform::rkpm::{KernelType, Kernels};
-    use freeform::skinning::Basis;
+    use freeform::rkpm::KernelType;
     let dir = tempfile::tempdir().unwrap();
     let good = dir.path().join("good.npz");
-    // K = 4 kernels, m + 1 = 2 columns.
-    let original = Basis {
-        kernels: Kernels {
-            centers: vec![
-                [0.0, 0.0, 0.0],
-                [1.0, 0.0, 0.0],
-                [0.0, 1.0, 0.0],
-                [0.0, 0.0, 1.0],
-            ],
-            radii: vec![1.5; 4],
-            kind: KernelType::Quartic,
-        },
-        coefficients: faer::Mat::from_fn(4, 2, |i, j| 0.25 + (i + 3 * j) as f64),
-        eigenvalues: vec![0.0, 2.5],
-    };
+    let original = tiny_basis(KernelType::Quartic, 0.25);
     basis::save(&good, &original, &serde_json::json!({"test": true})).unwrap();
     let entries = zip_entries(&std::fs::read(&good).unwrap());
     let load = |name: &str, archive: &[u8]| {
