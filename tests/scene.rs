@@ -411,3 +411,16 @@ fn mesh_and_point_cloud_objects_write_deformed_meshes_and_points() {
     let head = String::from_utf8_lossy(&vtp[..600]).to_string();
     assert!(head.contains(&format!("NumberOfVerts=\"{}\"", cloud.len())));
 }
+
+/// The reference scene of docs/scenes.md (its first toml block) parses, and the solver values
+/// it lists as defaults are the code's defaults: the docs cannot drift from the code.
+#[test]
+fn the_documented_reference_scene_parses_with_the_code_defaults() {
+    let doc = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/scenes.md"))
+        .unwrap();
+    let start = doc.find("```toml\n").expect("a toml block") + "```toml\n".len();
+    let len = doc[start..].find("```").expect("the block's end");
+    let scene = Scene::from_toml(&doc[start..start + len]).unwrap_or_else(|e| panic!("{e}"));
+    assert!(!scene.objects.is_empty());
+    assert_eq!(scene.solver, freeform::scene::SolverSettings::default());
+}
