@@ -22,8 +22,8 @@
 use crate::assembly::assemble;
 use crate::centers::{farthest_point_sampling, morton_order};
 use crate::eigen::slepc::{
-    allreduce_max, allreduce_sum, block_range, solve_rows, world_rank, RowBlock, SlepcOptions,
-    RESIDUAL_SLACK,
+    accept, allreduce_max, allreduce_sum, block_range, solve_rows, world_rank, RowBlock,
+    SlepcOptions,
 };
 use crate::eigen::{relative_residual, EigenError, EigenInfo, EigenRequest, EigenSolution};
 use crate::geometry::Shape;
@@ -178,8 +178,8 @@ pub fn build_basis_mpi(
     let rs = rs?;
     let mut info = EigenInfo {
         solver: format!("slepc:{}", slepc.label()),
-        iterations: rs.iterations,
-        locked: rs.converged,
+        iterations: rs.status.iterations,
+        locked: rs.status.converged,
         notes: rs.notes,
         ..EigenInfo::default()
     };
@@ -236,31 +236,17 @@ pub fn build_basis_mpi(
         points_per_rank: (0..size).map(|r| counts[3 * r + 1] as usize).collect(),
     };
 
-    let good = info
-        .residuals
-        .iter()
-        .filter(|&&r| r <= RESIDUAL_SLACK * request.tol)
-        .count();
-    if rs.values.len() < request.nev || good < request.nev {
-        return Err(EigenError::NotConverged {
-            iterations: info.iterations,
-            converged: good,
-            nev: request.nev,
-            tol: request.tol,
-            // Pairs SLEPc did not converge are not available: their residual is unknown.
-            max_residual: if rs.values.len() < request.nev {
-                f64::INFINITY
-            } else {
-                info.max_relative_residual
-            },
-            partial: Box::new(EigenSolution {
-                values: rs.values,
-                vectors: rs.vectors,
-                info,
-            }),
-        }
-        .into());
-    }
+    // Every rank holds the same reduced residuals, so all take the same decision.
+    let solution = accept(
+        k,
+        &request,
+        &rs.status,
+        EigenSolution {
+            values: rs.values,
+            vectors: rs.vectors,
+            info,
+        },
+    )?;
     let mut report = ModesReport {
         kernels: k,
         points: n,
@@ -268,9 +254,9 @@ pub fn build_basis_mpi(
         nnz_hessian: nnz,
         nnz_mass: nnz,
         solver: "slepc".into(),
-        eigenvalues: rs.values.clone(),
-        max_relative_residual: info.max_relative_residual,
-        orthonormality_error: info.orthonormality_error,
+        eigenvalues: solution.values.clone(),
+        max_relative_residual: solution.info.max_relative_residual,
+        orthonormality_error: solution.info.orthonormality_error,
         reproducing_error: repro.max(),
         reproducing_detail: repro,
         timings_s: timings,
@@ -286,7 +272,7 @@ pub fn build_basis_mpi(
             enlarged_kernels: 0,
             shape_function_bytes: sf_bytes,
         },
-        eigen: info,
+        eigen: solution.info,
         tol: opts.tol,
         warnings: Vec::new(),
         monitors: Default::default(),
@@ -294,8 +280,8 @@ pub fn build_basis_mpi(
     crate::pipeline::check_quality(&mut report);
     let basis = Basis {
         kernels,
-        coefficients: rs.vectors,
-        eigenvalues: rs.values,
+        coefficients: solution.vectors,
+        eigenvalues: solution.values,
     };
     Ok((
         BasisRun {

@@ -6,7 +6,7 @@
 use freeform::eigen::dense::DenseSolver;
 use freeform::eigen::slepc::{SlepcOptions, SlepcPreset, SlepcSolver};
 use freeform::eigen::testing::{q1_fem, q1_fem_eigenvalues};
-use freeform::eigen::{EigenError, EigenRequest, Eigensolver};
+use freeform::eigen::{EigenError, EigenRequest, Eigensolver, SlepcLobpcgStop};
 use freeform::progress::Silent;
 
 /// Q1 Neumann problem, 9 x 8 x 7 nodes (K = 504), 8 pairs: distinct sizes keep the wanted
@@ -163,6 +163,7 @@ fn a_petsc_error_carries_petscs_message() {
     }
 }
 
+/// A cap set too low for SLEPc's LOBPCG: the message says so and advises raising it first.
 #[test]
 fn non_convergence_returns_the_partial_result() {
     let (h, m) = q1_fem(N, H);
@@ -176,13 +177,24 @@ fn non_convergence_returns_the_partial_result() {
         max_iter: 2,
     };
     match solver.solve(&h, &m, &req, &Silent) {
-        Err(EigenError::NotConverged {
-            partial, converged, ..
-        }) => {
+        Err(
+            ref e @ EigenError::SlepcLobpcgNotConverged {
+                stop: SlepcLobpcgStop::IterationCap,
+                ref partial,
+                converged,
+                ..
+            },
+        ) => {
             assert!(converged < 8);
             assert_eq!(partial.info.residuals.len(), partial.values.len());
+            let text = e.to_string();
+            assert!(
+                text.starts_with("SLEPc's LOBPCG stopped at its iteration cap (2 iterations)")
+                    && text.contains("raise --max-iter (2 now, default 1000)"),
+                "{text}"
+            );
         }
-        Err(other) => panic!("expected NotConverged, got {other}"),
+        Err(other) => panic!("expected SLEPc's LOBPCG iteration cap, got {other}"),
         Ok(sol) => panic!(
             "2 iterations cannot converge 8 pairs to 1e-12: {:?}",
             sol.info
@@ -280,4 +292,260 @@ fn lobpcg_breakdown_is_a_typed_error_with_advice() {
         let diff = max_eigenvalue_rel_diff(&sol.values, &dense.values);
         assert!(diff < 1e-8, "{name} vs dense: {diff:e}");
     }
+}
+
+/// H_w and M of `freeform modes box:5,1,1 --kernels K` (default options), the problem the
+/// SLEPc LOBPCG failures below were found on.
+fn box_pencil(
+    kernels: usize,
+) -> (
+    freeform::sparse::SparseMatrix,
+    freeform::sparse::SparseMatrix,
+) {
+    use freeform::geometry::{Shape, ShapeOptions};
+    use freeform::pipeline::{prepare, BasisOptions};
+    let shape = Shape::parse("box:5,1,1", &ShapeOptions::default()).unwrap();
+    let opts = BasisOptions {
+        kernels,
+        ..BasisOptions::default()
+    };
+    let p = prepare(&shape, &opts, &Silent).unwrap();
+    (p.assembled.hessian, p.assembled.mass)
+}
+
+/// ||H x - lambda M x||_2 / ((||H||_1 + |lambda| ||M||_1) ||x||_2) of column `j`, with plain
+/// loops over the CSC arrays of the (symmetric, fully stored) matrices: independent of
+/// `eigen::check_solution`, which decided convergence.
+fn plain_residual(
+    h: &freeform::sparse::SparseMatrix,
+    m: &freeform::sparse::SparseMatrix,
+    lambda: f64,
+    x: &[f64],
+) -> f64 {
+    let k = x.len();
+    let apply = |a: &freeform::sparse::SparseMatrix| {
+        let mut y = vec![0.0; k];
+        let mut norm1 = 0.0f64;
+        for (j, &xj) in x.iter().enumerate() {
+            let range = a.symbolic().col_range(j);
+            let mut col = 0.0;
+            for (&i, &v) in a.symbolic().row_idx()[range.clone()]
+                .iter()
+                .zip(&a.val()[range])
+            {
+                y[i] += v * xj;
+                col += v.abs();
+            }
+            norm1 = norm1.max(col);
+        }
+        (y, norm1)
+    };
+    let ((hx, nh), (mx, nm)) = (apply(h), apply(m));
+    let r: f64 = hx
+        .iter()
+        .zip(&mx)
+        .map(|(a, b)| (a - lambda * b).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    let xn = x.iter().map(|v| v * v).sum::<f64>().sqrt();
+    r / ((nh + lambda.abs() * nm) * xn)
+}
+
+/// Every way out that a SLEPc LOBPCG failure message advises solves the problem: the default
+/// SLEPc configuration, the native LOBPCG, and the SLEPc options given, all against the dense
+/// solver (`nev` pairs, or the first `fewer` with the preset alone).
+fn advised_solvers_agree_with_dense(
+    h: &freeform::sparse::SparseMatrix,
+    m: &freeform::sparse::SparseMatrix,
+    req: &EigenRequest,
+    slepc_lobpcg_options: &[&str],
+    fewer: usize,
+) {
+    use freeform::eigen::compare::max_eigenvalue_rel_diff;
+    use freeform::eigen::lobpcg::Lobpcg;
+    let dense = DenseSolver.solve(h, m, req, &Silent).unwrap();
+    let mut solvers: Vec<(String, Box<dyn Eigensolver>, usize)> = vec![
+        (
+            "ks-sinvert".into(),
+            Box::new(SlepcSolver::default()),
+            req.nev,
+        ),
+        ("native lobpcg".into(), Box::new(Lobpcg::default()), req.nev),
+        (
+            format!("lobpcg-gamg, {fewer} pairs"),
+            Box::new(SlepcSolver::new(
+                SlepcOptions::parse("lobpcg-gamg").unwrap(),
+            )),
+            fewer,
+        ),
+    ];
+    for spec in slepc_lobpcg_options {
+        solvers.push((
+            spec.to_string(),
+            Box::new(SlepcSolver::new(SlepcOptions::parse(spec).unwrap())),
+            req.nev,
+        ));
+    }
+    for (name, solver, nev) in solvers {
+        let req = EigenRequest { nev, ..req.clone() };
+        let sol = solver
+            .solve(h, m, &req, &Silent)
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        let diff = max_eigenvalue_rel_diff(&sol.values, &dense.values[..nev]);
+        assert!(diff < 1e-8, "{name} vs dense: {diff:e}");
+    }
+}
+
+/// SLEPc's LOBPCG reports every pair converged but one is far off. Smallest case found with
+/// the `lobpcg-gamg` preset where one block with guard vectors fits (K >= 5 x 18): K = 120,
+/// m = 15 (16 pairs, SLEPc's default block of 16 already holds them all; scanned K = 80..150,
+/// m = 8..32: also K = 80 m = 16, K = 90 m = 28, K = 100 m = 22, K = 130 and 145 m = 15..24;
+/// never with m <= 14). The message names the pair, and its residual is confirmed here without
+/// `check_solution`; its eigenvalue is not the dense one. Every advised way out is checked.
+#[test]
+fn slepc_lobpcg_false_convergence_names_the_pair_and_the_ways_out() {
+    let (h, m) = box_pencil(120);
+    let req = EigenRequest {
+        nev: 16,
+        tol: 1e-8,
+        max_iter: 1000,
+    };
+    let dense = DenseSolver.solve(&h, &m, &req, &Silent).unwrap();
+    let lobpcg = SlepcSolver::new(SlepcOptions::parse("lobpcg-gamg").unwrap());
+    let err = match lobpcg.solve(&h, &m, &req, &Silent) {
+        Err(e @ EigenError::SlepcLobpcgNotConverged { .. }) => e,
+        Err(other) => panic!("expected SlepcLobpcgNotConverged, got {other}"),
+        Ok(sol) => panic!("SLEPc's LOBPCG no longer fails here: {:?}", sol.info),
+    };
+    let text = err.to_string();
+    let EigenError::SlepcLobpcgNotConverged {
+        stop,
+        reported,
+        converged,
+        block_size,
+        partial,
+        ..
+    } = err
+    else {
+        unreachable!()
+    };
+    let SlepcLobpcgStop::ClaimedConverged {
+        pair,
+        lambda,
+        residual,
+        above,
+    } = stop
+    else {
+        panic!("expected a claimed convergence, got {stop:?}: {text}")
+    };
+    assert!(reported >= 16, "SLEPc reported {reported}: {text}");
+    assert_eq!((converged, above, block_size), (15, 1, Some(16)), "{text}");
+    assert_eq!(lambda, partial.values[pair]);
+    let x: Vec<f64> = (0..h.nrows()).map(|i| partial.vectors[(i, pair)]).collect();
+    let plain = plain_residual(&h, &m, lambda, &x);
+    assert!(
+        residual > 1e-3 && (plain - residual).abs() < 1e-6 * residual,
+        "residual {residual:e}, recomputed {plain:e}"
+    );
+    // Wrong pair, not a loose tolerance: no dense eigenvalue is within 1e-6 of it.
+    let nearest = dense
+        .values
+        .iter()
+        .map(|d| (d - lambda).abs() / d.abs().max(dense.values[1]))
+        .fold(f64::INFINITY, f64::min);
+    assert!(nearest > 1e-6, "lambda {lambda:e} is a dense eigenvalue");
+    for needle in [
+        "SLEPc's LOBPCG reported convergence",
+        &format!("finds pair {pair} of 0..15"),
+        "> 1.0e-7 (10 x tol 1.0e-8; 1 pair(s) above it)",
+        "--slepc ks-sinvert",
+        "--solver lobpcg",
+        "--petsc-options \"-eps_lobpcg_blocksize 18\"",
+        "or ask for fewer modes",
+    ] {
+        assert!(text.contains(needle), "{needle:?} missing in: {text}");
+    }
+    assert!(!text.contains("raise --tol"), "{text}");
+    // A block of exactly 16 (the default) is what failed.
+    advised_solvers_agree_with_dense(&h, &m, &req, &["lobpcg-gamg:-eps_lobpcg_blocksize 18"], 15);
+}
+
+/// SLEPc's LOBPCG converges the first block of 16 pairs and then stalls on the 17th until its
+/// iteration cap (1000; 5000 stalls the same way, tol 1e-6 or 1e-4 converge fewer pairs). The
+/// smallest case found: K = 125, m = 16 (also K = 150, m >= 22). About 5 s in release.
+#[test]
+fn slepc_lobpcg_iteration_cap_is_named_with_the_ways_out() {
+    let (h, m) = box_pencil(125);
+    let req = EigenRequest {
+        nev: 17,
+        tol: 1e-8,
+        max_iter: 1000,
+    };
+    let lobpcg = SlepcSolver::new(SlepcOptions::parse("lobpcg-gamg").unwrap());
+    match lobpcg.solve(&h, &m, &req, &Silent) {
+        Err(
+            ref e @ EigenError::SlepcLobpcgNotConverged {
+                stop: SlepcLobpcgStop::IterationCap,
+                iterations,
+                converged,
+                block_size,
+                ref partial,
+                ..
+            },
+        ) => {
+            let text = e.to_string();
+            assert_eq!((converged, block_size), (16, Some(16)), "{text}");
+            assert!(iterations >= 1000, "{text}");
+            assert_eq!(partial.values.len(), 16);
+            assert!(
+                text.starts_with(
+                    "SLEPc's LOBPCG stopped at its iteration cap (1000 iterations) with 16/17 \
+                     pairs converged (tol 1.0e-8). Use the default SLEPc configuration --slepc \
+                     ks-sinvert"
+                ) && text.contains("--solver lobpcg")
+                    && text.contains("\"-eps_lobpcg_blocksize 19\"), or ask for fewer modes")
+                    && !text.contains("--max-iter"),
+                "{text}"
+            );
+        }
+        Err(other) => panic!("expected the iteration cap, got {other}"),
+        Ok(sol) => panic!("SLEPc's LOBPCG no longer stalls here: {:?}", sol.info),
+    }
+    advised_solvers_agree_with_dense(&h, &m, &req, &["lobpcg-gamg:-eps_lobpcg_blocksize 19"], 16);
+}
+
+/// SLEPc's LOBPCG gives up on its own (EPS_DIVERGED_BREAKDOWN: orthogonalizing a new block
+/// against the locked pairs failed) with 28 of 31 pairs: K = 90, m = 30 (also m = 32). One
+/// block of 34 would need K >= 170, so it is not advised.
+#[test]
+fn slepc_lobpcg_stop_on_its_own_breakdown_is_named_with_the_ways_out() {
+    let (h, m) = box_pencil(90);
+    let req = EigenRequest {
+        nev: 31,
+        tol: 1e-8,
+        max_iter: 1000,
+    };
+    let lobpcg = SlepcSolver::new(SlepcOptions::parse("lobpcg-gamg").unwrap());
+    match lobpcg.solve(&h, &m, &req, &Silent) {
+        Err(
+            ref e @ EigenError::SlepcLobpcgNotConverged {
+                stop: SlepcLobpcgStop::Stopped { reason: -2 },
+                converged,
+                ..
+            },
+        ) => {
+            let text = e.to_string();
+            assert_eq!(converged, 28, "{text}");
+            assert!(
+                text.contains("with 28/31 pairs converged (tol 1.0e-8): it reports a breakdown")
+                    && text.contains("--slepc ks-sinvert")
+                    && text.contains("--solver lobpcg")
+                    && text.ends_with("to keep SLEPc's LOBPCG, ask for fewer modes"),
+                "{text}"
+            );
+        }
+        Err(other) => panic!("expected SLEPc's breakdown stop, got {other}"),
+        Ok(sol) => panic!("SLEPc's LOBPCG no longer stops here: {:?}", sol.info),
+    }
+    advised_solvers_agree_with_dense(&h, &m, &req, &[], 27);
 }

@@ -184,3 +184,45 @@ fn lobpcg_breakdown_is_reported_not_aborted() {
     assert!(!stderr.contains("PETSC ERROR"), "{stderr}");
     assert!(!dir.path().join("basis.npz").exists());
 }
+
+/// What a user sees when SLEPc's LOBPCG reports convergence but one pair is far off (smallest
+/// case found: K = 80, m = 16; see tests/slepc.rs): one line naming the pair, its residual and
+/// the ways out, not "raise --tol or the iteration cap"; exit status 1, no basis written.
+#[test]
+fn slepc_lobpcg_false_convergence_is_reported_with_advice() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_freeform"))
+        .args([
+            "modes",
+            "box:5,1,1",
+            "--kernels",
+            "80",
+            "--modes",
+            "16",
+            "--solver",
+            "slepc",
+            "--slepc",
+            "lobpcg-gamg",
+            "--out",
+        ])
+        .arg(dir.path().join("basis.npz"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    let error: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error:")).collect();
+    assert_eq!(error.len(), 1, "{stderr}");
+    let line = error[0];
+    assert!(
+        line.starts_with("error: SLEPc's LOBPCG reported convergence (")
+            && line.contains("but freeform's own residual check finds pair ")
+            && line.contains("> 1.0e-7 (10 x tol 1.0e-8; 1 pair(s) above it)")
+            && line.contains("--slepc ks-sinvert")
+            && line.contains("--solver lobpcg")
+            // One block of 19 would need K >= 95.
+            && line.ends_with("to keep SLEPc's LOBPCG, ask for fewer modes")
+            && !line.contains("raise --tol"),
+        "{stderr}"
+    );
+    assert!(!dir.path().join("basis.npz").exists());
+}

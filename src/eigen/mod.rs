@@ -153,6 +153,42 @@ pub enum EigenError {
         /// SLEPc's own message with its call chain.
         message: String,
     },
+    /// SLEPc's LOBPCG (`--slepc lobpcg-gamg`, `lobpcg-hypre`, or `-eps_type lobpcg`) ended
+    /// without `nev` pairs that pass freeform's own residual check (relative residual at most
+    /// [`SLEPC_RESIDUAL_SLACK`] x tol, recomputed by [`check_solution`]): it reported pairs
+    /// converged that are not, or stopped at its iteration cap or on a breakdown it detected.
+    /// At the default iteration cap a larger tol or cap did not help (measured, docs/slepc.md);
+    /// the message names what does. The partial result is kept. Other solvers' non-convergence is
+    /// [`EigenError::NotConverged`].
+    #[error(
+        "{}. Use the default SLEPc configuration --slepc ks-sinvert (Krylov-Schur, \
+         shift-and-invert), or freeform's native LOBPCG (--solver lobpcg, the default); to keep \
+         SLEPc's LOBPCG, {}",
+        slepc_lobpcg_stop_text(stop, *iterations, *reported, *converged, *nev, *tol),
+        slepc_lobpcg_advice(stop, *k, *nev, *block_size, *max_iter)
+    )]
+    SlepcLobpcgNotConverged {
+        /// How SLEPc's run ended.
+        stop: SlepcLobpcgStop,
+        /// SLEPc's iteration count.
+        iterations: usize,
+        /// Pairs SLEPc reported converged (`EPSGetConverged`; may exceed `nev`).
+        reported: usize,
+        /// Pairs that pass freeform's residual check.
+        converged: usize,
+        /// Pairs requested (m + 1).
+        nev: usize,
+        /// Tolerance requested.
+        tol: f64,
+        /// Iteration cap requested.
+        max_iter: usize,
+        /// Problem size K.
+        k: usize,
+        /// LOBPCG block size in use, if SLEPc could report it.
+        block_size: Option<usize>,
+        /// The pairs SLEPc returned, with freeform's residuals in `info`.
+        partial: Box<EigenSolution>,
+    },
     /// An external solver library (PETSc/SLEPc) failed; `message` is the library's own.
     #[error("{library} failed: {message}")]
     Backend {
@@ -176,6 +212,132 @@ fn lobpcg_breakdown_advice(k: usize, nev: usize, block_size: Option<usize>) -> S
             "solve all pairs in one block (--petsc-options \"-eps_lobpcg_blocksize {nev}\") or \
              ask for fewer modes"
         )
+    }
+}
+
+/// Slack between SLEPc's own convergence decision and freeform's recomputed residual: a pair
+/// SLEPc returns is accepted when its relative residual is at most this x tol (SLEPc may test
+/// a residual it updated by recurrence rather than recomputed).
+pub const SLEPC_RESIDUAL_SLACK: f64 = 10.0;
+
+/// How SLEPc's LOBPCG ended when [`EigenError::SlepcLobpcgNotConverged`] is returned.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SlepcLobpcgStop {
+    /// SLEPc reported at least `nev` pairs converged, but freeform's recomputed residual of
+    /// some returned pairs is above [`SLEPC_RESIDUAL_SLACK`] x tol.
+    ClaimedConverged {
+        /// The worst such pair (0-based in ascending order; 0 is the constant mode).
+        pair: usize,
+        /// Its eigenvalue (Pa/m^2).
+        lambda: f64,
+        /// Its recomputed relative residual.
+        residual: f64,
+        /// How many returned pairs are above the limit.
+        above: usize,
+    },
+    /// SLEPc stopped at its iteration cap (`EPS_DIVERGED_ITS`) with fewer than `nev` pairs.
+    IterationCap,
+    /// SLEPc stopped with fewer than `nev` pairs for another reason: `EPSConvergedReason`
+    /// (-2 `EPS_DIVERGED_BREAKDOWN`: an orthogonalization in LOBPCG failed).
+    Stopped {
+        /// SLEPc's `EPSConvergedReason`.
+        reason: i32,
+    },
+}
+
+/// The first sentence of [`EigenError::SlepcLobpcgNotConverged`]'s message: what happened.
+fn slepc_lobpcg_stop_text(
+    stop: &SlepcLobpcgStop,
+    iterations: usize,
+    reported: usize,
+    converged: usize,
+    nev: usize,
+    tol: f64,
+) -> String {
+    match *stop {
+        SlepcLobpcgStop::ClaimedConverged {
+            pair,
+            lambda,
+            residual,
+            above,
+        } => format!(
+            "SLEPc's LOBPCG reported convergence ({reported} pairs after {iterations} \
+             iterations), but freeform's own residual check finds pair {pair} of 0..{} (lambda \
+             {lambda:.4e}) at relative residual {residual:.2e} > {:.1e} ({} x tol {tol:.1e}; \
+             {above} pair(s) above it)",
+            nev.saturating_sub(1),
+            SLEPC_RESIDUAL_SLACK * tol,
+            SLEPC_RESIDUAL_SLACK,
+        ),
+        SlepcLobpcgStop::IterationCap => format!(
+            "SLEPc's LOBPCG stopped at its iteration cap ({iterations} iterations) with \
+             {converged}/{nev} pairs converged (tol {tol:.1e})"
+        ),
+        SlepcLobpcgStop::Stopped { reason } => format!(
+            "SLEPc's LOBPCG stopped after {iterations} iterations with {converged}/{nev} pairs \
+             converged (tol {tol:.1e}): {}",
+            if reason == -2 {
+                "it reports a breakdown (EPS_DIVERGED_BREAKDOWN: an orthogonalization failed)"
+                    .to_string()
+            } else {
+                format!("EPSConvergedReason {reason}")
+            }
+        ),
+    }
+}
+
+/// SLEPc's LOBPCG guard vectors for block size `b` (SLEPc 3.18, default restart 0.9):
+/// min(floor(0.1 b + 0.45), b - 1), none for b = 1. Pairs are hard-locked, and the next ones
+/// searched in a new block, once b - guard of them have converged.
+pub fn slepc_lobpcg_guard(b: usize) -> usize {
+    if b <= 1 {
+        0
+    } else {
+        ((0.1 * b as f64 + 0.45).floor() as usize).min(b - 1)
+    }
+}
+
+/// The smallest SLEPc LOBPCG block size b that holds `nev` pairs and SLEPc's guard vectors
+/// (b - guard >= nev, guard from [`slepc_lobpcg_guard`]), so that no block is hard-locked
+/// before all pairs have converged: 18 for 16 pairs, 19 for 17, 37 for 33.
+pub fn slepc_lobpcg_single_block(nev: usize) -> usize {
+    (nev.max(1)..)
+        .find(|&b| b - slepc_lobpcg_guard(b) >= nev)
+        .unwrap_or(nev)
+}
+
+/// The last part of [`EigenError::SlepcLobpcgNotConverged`]'s message. One block with room
+/// for all pairs and the guard vectors fixed every case measured (docs/slepc.md; a block of
+/// exactly `nev` did not where it was already the default); SLEPc requires K >= 5 x the block
+/// size, so it is only advised when K allows it and the block in use is smaller. A cap below
+/// the default (1000) is worth raising first.
+fn slepc_lobpcg_advice(
+    stop: &SlepcLobpcgStop,
+    k: usize,
+    nev: usize,
+    block_size: Option<usize>,
+    max_iter: usize,
+) -> String {
+    let single = slepc_lobpcg_single_block(nev);
+    let mut ways = Vec::new();
+    let default_cap = EigenRequest::default().max_iter;
+    if *stop == SlepcLobpcgStop::IterationCap && max_iter < default_cap {
+        ways.push(format!(
+            "raise --max-iter ({max_iter} now, default {default_cap})"
+        ));
+    }
+    if k >= 5 * single && block_size.is_none_or(|b| b < single) {
+        ways.push(format!(
+            "solve all pairs in one block with room for SLEPc's guard vectors \
+             (--petsc-options \"-eps_lobpcg_blocksize {single}\")"
+        ));
+    }
+    ways.push("ask for fewer modes".to_string());
+    let last = ways.pop().unwrap_or_default();
+    if ways.is_empty() {
+        last
+    } else {
+        format!("{}, or {last}", ways.join(", "))
     }
 }
 

@@ -23,10 +23,13 @@
 //! SLEPc's LOBPCG can lose B-orthogonality when it works through several blocks; LAPACK's
 //! `sygvd` then fails in its Rayleigh-Ritz step and the solve ends with
 //! [`EigenError::SlepcLobpcgBreakdown`], whose message names the alternatives (docs/slepc.md).
+//! When it reports pairs converged that our residual check rejects, or stops at its iteration
+//! cap or on a breakdown it detects itself, [`accept`] returns
+//! [`EigenError::SlepcLobpcgNotConverged`], which says which and names the same alternatives.
 
 use super::{
     check_solution, validate_problem, EigenError, EigenInfo, EigenRequest, EigenSolution,
-    Eigensolver,
+    Eigensolver, SlepcLobpcgStop,
 };
 use crate::progress::Progress;
 use crate::sparse::SparseMatrix;
@@ -294,12 +297,26 @@ pub struct RowsSolution {
     pub values: Vec<f64>,
     /// Eigenvectors, K x values.len(), on every rank.
     pub vectors: Mat<f64>,
-    /// SLEPc's iteration count.
-    pub iterations: usize,
-    /// Pairs SLEPc reported converged.
-    pub converged: usize,
+    /// How SLEPc's run ended (type, iterations, converged count, reason, block size), for
+    /// [`accept`].
+    pub status: SolveStatus,
     /// Configuration actually used (types, target, options).
     pub notes: Vec<String>,
+}
+
+/// How `EPSSolve` ended, beside the pairs: what [`accept`] needs to word a failure.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SolveStatus {
+    /// EPS type in use ("krylovschur", "lobpcg", ...).
+    pub eps_type: String,
+    /// SLEPc's iteration count.
+    pub iterations: usize,
+    /// Pairs SLEPc reported converged (`EPSGetConverged`; may exceed nev).
+    pub converged: usize,
+    /// SLEPc's `EPSConvergedReason` (> 0 converged; -1 iteration cap, -2 breakdown).
+    pub reason: i32,
+    /// LOBPCG block size in use (LOBPCG only).
+    pub block_size: Option<usize>,
 }
 
 fn backend(e: petsc::PetscError) -> EigenError {
@@ -365,7 +382,9 @@ fn option_names(options: &str) -> Vec<&str> {
 /// Solve H x = lambda M x with SLEPc on `PETSC_COMM_WORLD`, where this rank holds rows
 /// `h.first .. h.first + h.rows()` of H and the same rows of M (collective: every rank calls
 /// it with its own block; blocks must tile 0..k in rank order). H, M: K x K symmetric
-/// (H Pa m, M m^3). Eigenvectors are gathered onto every rank.
+/// (H Pa m, M m^3). Eigenvectors are gathered onto every rank. Convergence is not judged
+/// here: recompute the residuals and pass the pairs with [`RowsSolution::status`] to
+/// [`accept`].
 ///
 /// # Errors
 /// [`EigenError::SlepcLobpcgBreakdown`] when SLEPc's LOBPCG breaks down in its Rayleigh-Ritz
@@ -424,6 +443,17 @@ pub fn solve_rows(
     }
     let converged = eps.converged().map_err(backend)?;
     let iterations = eps.iterations().map_err(backend)?;
+    let status = SolveStatus {
+        eps_type: chosen_type.clone(),
+        iterations,
+        converged,
+        reason: eps.converged_reason().map_err(backend)?,
+        block_size: if chosen_type == "lobpcg" {
+            eps.lobpcg_block_size().ok().filter(|&b| b > 0)
+        } else {
+            None
+        },
+    };
     let mut x = hm.create_vector().map_err(backend)?;
     let mut pairs: Vec<(f64, Vec<f64>)> = Vec::new();
     for i in 0..converged.min(request.nev) {
@@ -456,8 +486,7 @@ pub fn solve_rows(
     Ok(RowsSolution {
         values: pairs.iter().map(|p| p.0).collect(),
         vectors,
-        iterations,
-        converged,
+        status,
         notes,
     })
 }
@@ -513,8 +542,85 @@ fn configure<'s>(
 /// Slack between SLEPc's own convergence decision and our recomputed residual: both use the
 /// same definition (EPS_CONV_NORM with infinity norms, which equal our 1-norms for symmetric
 /// matrices), but SLEPc may test a residual it updated by recurrence rather than recomputed;
-/// a pair whose recomputed residual exceeds 10 tol is reported as not converged.
-pub const RESIDUAL_SLACK: f64 = 10.0;
+/// a pair whose recomputed residual exceeds 10 tol is reported as not converged
+/// ([`super::SLEPC_RESIDUAL_SLACK`]).
+pub const RESIDUAL_SLACK: f64 = super::SLEPC_RESIDUAL_SLACK;
+
+/// Accept SLEPc's pairs (`solution`, with freeform's recomputed residuals in `solution.info`)
+/// when `request.nev` of them came back and each residual is at most [`RESIDUAL_SLACK`] x tol.
+///
+/// # Errors
+/// With SLEPc's LOBPCG, [`EigenError::SlepcLobpcgNotConverged`] naming what happened: SLEPc
+/// reported `nev` pairs converged but some are not (the worst one is named), it stopped at
+/// its iteration cap, or it stopped for another reason (`status.reason`). With any other EPS
+/// type, [`EigenError::NotConverged`]. Both carry `solution` as the partial result.
+pub fn accept(
+    k: usize,
+    request: &EigenRequest,
+    status: &SolveStatus,
+    solution: EigenSolution,
+) -> Result<EigenSolution, EigenError> {
+    let limit = RESIDUAL_SLACK * request.tol;
+    let residuals = &solution.info.residuals;
+    let good = residuals.iter().filter(|&&r| r <= limit).count();
+    let complete = solution.values.len() >= request.nev;
+    if complete && good >= request.nev {
+        return Ok(solution);
+    }
+    if status.eps_type != "lobpcg" {
+        return Err(EigenError::NotConverged {
+            iterations: status.iterations,
+            converged: good,
+            nev: request.nev,
+            tol: request.tol,
+            // Pairs SLEPc did not converge are not available at all: their residual is unknown.
+            max_residual: if complete {
+                solution.info.max_relative_residual
+            } else {
+                f64::INFINITY
+            },
+            partial: Box::new(solution),
+        });
+    }
+    let stop =
+        if complete {
+            // The worst pair; NaN residuals are +inf after check_solution.
+            let (pair, residual) = residuals.iter().copied().enumerate().fold(
+                (0, f64::NEG_INFINITY),
+                |best, (j, r)| {
+                    if r > best.1 {
+                        (j, r)
+                    } else {
+                        best
+                    }
+                },
+            );
+            SlepcLobpcgStop::ClaimedConverged {
+                pair,
+                lambda: solution.values[pair],
+                residual,
+                above: residuals.len() - good,
+            }
+        } else if status.reason == -1 {
+            SlepcLobpcgStop::IterationCap
+        } else {
+            SlepcLobpcgStop::Stopped {
+                reason: status.reason,
+            }
+        };
+    Err(EigenError::SlepcLobpcgNotConverged {
+        stop,
+        iterations: status.iterations,
+        reported: status.converged,
+        converged: good,
+        nev: request.nev,
+        tol: request.tol,
+        max_iter: request.max_iter,
+        k,
+        block_size: status.block_size,
+        partial: Box::new(solution),
+    })
+}
 
 impl Eigensolver for SlepcSolver {
     fn name(&self) -> &'static str {
@@ -544,38 +650,18 @@ impl Eigensolver for SlepcSolver {
         let rs = result?;
         let mut info = EigenInfo {
             solver: format!("slepc:{}", self.options.label()),
-            iterations: rs.iterations,
-            locked: rs.converged,
+            iterations: rs.status.iterations,
+            locked: rs.status.converged,
             notes: rs.notes,
             ..EigenInfo::default()
         };
         check_solution(h, m, &rs.values, &rs.vectors, &mut info);
-        let good = info
-            .residuals
-            .iter()
-            .filter(|&&r| r <= RESIDUAL_SLACK * request.tol)
-            .count();
         let solution = EigenSolution {
             values: rs.values,
             vectors: rs.vectors,
             info,
         };
-        if solution.values.len() < request.nev || good < request.nev {
-            return Err(EigenError::NotConverged {
-                iterations: solution.info.iterations,
-                converged: good,
-                nev: request.nev,
-                tol: request.tol,
-                // Pairs SLEPc did not converge are not available at all: their residual is unknown.
-                max_residual: if solution.values.len() < request.nev {
-                    f64::INFINITY
-                } else {
-                    solution.info.max_relative_residual
-                },
-                partial: Box::new(solution),
-            });
-        }
-        Ok(solution)
+        accept(k, request, &rs.status, solution)
     }
 }
 
@@ -693,6 +779,210 @@ mod tests {
             solve_error(other, 3000, 33, None),
             EigenError::Backend { .. }
         ));
+    }
+
+    /// SLEPc's guard vectors and the block that holds nev pairs plus them, from SLEPc 3.18's
+    /// rule guard = min(floor((1 - 0.9) b + 0.45), b - 1) worked by hand.
+    #[test]
+    fn single_lobpcg_block_leaves_room_for_the_guard_vectors() {
+        use super::super::{slepc_lobpcg_guard, slepc_lobpcg_single_block};
+        for (b, guard) in [
+            (1, 0),
+            (2, 0),
+            (5, 0),
+            (6, 1),
+            (15, 1),
+            (16, 2),
+            (25, 2),
+            (26, 3),
+        ] {
+            assert_eq!(slepc_lobpcg_guard(b), guard, "b = {b}");
+        }
+        // 16 pairs: 16 - 2 = 14 and 17 - 2 = 15 are too few, 18 - 2 = 16 is enough.
+        for (nev, block) in [
+            (1, 1),
+            (5, 5),
+            (8, 9),
+            (16, 18),
+            (17, 19),
+            (23, 25),
+            (33, 37),
+        ] {
+            assert_eq!(slepc_lobpcg_single_block(nev), block, "nev = {nev}");
+        }
+    }
+
+    /// A SLEPc result of `n` pairs with the given recomputed residuals (eigenvalues 0, 1e6,
+    /// 2e6, ...).
+    fn returned(k: usize, residuals: &[f64]) -> EigenSolution {
+        let n = residuals.len();
+        EigenSolution {
+            values: (0..n).map(|j| j as f64 * 1e6).collect(),
+            vectors: Mat::zeros(k, n),
+            info: EigenInfo {
+                residuals: residuals.to_vec(),
+                max_relative_residual: residuals.iter().copied().fold(0.0, f64::max),
+                ..EigenInfo::default()
+            },
+        }
+    }
+
+    fn lobpcg_status(converged: usize, reason: i32, block_size: usize) -> SolveStatus {
+        SolveStatus {
+            eps_type: "lobpcg".to_string(),
+            iterations: 33,
+            converged,
+            reason,
+            block_size: Some(block_size),
+        }
+    }
+
+    #[test]
+    fn accept_names_each_lobpcg_outcome_and_its_ways_out() {
+        let req = EigenRequest {
+            nev: 4,
+            tol: 1e-8,
+            max_iter: 1000,
+        };
+        // All pairs within 10 tol (SLEPc's own reason does not matter then).
+        let ok = accept(
+            120,
+            &req,
+            &lobpcg_status(4, 1, 4),
+            returned(120, &[0.0, 9e-8, 1e-9, 9.9e-8]),
+        );
+        assert!(ok.is_ok());
+
+        // SLEPc claims 5 converged (blocks of 2); pairs 1 and 2 are far off, 2 the worst.
+        let err = accept(
+            120,
+            &req,
+            &lobpcg_status(5, 1, 2),
+            returned(120, &[1e-9, 3e-3, 5e-2, 1e-9]),
+        )
+        .unwrap_err();
+        let text = err.to_string();
+        match err {
+            EigenError::SlepcLobpcgNotConverged {
+                stop,
+                reported,
+                converged,
+                partial,
+                ..
+            } => {
+                assert_eq!(
+                    stop,
+                    SlepcLobpcgStop::ClaimedConverged {
+                        pair: 2,
+                        lambda: 2e6,
+                        residual: 5e-2,
+                        above: 2
+                    }
+                );
+                assert_eq!((reported, converged, partial.values.len()), (5, 2, 4));
+            }
+            other => panic!("expected SlepcLobpcgNotConverged, got {other:?}"),
+        }
+        assert_eq!(
+            text,
+            "SLEPc's LOBPCG reported convergence (5 pairs after 33 iterations), but freeform's \
+             own residual check finds pair 2 of 0..3 (lambda 2.0000e6) at relative residual \
+             5.00e-2 > 1.0e-7 (10 x tol 1.0e-8; 2 pair(s) above it). Use the default SLEPc \
+             configuration --slepc ks-sinvert (Krylov-Schur, shift-and-invert), or freeform's \
+             native LOBPCG (--solver lobpcg, the default); to keep SLEPc's LOBPCG, solve all \
+             pairs in one block with room for SLEPc's guard vectors (--petsc-options \
+             \"-eps_lobpcg_blocksize 4\"), or ask for fewer modes"
+        );
+        assert!(!text.contains("raise --tol"), "{text}");
+
+        // Iteration cap with pairs missing: the missing ones cannot be judged.
+        let capped = accept(
+            120,
+            &req,
+            &lobpcg_status(3, -1, 4),
+            returned(120, &[1e-9; 3]),
+        )
+        .unwrap_err();
+        assert!(matches!(
+            capped,
+            EigenError::SlepcLobpcgNotConverged {
+                stop: SlepcLobpcgStop::IterationCap,
+                converged: 3,
+                ..
+            }
+        ));
+        let text = capped.to_string();
+        assert!(
+            text.starts_with(
+                "SLEPc's LOBPCG stopped at its iteration cap (33 iterations) with 3/4 pairs \
+                 converged (tol 1.0e-8). Use the default SLEPc configuration --slepc ks-sinvert"
+            ) && !text.contains("--max-iter"),
+            "{text}"
+        );
+        // A cap below the default is worth raising; K too small for one block of 4 (SLEPc
+        // needs K >= 20): that advice is left out.
+        let low_cap = EigenRequest {
+            max_iter: 2,
+            ..req.clone()
+        };
+        let text = accept(19, &low_cap, &lobpcg_status(0, -1, 2), returned(19, &[]))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            text.ends_with(
+                "to keep SLEPc's LOBPCG, raise --max-iter (2 now, default 1000), or ask for \
+                 fewer modes"
+            ),
+            "{text}"
+        );
+
+        // SLEPc's own breakdown (an orthogonalization failed), with a block already large
+        // enough: no block advice.
+        let text = accept(
+            120,
+            &req,
+            &lobpcg_status(2, -2, 5),
+            returned(120, &[1e-9; 2]),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            text.starts_with(
+                "SLEPc's LOBPCG stopped after 33 iterations with 2/4 pairs converged (tol \
+                 1.0e-8): it reports a breakdown (EPS_DIVERGED_BREAKDOWN: an orthogonalization \
+                 failed). Use"
+            ) && text.ends_with("to keep SLEPc's LOBPCG, ask for fewer modes"),
+            "{text}"
+        );
+        let other = accept(
+            120,
+            &req,
+            &lobpcg_status(2, -3, 4),
+            returned(120, &[1e-9; 2]),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(other.contains("2/4 pairs converged (tol 1.0e-8): EPSConvergedReason -3. Use"));
+
+        // Any other EPS type keeps the general message, word for word.
+        let ks = SolveStatus {
+            eps_type: "krylovschur".to_string(),
+            block_size: None,
+            ..lobpcg_status(3, -1, 4)
+        };
+        let err = accept(120, &req, &ks, returned(120, &[1e-9, 1e-9, 1e-9])).unwrap_err();
+        assert!(matches!(err, EigenError::NotConverged { converged: 3, .. }));
+        assert_eq!(
+            err.to_string(),
+            "eigensolver did not converge in 33 iterations: 3/4 pairs below tol 1.0e-8 (max \
+             relative residual inf); raise --tol or the iteration cap"
+        );
+        let err = accept(120, &req, &ks, returned(120, &[1e-9, 1e-9, 1e-9, 2e-3])).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "eigensolver did not converge in 33 iterations: 3/4 pairs below tol 1.0e-8 (max \
+             relative residual 2.00e-3); raise --tol or the iteration cap"
+        );
     }
 
     #[test]

@@ -132,7 +132,10 @@ pub fn run(args: CompareArgs) -> CliResult {
         };
         let (solution, error) = match outcome {
             Ok(s) => (Some(s), None),
-            Err(freeform::eigen::EigenError::NotConverged { partial, .. }) => {
+            Err(
+                freeform::eigen::EigenError::NotConverged { partial, .. }
+                | freeform::eigen::EigenError::SlepcLobpcgNotConverged { partial, .. },
+            ) => {
                 let msg = format!(
                     "not converged (max relative residual {:.2e})",
                     partial.info.max_relative_residual
