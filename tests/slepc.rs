@@ -239,16 +239,8 @@ fn petsc_reads_our_binary_export_exactly() {
 fn lobpcg_breakdown_is_a_typed_error_with_advice() {
     use freeform::eigen::compare::max_eigenvalue_rel_diff;
     use freeform::eigen::lobpcg::Lobpcg;
-    use freeform::geometry::{Shape, ShapeOptions};
-    use freeform::pipeline::{prepare, BasisOptions};
-    let shape = Shape::parse("box:5,1,1", &ShapeOptions::default()).unwrap();
-    let opts = BasisOptions {
-        kernels: 80,
-        modes: 18,
-        ..BasisOptions::default()
-    };
-    let p = prepare(&shape, &opts, &Silent).unwrap();
-    let (h, m) = (&p.assembled.hessian, &p.assembled.mass);
+    let (hw, mass) = box_pencil(80);
+    let (h, m) = (&hw, &mass);
     let req = EigenRequest {
         nev: 19,
         tol: 1e-8,

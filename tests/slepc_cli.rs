@@ -147,42 +147,42 @@ fn distributed_assembly_on_one_rank_is_the_same_problem() {
         .contains("distributed assembly: 1 rank(s)"));
 }
 
+/// `freeform modes box:5,1,1 --kernels K --modes M --solver slepc --slepc lobpcg-gamg` into a
+/// temporary directory, for runs that must fail: the whole stderr and its one `error:` line,
+/// after checking the exit status 1, that there is exactly one error line, no PETSc output,
+/// and no basis file written.
+fn failing_slepc_lobpcg(kernels: &str, modes: &str) -> (String, String) {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("basis.npz");
+    let o = Command::new(env!("CARGO_BIN_EXE_freeform"))
+        .args(["modes", "box:5,1,1", "--kernels", kernels, "--modes", modes])
+        .args(["--solver", "slepc", "--slepc", "lobpcg-gamg", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    let error: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error:")).collect();
+    assert_eq!(error.len(), 1, "{stderr}");
+    assert!(!stderr.contains("PETSC ERROR"), "{stderr}");
+    assert!(!out.exists());
+    let line = error[0].to_string();
+    (stderr, line)
+}
+
 /// What a user sees when SLEPc's LOBPCG breaks down (see tests/slepc.rs for the size): one
 /// line on stderr naming the breakdown and the ways out, exit status 1, no abort and no PETSc
 /// output.
 #[test]
 fn lobpcg_breakdown_is_reported_not_aborted() {
-    let dir = tempfile::tempdir().unwrap();
-    let o = Command::new(env!("CARGO_BIN_EXE_freeform"))
-        .args([
-            "modes",
-            "box:5,1,1",
-            "--kernels",
-            "80",
-            "--modes",
-            "18",
-            "--solver",
-            "slepc",
-            "--slepc",
-            "lobpcg-gamg",
-            "--out",
-        ])
-        .arg(dir.path().join("basis.npz"))
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(1), "{stderr}");
-    let error: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error:")).collect();
-    assert_eq!(error.len(), 1, "{stderr}");
+    let (stderr, line) = failing_slepc_lobpcg("80", "18");
     assert!(
-        error[0].starts_with("error: SLEPc's LOBPCG broke down: loss of B-orthogonality")
-            && error[0].contains("LAPACK sygvd info=")
-            && error[0].contains("--slepc ks-sinvert")
-            && error[0].contains("--solver lobpcg"),
+        line.starts_with("error: SLEPc's LOBPCG broke down: loss of B-orthogonality")
+            && line.contains("LAPACK sygvd info=")
+            && line.contains("--slepc ks-sinvert")
+            && line.contains("--solver lobpcg"),
         "{stderr}"
     );
-    assert!(!stderr.contains("PETSC ERROR"), "{stderr}");
-    assert!(!dir.path().join("basis.npz").exists());
 }
 
 /// What a user sees when SLEPc's LOBPCG reports convergence but one pair is far off (smallest
@@ -190,29 +190,7 @@ fn lobpcg_breakdown_is_reported_not_aborted() {
 /// the ways out, not "raise --tol or the iteration cap"; exit status 1, no basis written.
 #[test]
 fn slepc_lobpcg_false_convergence_is_reported_with_advice() {
-    let dir = tempfile::tempdir().unwrap();
-    let o = Command::new(env!("CARGO_BIN_EXE_freeform"))
-        .args([
-            "modes",
-            "box:5,1,1",
-            "--kernels",
-            "80",
-            "--modes",
-            "16",
-            "--solver",
-            "slepc",
-            "--slepc",
-            "lobpcg-gamg",
-            "--out",
-        ])
-        .arg(dir.path().join("basis.npz"))
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(1), "{stderr}");
-    let error: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error:")).collect();
-    assert_eq!(error.len(), 1, "{stderr}");
-    let line = error[0];
+    let (stderr, line) = failing_slepc_lobpcg("80", "16");
     assert!(
         line.starts_with("error: SLEPc's LOBPCG reported convergence (")
             && line.contains("but freeform's own residual check finds pair ")
@@ -224,5 +202,4 @@ fn slepc_lobpcg_false_convergence_is_reported_with_advice() {
             && !line.contains("raise --tol"),
         "{stderr}"
     );
-    assert!(!dir.path().join("basis.npz").exists());
 }
