@@ -215,9 +215,11 @@ fn lobpcg_breakdown_advice(k: usize, nev: usize, block_size: Option<usize>) -> S
     }
 }
 
-/// Slack between SLEPc's own convergence decision and freeform's recomputed residual: a pair
-/// SLEPc returns is accepted when its relative residual is at most this x tol (SLEPc may test
-/// a residual it updated by recurrence rather than recomputed).
+/// Slack between SLEPc's own convergence decision and freeform's recomputed residual: both use
+/// the same definition (EPS_CONV_NORM with infinity norms, which equal our 1-norms for
+/// symmetric matrices), but SLEPc may test a residual it updated by recurrence rather than
+/// recomputed, so a pair SLEPc returns is accepted when its relative residual is at most this
+/// x tol.
 pub const SLEPC_RESIDUAL_SLACK: f64 = 10.0;
 
 /// How SLEPc's LOBPCG ended when [`EigenError::SlepcLobpcgNotConverged`] is returned.

@@ -314,42 +314,37 @@ enum TokenCheck<'a> {
 /// many items) and report the first one its type cannot hold.
 fn find_bad_token<'a>(line: &'a str, def: &'a ElementDef) -> TokenCheck<'a> {
     let mut tokens = line.split_ascii_whitespace();
+    // The next token of `property` if type `t` can hold it, else what is wrong with it.
+    let mut next = |property: &'a str, t: &ScalarType| -> Result<&'a str, TokenCheck<'a>> {
+        let token = tokens.next().ok_or(TokenCheck::Missing { property })?;
+        match token_problem(token, t) {
+            None => Ok(token),
+            Some(problem) => Err(TokenCheck::Bad {
+                property,
+                token,
+                problem,
+            }),
+        }
+    };
     for (property, p) in &def.properties {
         let property = property.as_str();
-        let (count_type, item_type) = match &p.data_type {
-            PropertyType::Scalar(t) => (None, t),
-            PropertyType::List(count, item) => (Some(count), item),
-        };
-        let count = match count_type {
-            None => 1,
-            Some(t) => {
-                let Some(token) = tokens.next() else {
-                    return TokenCheck::Missing { property };
+        let (count, item_type) = match &p.data_type {
+            PropertyType::Scalar(t) => (1, t),
+            PropertyType::List(count_type, item) => {
+                let token = match next(property, count_type) {
+                    Ok(token) => token,
+                    Err(check) => return check,
                 };
-                if let Some(problem) = token_problem(token, t) {
-                    return TokenCheck::Bad {
-                        property,
-                        token,
-                        problem,
-                    };
-                }
                 // A count that is no usize (negative) leaves the grammar's error to speak.
                 match token.parse::<usize>() {
-                    Ok(n) => n,
+                    Ok(n) => (n, item),
                     Err(_) => return TokenCheck::Fine,
                 }
             }
         };
         for _ in 0..count {
-            let Some(token) = tokens.next() else {
-                return TokenCheck::Missing { property };
-            };
-            if let Some(problem) = token_problem(token, item_type) {
-                return TokenCheck::Bad {
-                    property,
-                    token,
-                    problem,
-                };
+            if let Err(check) = next(property, item_type) {
+                return check;
             }
         }
     }
