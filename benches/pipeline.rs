@@ -3,16 +3,16 @@
 //! grows with K and N. `cargo bench --bench pipeline`; numbers in docs/performance.md.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
-use freeform::assembly::assemble;
-use freeform::centers::{farthest_point_sampling, morton_order};
 use freeform::geometry::{Shape, ShapeOptions};
 use freeform::material::{Material, MaterialField};
-use freeform::pipeline::{default_points, sample_shape};
-use freeform::rkpm::{
+use freeform::precompute::assembly::assemble;
+use freeform::precompute::centers::{farthest_point_sampling, morton_order};
+use freeform::precompute::rkpm::{
     covering_kernels, evaluate_on, support_radii, KernelType, Kernels, ShapeFunctionOptions,
     SupportOptions,
 };
-use freeform::sampling::{CloudVolumeOptions, Resolution};
+use freeform::precompute::sampling::{CloudVolumeOptions, Resolution};
+use freeform::precompute::{default_points, sample_shape};
 use freeform::Point3;
 use std::hint::black_box;
 

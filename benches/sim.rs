@@ -11,7 +11,7 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use freeform::benchmark::beam_sim_options;
 use freeform::fem::beam::{BeamTest, FemBeamConfig};
 use freeform::geometry::{Shape, ShapeOptions};
-use freeform::pipeline::{build_basis, BasisOptions, BasisRun};
+use freeform::precompute::{build_basis, BasisOptions, BasisRun};
 use freeform::progress::Silent;
 use freeform::sim::elastic::Projection;
 use freeform::sim::{HessianStrategy, NewtonOptions, ReducedSim};

@@ -6,7 +6,7 @@
 
 use freeform::geometry::{Shape, ShapeOptions};
 use freeform::material::{Material, MaterialOverride, Region};
-use freeform::pipeline::{build_basis, BasisOptions, BasisRun};
+use freeform::precompute::{build_basis, BasisOptions, BasisRun};
 use freeform::progress::Silent;
 use freeform::report::Stopwatch;
 use freeform::sim::motion::Motion;
@@ -200,7 +200,7 @@ fn main() {
     ] {
         let o = BasisOptions {
             modes: 4,
-            resolution: Some(freeform::sampling::Resolution::Count(50_000)),
+            resolution: Some(freeform::precompute::sampling::Resolution::Count(50_000)),
             ..beam_opts(BEAM, vec![])
         };
         match basis(spec, &o) {

@@ -5,7 +5,7 @@
 
 use freeform::geometry::{Shape, ShapeOptions};
 use freeform::material::{Material, MaterialOverride, Region};
-use freeform::pipeline::{build_basis, BasisOptions};
+use freeform::precompute::{build_basis, BasisOptions};
 use freeform::progress::Silent;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -14,7 +14,7 @@
 use freeform::benchmark::beam_sim_options;
 use freeform::fem::beam::{BeamTest, FemBeamConfig};
 use freeform::geometry::{Shape, ShapeOptions};
-use freeform::pipeline::{build_basis, BasisOptions, BasisRun};
+use freeform::precompute::{build_basis, BasisOptions, BasisRun};
 use freeform::progress::Silent;
 use freeform::report::Stopwatch;
 use freeform::sim::elastic::{Precision, Projection};

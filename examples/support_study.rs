@@ -7,18 +7,18 @@
 
 #![allow(clippy::needless_range_loop)] // index loops mirror the formulas
 
-use freeform::assembly::assemble;
-use freeform::centers::farthest_point_sampling;
 use freeform::eigen::dense::DenseSolver;
 use freeform::eigen::{EigenRequest, Eigensolver};
 use freeform::geometry::Aabb;
 use freeform::material::{Material, MaterialField};
-use freeform::progress::Silent;
-use freeform::rkpm::{
+use freeform::precompute::assembly::assemble;
+use freeform::precompute::centers::farthest_point_sampling;
+use freeform::precompute::rkpm::{
     evaluate, reproducing_error, support_radii, KernelType, Kernels, ShapeFunctionOptions,
     SupportOptions,
 };
-use freeform::sampling::grid_points;
+use freeform::precompute::sampling::grid_points;
+use freeform::progress::Silent;
 use freeform::Point3;
 use std::f64::consts::PI;
 

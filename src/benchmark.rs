@@ -4,10 +4,10 @@
 use crate::fem::beam::{run_beam_reference, BeamReference, BeamTest, FemBeamConfig};
 use crate::geometry::Shape;
 use crate::material::Region;
-use crate::pipeline::{build_basis, BasisOptions, BasisRun};
+use crate::precompute::sampling::Resolution;
+use crate::precompute::{build_basis, BasisOptions, BasisRun};
 use crate::progress::Progress;
 use crate::report::{Monitors, Stopwatch};
-use crate::sampling::Resolution;
 use crate::sim::motion::Motion;
 use crate::sim::{Boundary, HessianStrategy, NewtonOptions, ReducedSim, SimOptions};
 use crate::{Error, Point3, Result};

@@ -92,25 +92,6 @@ pub struct Monitors {
 }
 
 impl Monitors {
-    /// The precomputation monitors of a `modes` report.
-    pub fn from_basis(
-        coverage: &crate::pipeline::CoverageReport,
-        reproducing_error: f64,
-        eigen: &crate::eigen::EigenInfo,
-    ) -> Self {
-        Self {
-            min_moment_rcond: Some(coverage.min_moment_rcond),
-            enlarged_kernels: Some(coverage.enlarged_kernels),
-            reproducing_error: Some(reproducing_error),
-            eigen_iterations: Some(eigen.iterations),
-            eigen_restarts: Some(eigen.restarts),
-            eigen_locked: Some(eigen.locked),
-            eigen_max_relative_residual: Some(eigen.max_relative_residual),
-            eigen_orthonormality_error: Some(eigen.orthonormality_error),
-            ..Self::default()
-        }
-    }
-
     /// The precomputation monitors stored in a basis file's metadata (the `report.monitors`
     /// entry written by the scene cache); all `None` when absent.
     pub fn from_metadata(metadata: &serde_json::Value) -> Self {
@@ -119,28 +100,5 @@ impl Monitors {
             .and_then(|r| r.get("monitors"))
             .and_then(|m| serde_json::from_value(m.clone()).ok())
             .unwrap_or_default()
-    }
-
-    /// Count one simulated time step's solver report into the simulation monitors (they
-    /// become `Some` at the first step).
-    pub fn add_step(&mut self, s: &crate::sim::newton::SolveReport) {
-        fn bump(field: &mut Option<usize>, by: usize) {
-            *field = Some(field.unwrap_or(0) + by);
-        }
-        bump(&mut self.steps, 1);
-        bump(
-            &mut self.newton_nonconverged_steps,
-            usize::from(!s.converged),
-        );
-        bump(&mut self.newton_cholesky_fallbacks, s.cholesky_fallbacks);
-        bump(
-            &mut self.line_search_failures,
-            usize::from(s.line_search_failed),
-        );
-        bump(&mut self.line_search_cutbacks, s.line_search_cutbacks);
-        self.min_det = Some(
-            self.min_det
-                .map_or(s.info.min_det, |d| d.min(s.info.min_det)),
-        );
     }
 }

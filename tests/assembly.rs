@@ -5,10 +5,10 @@
 
 mod common;
 use common::{box_points, kernels_for};
-use freeform::assembly::assemble;
 use freeform::elasticity::energy_density;
 use freeform::material::{Material, MaterialField, MaterialOverride, Region};
-use freeform::rkpm::{evaluate, KernelType, ShapeFunctionOptions, ShapeFunctions};
+use freeform::precompute::assembly::assemble;
+use freeform::precompute::rkpm::{evaluate, KernelType, ShapeFunctionOptions, ShapeFunctions};
 use freeform::sparse::SparseMatrix;
 
 fn dense(a: &SparseMatrix) -> Vec<Vec<f64>> {

@@ -10,7 +10,7 @@
 use freeform::geometry::{GeometryError, PointCloud, Shape, ShapeOptions, TriMesh};
 use freeform::io::matrix_market::read_matrix_market_from;
 use freeform::io::{obj, ply, stl};
-use freeform::pipeline::BasisOptions;
+use freeform::precompute::BasisOptions;
 use freeform::scene::{RunSettings, Scene};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -341,7 +341,11 @@ fn library_api_gives_the_same_errors() {
                     modes: 4,
                     ..BasisOptions::default()
                 };
-                match freeform::pipeline::prepare(&shape, &opts, &freeform::progress::Silent) {
+                match freeform::precompute::Problem::from_shape(
+                    &shape,
+                    &opts,
+                    &freeform::progress::Silent,
+                ) {
                     Ok(_) => "accepted".to_string(),
                     Err(e) => e.to_string(),
                 }
@@ -429,7 +433,9 @@ fn library_constructors_reject_bad_arrays() {
         ),
         (
             BasisOptions {
-                resolution: Some(freeform::sampling::Resolution::Count(usize::MAX)),
+                resolution: Some(freeform::precompute::sampling::Resolution::Count(
+                    usize::MAX,
+                )),
                 ..BasisOptions::default()
             },
             "points",
@@ -438,7 +444,7 @@ fn library_constructors_reject_bad_arrays() {
         let err = opts.validate().expect_err(needle).to_string();
         assert!(err.contains(needle), "{err}");
     }
-    assert_eq!(freeform::pipeline::default_points(usize::MAX), 2_000_000);
+    assert_eq!(freeform::precompute::default_points(usize::MAX), 2_000_000);
     let text = "%%MatrixMarket matrix coordinate real general\n\
                 18446744073709551615 18446744073709551615 18446744073709551615\n1 1 1\n";
     let err = read_matrix_market_from(Path::new("m.mtx"), text.as_bytes()).unwrap_err();
@@ -525,9 +531,12 @@ fn byte_parsers_match_file_readers() {
 
 /// A basis of K = 4 kernels (the origin and the unit points on the axes, radius 1.5) and
 /// m + 1 = 2 columns with coefficients `offset + i + 3 j`.
-fn tiny_basis(kind: freeform::rkpm::KernelType, offset: f64) -> freeform::skinning::Basis {
-    freeform::skinning::Basis {
-        kernels: freeform::rkpm::Kernels {
+fn tiny_basis(
+    kind: freeform::precompute::rkpm::KernelType,
+    offset: f64,
+) -> freeform::precompute::skinning::Basis {
+    freeform::precompute::skinning::Basis {
+        kernels: freeform::precompute::rkpm::Kernels {
             centers: vec![
                 [0.0, 0.0, 0.0],
                 [1.0, 0.0, 0.0],
@@ -546,7 +555,7 @@ fn tiny_basis(kind: freeform::rkpm::KernelType, offset: f64) -> freeform::skinni
 /// `Error::Io`, never a panic: garbage, every truncation, and byte flips all through the file.
 #[test]
 fn damaged_basis_files_are_rejected() {
-    use freeform::rkpm::KernelType;
+    use freeform::precompute::rkpm::KernelType;
     let dir = tempfile::tempdir().unwrap();
     let good = dir.path().join("good.npz");
     let basis = tiny_basis(KernelType::Cubic, 0.0);
@@ -632,7 +641,7 @@ fn set_declared_size(archive: &mut [u8], name: &str, size: u32) {
 #[test]
 fn basis_array_beyond_its_limit_is_rejected() {
     use freeform::io::basis;
-    use freeform::rkpm::KernelType;
+    use freeform::precompute::rkpm::KernelType;
     let dir = tempfile::tempdir().unwrap();
     let good = dir.path().join("good.npz");
     let original = tiny_basis(KernelType::Quartic, 0.25);

@@ -10,16 +10,14 @@
 
 mod common;
 use common::{held_left, Rng};
-use freeform::assembly::assemble;
 use freeform::eigen::compare::{max_eigenvalue_rel_diff, max_subspace_angle};
 use freeform::geometry::{Shape, ShapeOptions};
 use freeform::material::{Material, MaterialField, MaterialOverride, Region};
-use freeform::pipeline::{
-    build_basis, build_basis_from_points, BasisOptions, BasisRun, SolverChoice,
-};
+use freeform::precompute::assembly::assemble;
+use freeform::precompute::rkpm::{evaluate, ShapeFunctionOptions};
+use freeform::precompute::sampling::{IntegrationPoints, Resolution};
+use freeform::precompute::{build_basis, BasisOptions, BasisRun, Problem, SolverChoice};
 use freeform::progress::Silent;
-use freeform::rkpm::{evaluate, ShapeFunctionOptions};
-use freeform::sampling::{IntegrationPoints, Resolution};
 use freeform::sim::motion::Motion;
 use freeform::sim::newton::SolveReport;
 use freeform::sim::{Boundary, HessianStrategy, NewtonOptions, ReducedSim, SimOptions};
@@ -419,7 +417,7 @@ fn from_points(points: Vec<Point3>, volumes: Vec<f64>, k: usize) -> Result<Basis
         resolution: None,
         ..opts(k, 6, k, rubber(0.3), SolverChoice::Lobpcg)
     };
-    build_basis_from_points(ip, mat, &o, &Silent)
+    Problem::from_points(ip, mat, &o, &Silent)?.solve(&Silent)
 }
 
 #[test]

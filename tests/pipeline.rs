@@ -7,15 +7,15 @@
 
 mod common;
 use common::{box_points, kernels_for};
-use freeform::assembly::assemble;
 use freeform::eigen::dense::DenseSolver;
 use freeform::eigen::{EigenRequest, Eigensolver};
 use freeform::geometry::{Shape, ShapeOptions};
 use freeform::material::{Material, MaterialField, MaterialOverride, Region};
-use freeform::pipeline::{build_basis, build_basis_from_points, BasisOptions, SolverChoice};
+use freeform::precompute::assembly::assemble;
+use freeform::precompute::rkpm::{evaluate, KernelType, Kernels, ShapeFunctionOptions};
+use freeform::precompute::sampling::{IntegrationPoints, Resolution};
+use freeform::precompute::{build_basis, BasisOptions, Problem, SolverChoice};
 use freeform::progress::Silent;
-use freeform::rkpm::{evaluate, KernelType, Kernels, ShapeFunctionOptions};
-use freeform::sampling::{IntegrationPoints, Resolution};
 use freeform::Point3;
 use std::f64::consts::PI;
 
@@ -36,7 +36,11 @@ fn small_opts(k: usize, m: usize, n: usize) -> BasisOptions {
 
 /// Basis of a shape spec (K kernels, m modes, 30,000 points, dense solver) and its
 /// eigenvalues divided by lambda + 4 mu: the Neumann Laplacian eigenvalue approximations.
-fn laplacian_spectrum(spec: &str, k: usize, m: usize) -> (freeform::pipeline::BasisRun, Vec<f64>) {
+fn laplacian_spectrum(
+    spec: &str,
+    k: usize,
+    m: usize,
+) -> (freeform::precompute::BasisRun, Vec<f64>) {
     let shape = Shape::parse(spec, &ShapeOptions::default()).unwrap();
     let run = build_basis(&shape, &small_opts(k, m, 30_000), &Silent).unwrap();
     let ev = run
@@ -226,7 +230,9 @@ fn right_half_gradient_share(overrides: Vec<MaterialOverride>) -> f64 {
         solver: SolverChoice::Dense,
         ..BasisOptions::default()
     };
-    let run = build_basis_from_points(ip.clone(), mat, &opts, &Silent).unwrap();
+    let run = Problem::from_points(ip.clone(), mat, &opts, &Silent)
+        .and_then(|p| p.solve(&Silent))
+        .unwrap();
     let w = run.basis.weights(&ip.points).unwrap();
     let (mut right, mut all) = (0.0, 0.0);
     for i in 0..ip.len() {
@@ -375,7 +381,7 @@ fn bad_parameters_are_rejected_before_work() {
         ),
         (
             BasisOptions {
-                support: freeform::rkpm::SupportOptions {
+                support: freeform::precompute::rkpm::SupportOptions {
                     factor: 0.0,
                     neighbor: 4,
                 },
@@ -389,7 +395,7 @@ fn bad_parameters_are_rejected_before_work() {
     }
     // A support too small to cover the points: a coverage error naming the place.
     let tiny = BasisOptions {
-        support: freeform::rkpm::SupportOptions {
+        support: freeform::precompute::rkpm::SupportOptions {
             factor: 0.3,
             neighbor: 1,
         },

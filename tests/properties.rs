@@ -9,8 +9,8 @@
 use freeform::elasticity::{det3, energy_density, first_piola, hessian, hessian_psd, Mat3, Mat9};
 use freeform::linalg3::mul;
 use freeform::material::Material;
-use freeform::rkpm::{evaluate, reproducing_error, support_radii, KernelType, Kernels};
-use freeform::rkpm::{ShapeFunctionOptions, SupportOptions};
+use freeform::precompute::rkpm::{evaluate, reproducing_error, support_radii, KernelType, Kernels};
+use freeform::precompute::rkpm::{ShapeFunctionOptions, SupportOptions};
 use proptest::prelude::*;
 
 /// A deformation gradient with entries in [-2, 2] around the identity, scaled so that some
@@ -210,7 +210,7 @@ proptest! {
         let points: Vec<[f64; 3]> = (0..n)
             .map(|_| [size[0] * next().powf(cluster), size[1] * next(), size[2] * next()])
             .collect();
-        let idx = freeform::centers::farthest_point_sampling(&points, k).unwrap();
+        let idx = freeform::precompute::centers::farthest_point_sampling(&points, k).unwrap();
         let centers: Vec<[f64; 3]> = idx.iter().map(|&i| points[i]).collect();
         let radii = support_radii(&centers, &SupportOptions::default()).unwrap();
         let kernels = Kernels {

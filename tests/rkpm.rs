@@ -5,7 +5,9 @@
 
 mod common;
 use common::{box_points, kernels_for, Rng};
-use freeform::rkpm::{evaluate, reproducing_error, KernelType, Kernels, ShapeFunctionOptions};
+use freeform::precompute::rkpm::{
+    evaluate, reproducing_error, KernelType, Kernels, ShapeFunctionOptions,
+};
 use freeform::Point3;
 
 const KINDS: [KernelType; 3] = [KernelType::Cubic, KernelType::Quartic, KernelType::Gaussian];
@@ -57,7 +59,7 @@ fn gradients_match_finite_differences() {
                 xm[d] -= h;
                 let (sp, _) = evaluate(&kernels, &[xp], &opts);
                 let (sm, _) = evaluate(&kernels, &[xm], &opts);
-                let value = |s: &freeform::rkpm::ShapeFunctions, k: u32| {
+                let value = |s: &freeform::precompute::rkpm::ShapeFunctions, k: u32| {
                     s.pattern
                         .row(0)
                         .iter()

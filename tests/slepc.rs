@@ -83,15 +83,15 @@ fn every_preset_matches_the_analytic_spectrum_and_the_dense_solver() {
 fn rkpm_matrices_agree_with_the_dense_solver() {
     use freeform::eigen::compare::{max_eigenvalue_rel_diff, max_subspace_angle};
     use freeform::geometry::{Shape, ShapeOptions};
-    use freeform::pipeline::{prepare, BasisOptions};
+    use freeform::precompute::{BasisOptions, Problem};
     let shape = Shape::parse("box:2,1,1", &ShapeOptions::default()).unwrap();
     let opts = BasisOptions {
         kernels: 300,
         modes: 8,
         ..BasisOptions::default()
     };
-    let p = prepare(&shape, &opts, &Silent).unwrap();
-    let (h, m) = (&p.assembled.hessian, &p.assembled.mass);
+    let p = Problem::from_shape(&shape, &opts, &Silent).unwrap();
+    let (h, m) = (&p.matrices().hessian, &p.matrices().mass);
     let req = EigenRequest {
         nev: 9,
         tol: 1e-10,
@@ -295,14 +295,16 @@ fn box_pencil(
     freeform::sparse::SparseMatrix,
 ) {
     use freeform::geometry::{Shape, ShapeOptions};
-    use freeform::pipeline::{prepare, BasisOptions};
+    use freeform::precompute::{BasisOptions, Problem};
     let shape = Shape::parse("box:5,1,1", &ShapeOptions::default()).unwrap();
     let opts = BasisOptions {
         kernels,
         ..BasisOptions::default()
     };
-    let p = prepare(&shape, &opts, &Silent).unwrap();
-    (p.assembled.hessian, p.assembled.mass)
+    let a = Problem::from_shape(&shape, &opts, &Silent)
+        .unwrap()
+        .into_matrices();
+    (a.hessian, a.mass)
 }
 
 /// ||H x - lambda M x||_2 / ((||H||_1 + |lambda| ||M||_1) ||x||_2) of column `j`, with plain

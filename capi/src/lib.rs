@@ -12,11 +12,11 @@
 #![allow(clippy::missing_safety_doc)]
 
 use freeform::material::MaterialField;
-use freeform::pipeline::{build_basis_from_points, BasisOptions, SolverChoice};
+use freeform::precompute::rkpm::KernelType;
+use freeform::precompute::sampling::IntegrationPoints;
+use freeform::precompute::skinning::Basis;
+use freeform::precompute::{BasisOptions, Problem, SolverChoice};
 use freeform::progress::Silent;
-use freeform::rkpm::KernelType;
-use freeform::sampling::IntegrationPoints;
-use freeform::skinning::Basis;
 use std::cell::RefCell;
 use std::ffi::{c_char, c_int, CString};
 
@@ -209,7 +209,7 @@ pub unsafe extern "C" fn ff_basis_build(
         opts.support.neighbor = o.support_neighbor;
         let material =
             MaterialField::from_arrays(e, nu, rho).map_err(|e| (status_of(&e), e.to_string()))?;
-        let run = build_basis_from_points(
+        let run = Problem::from_points(
             IntegrationPoints {
                 points: pts,
                 volumes: vol,
@@ -218,6 +218,7 @@ pub unsafe extern "C" fn ff_basis_build(
             &opts,
             &Silent,
         )
+        .and_then(|problem| problem.solve(&Silent))
         .map_err(|e| (status_of(&e), e.to_string()))?;
         let b = Box::new(FfBasis { basis: run.basis });
         // SAFETY: checked non-NULL above.

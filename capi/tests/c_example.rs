@@ -2,9 +2,9 @@
 //! and checks its output against the Rust library on the same input.
 
 use freeform::material::MaterialField;
-use freeform::pipeline::{build_basis_from_points, BasisOptions};
+use freeform::precompute::sampling::IntegrationPoints;
+use freeform::precompute::{BasisOptions, Problem};
 use freeform::progress::Silent;
-use freeform::sampling::IntegrationPoints;
 use std::path::PathBuf;
 use std::process::Command;
 
@@ -47,7 +47,8 @@ fn rust_eigenvalues() -> Vec<f64> {
         points,
         volumes: vec![h * h * h; n],
     };
-    build_basis_from_points(ip, material, &opts, &Silent)
+    Problem::from_points(ip, material, &opts, &Silent)
+        .and_then(|p| p.solve(&Silent))
         .unwrap()
         .basis
         .eigenvalues

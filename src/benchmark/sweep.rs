@@ -19,9 +19,9 @@
 use super::pareto::pareto_front;
 use super::{beam_basis, simulate_beam, BeamComparison, ReducedBeamOptions};
 use crate::fem::beam::{run_beam_reference, FemBeamConfig};
+use crate::precompute::sampling::Resolution;
 use crate::progress::{Progress, Silent};
 use crate::report::Stopwatch;
-use crate::sampling::Resolution;
 use crate::sim::{HessianStrategy, NewtonOptions};
 use crate::{Error, Result};
 use serde::Serialize;

@@ -30,9 +30,9 @@
 //! An entry whose declared size is above its limit, or whose data runs past it whatever the
 //! archive declares, gives [`Error::BasisArrayTooLarge`].
 
-use crate::pipeline::MAX_KERNELS;
-use crate::rkpm::{KernelType, Kernels};
-use crate::skinning::Basis;
+use crate::precompute::rkpm::{KernelType, Kernels};
+use crate::precompute::skinning::Basis;
+use crate::precompute::MAX_KERNELS;
 use crate::{Error, Point3, Result};
 use faer::Mat;
 use npyz::WriterBuilder;

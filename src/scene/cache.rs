@@ -5,8 +5,8 @@
 //! points and materials are cheap and deterministic, so they are recomputed, not stored.
 
 use crate::io::basis;
-use crate::pipeline::BasisOptions;
-use crate::skinning::Basis;
+use crate::precompute::skinning::Basis;
+use crate::precompute::BasisOptions;
 use crate::{Error, Result};
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};

@@ -7,12 +7,12 @@ use crate::error::check_strict;
 use crate::geometry::{Shape, ShapeOptions};
 use crate::io::vtk::{self, PointData};
 use crate::material::MaterialField;
-use crate::pipeline::{build_basis, default_points, sample_shape, BasisOptions};
+use crate::precompute::sampling::IntegrationPoints;
+use crate::precompute::skinning::{Basis, SkinningWeights};
+use crate::precompute::{build_basis, sample_with_material, BasisOptions};
 use crate::progress::Progress;
 use crate::report::{Monitors, Stopwatch};
-use crate::sampling::{IntegrationPoints, Resolution};
 use crate::sim::{ReducedSim, SimOptions, StepReport};
-use crate::skinning::{Basis, SkinningWeights};
 use crate::{Error, Point3, Result};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -235,12 +235,7 @@ fn object_basis(
     if let (Some(dir), Some(key)) = (&cache_dir, &key) {
         let mut warn = |w: String| warnings.push(format!("object '{}': {w}", spec.name));
         if let Some((basis, metadata)) = cache::load(dir, key, opts.modes, &mut warn) {
-            let resolution = opts
-                .resolution
-                .unwrap_or(Resolution::Count(default_points(opts.kernels)));
-            let points = sample_shape(&shape.shape, resolution, &opts.cloud)?;
-            let material =
-                MaterialField::from_regions(&points.points, &opts.material, &opts.overrides)?;
+            let (points, material) = sample_with_material(&shape.shape, &opts)?;
             // The warnings of the run that produced the cached basis still apply.
             let stored = metadata
                 .get("report")

@@ -3,9 +3,9 @@
 //! here and in docs/scenes.md.
 
 use crate::material::{Material, MaterialOverride};
-use crate::pipeline::{BasisOptions, SolverChoice};
-use crate::rkpm::{KernelType, SupportOptions};
-use crate::sampling::{CloudVolumeOptions, Resolution};
+use crate::precompute::rkpm::{KernelType, SupportOptions};
+use crate::precompute::sampling::{CloudVolumeOptions, Resolution};
+use crate::precompute::{BasisOptions, SolverChoice};
 use crate::sim::newton::{HessianStrategy, InitialGuess, Precision};
 use crate::sim::{Boundary, Collider, NewtonOptions, Placement};
 use crate::{Error, Result};

@@ -2,9 +2,9 @@
 //! points chosen by farthest point sampling, each carrying the volume of the integration
 //! points nearest to it (a Voronoi aggregation), so the volumes still sum to the object volume.
 
-use crate::centers::farthest_point_sampling;
 use crate::material::MaterialField;
-use crate::sampling::IntegrationPoints;
+use crate::precompute::centers::farthest_point_sampling;
+use crate::precompute::sampling::IntegrationPoints;
 use crate::{Error, Point3, Result};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 

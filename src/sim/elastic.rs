@@ -12,10 +12,10 @@
 //! structure does not reduce that work).
 
 use crate::elasticity::{hessian, hessian_psd, Mat3, Mat9};
+use crate::precompute::skinning::SkinningWeights;
 use crate::sim::cubature::Cubature;
 use crate::sim::lanes::{LaneData, Partial, LANES};
 use crate::simd::multiversion;
-use crate::skinning::SkinningWeights;
 use crate::{Error, Point3, Result};
 use faer::linalg::matmul::triangular::BlockStructure;
 use faer::{Accum, Mat, Par};

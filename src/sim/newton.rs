@@ -463,6 +463,32 @@ pub fn minimize(
     rep
 }
 
+// The simulator fills the report's monitors (the report module imports no stage).
+impl crate::report::Monitors {
+    /// Count one simulated time step's solver report into the simulation monitors (they
+    /// become `Some` at the first step).
+    pub fn add_step(&mut self, s: &SolveReport) {
+        fn bump(field: &mut Option<usize>, by: usize) {
+            *field = Some(field.unwrap_or(0) + by);
+        }
+        bump(&mut self.steps, 1);
+        bump(
+            &mut self.newton_nonconverged_steps,
+            usize::from(!s.converged),
+        );
+        bump(&mut self.newton_cholesky_fallbacks, s.cholesky_fallbacks);
+        bump(
+            &mut self.line_search_failures,
+            usize::from(s.line_search_failed),
+        );
+        bump(&mut self.line_search_cutbacks, s.line_search_cutbacks);
+        self.min_det = Some(
+            self.min_det
+                .map_or(s.info.min_det, |d| d.min(s.info.min_det)),
+        );
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -5,8 +5,9 @@
 //! boundary moments without boundaries, no contact loop without colliders.
 
 use crate::material::{MaterialField, Region};
+use crate::precompute::sampling::IntegrationPoints;
+use crate::precompute::skinning::{Basis, SkinningWeights};
 use crate::report::Stopwatch;
-use crate::sampling::IntegrationPoints;
 use crate::sim::cubature::{self, Cubature, DEFAULT_CUBATURE};
 use crate::sim::elastic::{ElasticTerm, Layout, Precision, Projection};
 use crate::sim::motion::{rotation_matrix, AxisAngle, Motion, Rigid};
@@ -16,7 +17,6 @@ use crate::sim::newton::{
 use crate::sim::terms::{
     add_block_diagonal, add_block_product, BoundaryTerm, ColliderShape, ContactTerm, Moments,
 };
-use crate::skinning::{Basis, SkinningWeights};
 use crate::{Error, Point3, Result};
 use faer::linalg::solvers::Llt;
 use faer::{Mat, Side};

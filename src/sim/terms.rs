@@ -7,9 +7,9 @@
 //! weighted sum of |x - target|^2 over fixed points is a quadratic in z whose coefficients
 //! are the moments sum c b b^T, sum c b Xh^T and sum c Xh Xh^T, computed once.
 
+use crate::precompute::skinning::SkinningWeights;
 use crate::sim::elastic::Layout;
 use crate::sim::motion::{Motion, Rigid};
-use crate::skinning::SkinningWeights;
 use crate::Point3;
 use faer::{Accum, Mat, Par};
 use serde::{Deserialize, Serialize};

@@ -1,10 +1,10 @@
 //! Small fixtures shared by the integration tests.
 #![allow(dead_code)]
 
-use freeform::centers::farthest_point_sampling;
 use freeform::geometry::Aabb;
-use freeform::rkpm::{support_radii, KernelType, Kernels, SupportOptions};
-use freeform::sampling::{grid_points, IntegrationPoints};
+use freeform::precompute::centers::farthest_point_sampling;
+use freeform::precompute::rkpm::{support_radii, KernelType, Kernels, SupportOptions};
+use freeform::precompute::sampling::{grid_points, IntegrationPoints};
 use freeform::Point3;
 
 /// Grid points filling the box [0, size] at spacing h.

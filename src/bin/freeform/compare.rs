@@ -8,7 +8,7 @@ use freeform::eigen::compare::{max_eigenvalue_rel_diff, max_subspace_angle};
 use freeform::eigen::dense::DenseSolver;
 use freeform::eigen::lobpcg::{Lobpcg, LobpcgOptions};
 use freeform::eigen::{EigenRequest, EigenSolution, Eigensolver};
-use freeform::pipeline::prepare;
+use freeform::precompute::Problem;
 use freeform::progress::Silent;
 use freeform::report::Stopwatch;
 use serde::Serialize;
@@ -112,9 +112,9 @@ pub fn run(args: CompareArgs) -> CliResult {
     let (shape, opts) = args.shape.build()?;
     let solvers = solvers(&args)?;
     let clock = Stopwatch::start();
-    let prepared = prepare(&shape, &opts, &Silent)?;
+    let problem = Problem::from_shape(&shape, &opts, &Silent)?;
     let matrices_s = clock.elapsed();
-    let (h, m) = (&prepared.assembled.hessian, &prepared.assembled.mass);
+    let (h, m) = (&problem.matrices().hessian, &problem.matrices().mass);
     let request = EigenRequest {
         nev: opts.modes + 1,
         tol: opts.tol,
@@ -208,8 +208,8 @@ pub fn run(args: CompareArgs) -> CliResult {
     }
     let report = Report {
         shape: args.shape.shape.clone(),
-        kernels: prepared.kernels.len(),
-        points: prepared.points.len(),
+        kernels: problem.kernels().len(),
+        points: problem.points().len(),
         modes: opts.modes,
         tol: opts.tol,
         nnz_hessian: h.compute_nnz(),

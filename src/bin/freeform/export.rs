@@ -4,7 +4,7 @@ use crate::problem::ShapeArgs;
 use crate::{emit, set_threads, CliResult};
 use clap::Args;
 use freeform::io::matrix_market::write_matrices;
-use freeform::pipeline::prepare;
+use freeform::precompute::Problem;
 use std::path::PathBuf;
 
 #[derive(Args)]
@@ -27,17 +27,17 @@ pub struct ExportArgs {
 pub fn run(args: ExportArgs) -> CliResult {
     set_threads(args.threads)?;
     let (shape, opts) = args.shape.build()?;
-    let prepared = prepare(&shape, &opts, &freeform::progress::Silent)?;
-    let a = &prepared.assembled;
+    let problem = Problem::from_shape(&shape, &opts, &freeform::progress::Silent)?;
+    let a = problem.matrices();
     let files = write_matrices(&args.out, &a.hessian, &a.mass, true)?;
     let report = serde_json::json!({
         "shape": args.shape.shape,
-        "kernels": prepared.kernels.len(),
-        "points": prepared.points.len(),
+        "kernels": problem.kernels().len(),
+        "points": problem.points().len(),
         "nnz_hessian": a.hessian.compute_nnz(),
         "nnz_mass": a.mass.compute_nnz(),
         "files": files.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
-        "timings_s": prepared.timings,
+        "timings_s": problem.timings(),
         "note": "solve H_w c = lambda M c for the m + 1 smallest pairs (lambda_0 = 0: constant)",
     });
     if args.json {
@@ -46,7 +46,7 @@ pub fn run(args: ExportArgs) -> CliResult {
         emit(&format!(
             "freeform export {}\n  K {}  H_w nnz {}  M nnz {}\n  wrote {}\n",
             args.shape.shape,
-            prepared.kernels.len(),
+            problem.kernels().len(),
             a.hessian.compute_nnz(),
             a.mass.compute_nnz(),
             files

@@ -5,7 +5,7 @@ use crate::{emit, set_threads, CliResult};
 use clap::{Args, ValueEnum};
 use freeform::eigen::{EigenRequest, Eigensolver};
 use freeform::geometry::Shape;
-use freeform::pipeline::{build_basis_with, default_solver, BasisOptions, SolverChoice};
+use freeform::precompute::{BasisOptions, Problem, SolverChoice};
 use freeform::progress::{Progress, Silent, TerminalProgress};
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -92,7 +92,9 @@ pub fn run(args: ModesArgs) -> CliResult {
     };
     let run = match distributed_run(&args, &shape, &opts, progress)? {
         Some(run) => run,
-        None => build_basis_with(&shape, &opts, solver.as_ref(), progress)?,
+        None => {
+            Problem::from_shape(&shape, &opts, progress)?.solve_with(solver.as_ref(), progress)?
+        }
     };
     // Under mpirun every rank computed the same basis; only rank 0 writes and prints.
     if !crate::is_root_rank(args.solver)? {
@@ -127,7 +129,7 @@ pub fn run(args: ModesArgs) -> CliResult {
 }
 
 /// The human-readable summary of a `modes` run.
-fn summary(r: &freeform::pipeline::ModesReport, shape: &str, out: &std::path::Path) -> String {
+fn summary(r: &freeform::precompute::ModesReport, shape: &str, out: &std::path::Path) -> String {
     let t = &r.timings_s;
     let ev: Vec<String> = r.eigenvalues.iter().map(|v| format!("{v:.6e}")).collect();
     let mut lines = vec![
@@ -162,7 +164,7 @@ pub fn make_solver(
         if !petsc_options.is_empty() {
             return Err("--petsc-options applies to --solver slepc only".into());
         }
-        return Ok(default_solver(choice));
+        return Ok(choice.build()?);
     }
     #[cfg(feature = "slepc")]
     {
@@ -190,7 +192,7 @@ fn distributed_run(
     shape: &freeform::geometry::Shape,
     opts: &BasisOptions,
     progress: &dyn Progress,
-) -> Result<Option<freeform::pipeline::BasisRun>, Box<dyn std::error::Error>> {
+) -> Result<Option<freeform::precompute::BasisRun>, Box<dyn std::error::Error>> {
     use freeform::eigen::slepc::{world_rank, SlepcOptions};
     if args.solver != SolverArg::Slepc {
         if args.distributed {
@@ -207,7 +209,8 @@ fn distributed_run(
             .trim()
             .to_string();
     }
-    let (run, _dist) = freeform::distributed::build_basis_mpi(shape, opts, &slepc, progress)?;
+    let (run, _dist) =
+        freeform::precompute::distributed::build_basis_mpi(shape, opts, &slepc, progress)?;
     Ok(Some(run))
 }
 
@@ -217,7 +220,7 @@ fn distributed_run(
     _shape: &freeform::geometry::Shape,
     _opts: &BasisOptions,
     _progress: &dyn Progress,
-) -> Result<Option<freeform::pipeline::BasisRun>, Box<dyn std::error::Error>> {
+) -> Result<Option<freeform::precompute::BasisRun>, Box<dyn std::error::Error>> {
     if args.distributed {
         return Err(crate::NO_SLEPC.into());
     }

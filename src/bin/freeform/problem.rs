@@ -4,9 +4,9 @@
 use clap::{Args, ValueEnum};
 use freeform::geometry::{Shape, ShapeOptions};
 use freeform::material::Material;
-use freeform::pipeline::BasisOptions;
-use freeform::rkpm::{KernelType, SupportOptions};
-use freeform::sampling::{CloudVolumeOptions, Resolution};
+use freeform::precompute::rkpm::{KernelType, SupportOptions};
+use freeform::precompute::sampling::{CloudVolumeOptions, Resolution};
+use freeform::precompute::BasisOptions;
 
 #[derive(Clone, Copy, ValueEnum)]
 enum KernelArg {

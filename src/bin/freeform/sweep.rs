@@ -10,7 +10,7 @@ use freeform::benchmark::sweep::{
     describe, run_sweep, SweepAxis, SweepReport, SweepRow, SweepSpec,
 };
 use freeform::benchmark::BeamComparison;
-use freeform::sampling::Resolution;
+use freeform::precompute::sampling::Resolution;
 use freeform::sim::NewtonOptions;
 use std::path::{Path, PathBuf};
 
@@ -232,7 +232,7 @@ fn write_outputs(report: &SweepReport, out: &Path, json: bool) -> CliResult {
 mod plot {
     use super::{SweepAxis, SweepReport, SweepRow};
     use freeform::benchmark::pareto::front_by_cost;
-    use freeform::sampling::Resolution;
+    use freeform::precompute::sampling::Resolution;
     use plotters::element::{Drawable, PointCollection};
     use plotters::prelude::*;
     use plotters_backend::{BackendCoord, DrawingErrorKind};

@@ -15,29 +15,25 @@
 //! 5. SLEPc on the row blocks (MPIAIJ), eigenvectors gathered on every rank;
 //! 6. residuals and M-orthonormality recomputed from the local rows and reduced over ranks.
 //!
-//! Limitation: the coverage repair of [`crate::pipeline`] (enlarging supports around badly
+//! Limitation: the coverage repair of [`crate::precompute`] (enlarging supports around badly
 //! covered points) needs every point's shape functions, so it is not run here; a coverage
 //! failure on any rank is an error on all ranks (run without MPI, or raise `--support`).
 
-use crate::assembly::assemble;
-use crate::centers::{farthest_point_sampling, morton_order};
+use super::assembly::assemble;
+use super::centers::morton_order;
+use super::rkpm::{covering_kernels, evaluate_on, reproducing_error, Kernels, ReproducingError};
+use super::skinning::Basis;
+use super::{
+    place_kernels, sample_with_material, BasisOptions, BasisRun, CoverageReport, ModesReport,
+};
 use crate::eigen::slepc::{
     accept, allreduce_max, allreduce_sum, block_range, solve_rows, world_rank, RowBlock,
     SlepcOptions,
 };
 use crate::eigen::{relative_residual, EigenError, EigenInfo, EigenRequest, EigenSolution};
 use crate::geometry::Shape;
-use crate::material::MaterialField;
-use crate::pipeline::{
-    default_points, sample_shape, BasisOptions, BasisRun, CoverageReport, ModesReport,
-};
 use crate::progress::Progress;
 use crate::report::{peak_memory_bytes, Stopwatch, Timings};
-use crate::rkpm::{
-    covering_kernels, evaluate_on, reproducing_error, support_radii, Kernels, ReproducingError,
-};
-use crate::sampling::Resolution;
-use crate::skinning::Basis;
 use crate::{Point3, Result};
 use faer::Mat;
 
@@ -54,13 +50,13 @@ pub struct DistributedReport {
     pub points_per_rank: Vec<usize>,
 }
 
-/// [`crate::pipeline::build_basis`] across the ranks of `mpirun` with the SLEPc backend (see
+/// [`super::build_basis`] across the ranks of `mpirun` with the SLEPc backend (see
 /// the module docs). Collective: every rank calls it with the same arguments; every rank gets
 /// the whole basis back (only one should write it). Stage timings in the report are the
 /// maximum over ranks.
 ///
 /// # Errors
-/// As [`crate::pipeline::build_basis`]; PETSc/MPI failures as
+/// As [`super::build_basis`]; PETSc/MPI failures as
 /// [`EigenError::Backend`]. A coverage failure on any rank is reported on all of them.
 pub fn build_basis_mpi(
     shape: &Shape,
@@ -75,32 +71,13 @@ pub fn build_basis_mpi(
     let mut clock = Stopwatch::start();
 
     progress.begin("sampling", None);
-    let resolution = opts
-        .resolution
-        .unwrap_or(Resolution::Count(default_points(opts.kernels)));
-    let points = sample_shape(shape, resolution, &opts.cloud)?;
-    let material = MaterialField::from_regions(&points.points, &opts.material, &opts.overrides)?;
+    let (points, material) = sample_with_material(shape, opts)?;
     progress.finish();
     timings.sampling = clock.lap();
     let n = points.len();
-    if n < opts.kernels {
-        return Err(crate::Error::param(
-            "kernels",
-            opts.kernels,
-            format!("only {n} integration points; use fewer kernels or more points"),
-        ));
-    }
 
     progress.begin("centers", Some(opts.kernels as u64));
-    let mut idx = farthest_point_sampling(&points.points, opts.kernels)?;
-    morton_order(&points.points, &mut idx);
-    let centers: Vec<Point3> = idx.iter().map(|&i| points.points[i]).collect();
-    let radii = support_radii(&centers, &opts.support)?;
-    let kernels = Kernels {
-        centers,
-        radii,
-        kind: opts.kernel,
-    };
+    let kernels = place_kernels(&points.points, opts)?;
     progress.finish();
     timings.centers = clock.lap();
     let k = kernels.len();
@@ -141,7 +118,7 @@ pub fn build_basis_mpi(
     let mut failed = [stats.failed.len() as f64];
     allreduce_sum(&mut failed)?;
     if failed[0] > 0.0 {
-        crate::rkpm::coverage_error(&local_points, &sf, &stats, opts.shape_functions.min_rcond)?;
+        super::rkpm::coverage_error(&local_points, &sf, &stats, opts.shape_functions.min_rcond)?;
         return Err(crate::Error::param(
             "support",
             opts.support.factor,
@@ -277,7 +254,7 @@ pub fn build_basis_mpi(
         warnings: Vec::new(),
         monitors: Default::default(),
     };
-    crate::pipeline::check_quality(&mut report);
+    super::check_quality(&mut report);
     let basis = Basis {
         kernels,
         coefficients: solution.vectors,

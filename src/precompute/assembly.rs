@@ -10,7 +10,7 @@
 //! ascending order, so the result is the same bit for bit for any thread count, and exactly
 //! symmetric. Memory is proportional to the non-zeros.
 
-use crate::rkpm::ShapeFunctions;
+use super::rkpm::ShapeFunctions;
 use crate::sparse::{from_compressed, SparseMatrix};
 use crate::{Error, Result};
 use rayon::prelude::*;

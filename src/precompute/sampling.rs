@@ -7,7 +7,9 @@
 //! the points of each voxel, so dense clusters do not weigh more than sparse regions) or
 //! scaled to a user-given total.
 
-use crate::geometry::Aabb;
+use super::options::{default_points, BasisOptions};
+use crate::geometry::{Aabb, Shape};
+use crate::material::MaterialField;
 use crate::{Error, Point3, Result};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -239,6 +241,77 @@ fn median_nn_distance(points: &[Point3]) -> Result<f64> {
     }
     d.sort_by(f64::total_cmp);
     Ok(d[d.len() / 2])
+}
+
+/// Integration points for a shape: a grid inside solids, the (optionally downsampled) points
+/// of a point cloud with voxel-occupancy volumes.
+pub fn sample_shape(
+    shape: &Shape,
+    resolution: Resolution,
+    cloud: &CloudVolumeOptions,
+) -> Result<IntegrationPoints> {
+    match shape {
+        Shape::PointCloud(pc) => {
+            let all = pc.points();
+            let points = match resolution {
+                Resolution::Count(n) if n < all.len() => downsample(all, n),
+                Resolution::Count(_) => all.to_vec(),
+                Resolution::Spacing(h) => {
+                    return Err(Error::param("spacing", h, "a point cloud's points are its integration points; use --points N to downsample"))
+                }
+            };
+            let (volumes, _) = cloud_volumes(&points, cloud)?;
+            Ok(IntegrationPoints { points, volumes })
+        }
+        solid => {
+            let aabb = solid.bounding_box();
+            let exact = solid.volume();
+            let size = [
+                aabb.max[0] - aabb.min[0],
+                aabb.max[1] - aabb.min[1],
+                aabb.max[2] - aabb.min[2],
+            ];
+            let vol = exact.unwrap_or(size[0] * size[1] * size[2]);
+            let h = resolution.spacing(vol)?;
+            let inside = |p: &[Point3]| solid.contains(p).unwrap_or_else(|| vec![true; p.len()]);
+            grid_points(&aabb, h, exact, &inside)
+        }
+    }
+}
+
+/// A deterministic, spatially unbiased subset of `n` points (seeded partial Fisher-Yates),
+/// returned in input order.
+fn downsample(points: &[Point3], n: usize) -> Vec<Point3> {
+    let mut idx: Vec<usize> = (0..points.len()).collect();
+    let mut state = 0x5EED_F1EE_u64;
+    for i in 0..n {
+        state = state.wrapping_add(0x9E3779B97F4A7C15);
+        let mut z = state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58476D1CE4E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D049BB133111EB);
+        z ^= z >> 31;
+        let j = i + (z % (points.len() - i) as u64) as usize;
+        idx.swap(i, j);
+    }
+    let mut keep = idx[..n].to_vec();
+    keep.sort_unstable();
+    keep.into_iter().map(|i| points[i]).collect()
+}
+
+/// The first stage of every precomputation: the integration points of `shape` at
+/// `opts.resolution` (default [`default_points`] of `opts.kernels`) and the material at each
+/// (`opts.material` with `opts.overrides` applied in order). The pipeline, the MPI path and
+/// the scene's basis cache all call this, so they sample a shape the same way.
+pub fn sample_with_material(
+    shape: &Shape,
+    opts: &BasisOptions,
+) -> Result<(IntegrationPoints, MaterialField)> {
+    let resolution = opts
+        .resolution
+        .unwrap_or(Resolution::Count(default_points(opts.kernels)));
+    let points = sample_shape(shape, resolution, &opts.cloud)?;
+    let material = MaterialField::from_regions(&points.points, &opts.material, &opts.overrides)?;
+    Ok((points, material))
 }
 
 #[cfg(test)]

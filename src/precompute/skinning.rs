@@ -1,7 +1,7 @@
 //! Skinning eigenmodes as functions of space: W_j(X) = sum_k phi_k(X) c_kj and their
 //! gradients, at any query points (integration points, mesh vertices, splat centres, FEM nodes).
 
-use crate::rkpm::{self, Kernels, ShapeFunctionOptions};
+use super::rkpm::{self, Kernels, ShapeFunctionOptions};
 use crate::{Error, Point3, Result};
 use faer::Mat;
 use rayon::prelude::*;

@@ -1,0 +1,36 @@
+//! The precomputation: from a shape (or your own points) to skinning eigenmodes.
+//!
+//! ```text
+//! Shape --sampling--> integration points, volumes, materials
+//!       --centers---> kernel centres (FPS, Morton order), support radii
+//!       --rkpm------> shape functions and gradients at the points
+//!       --assembly--> sparse H_w and M (K x K)                  = Problem
+//!       --eigen-----> m + 1 eigenpairs (LOBPCG | dense | SLEPc)
+//!       --skinning--> Basis: weights W(X) anywhere in the shape  = BasisRun
+//! ```
+//!
+//! [`build_basis`] runs it all; [`Problem`] splits it at the eigensolve (assemble once, solve
+//! with any [`crate::eigen::Eigensolver`], as `freeform compare` does); the stages are public
+//! modules so a caller can enter the flow anywhere. `distributed` (feature `slepc`) runs the
+//! same stages across MPI ranks.
+
+pub mod assembly;
+pub mod centers;
+#[cfg(feature = "slepc")]
+pub mod distributed;
+mod options;
+mod problem;
+mod quality;
+pub mod rkpm;
+pub mod sampling;
+pub mod skinning;
+mod solver;
+
+pub use options::{default_points, BasisOptions, MAX_KERNELS, MAX_POINTS};
+pub use problem::{build_basis, place_kernels, BasisRun, Problem};
+pub use quality::{
+    basis_monitors, check_quality, CoverageReport, ModesReport, ORTHONORMALITY_WARNING,
+    RCOND_WARNING, REPRODUCING_WARNING,
+};
+pub use sampling::{sample_shape, sample_with_material};
+pub use solver::SolverChoice;

@@ -1,0 +1,162 @@
+//! Every knob of the precomputation ([`BasisOptions`]) with its default and its valid range.
+
+use super::rkpm::{KernelType, ShapeFunctionOptions, SupportOptions};
+use super::sampling::{CloudVolumeOptions, Resolution};
+use super::solver::SolverChoice;
+use crate::material::{Material, MaterialOverride};
+use crate::{Error, Result};
+use serde::Serialize;
+
+/// Every knob of the precomputation, with documented defaults (see docs/guide.md).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[must_use]
+pub struct BasisOptions {
+    /// Number of kernels K. Default 1000 (the paper's choice for the beam).
+    pub kernels: usize,
+    /// Number of non-constant modes m (m + 1 handles are computed). Default 16.
+    pub modes: usize,
+    /// Integration grid density; None means [`default_points`] of K points.
+    pub resolution: Option<Resolution>,
+    /// Window function. Default cubic B-spline.
+    pub kernel: KernelType,
+    /// Support radius rule.
+    pub support: SupportOptions,
+    /// Moment-matrix conditioning threshold.
+    pub shape_functions: ShapeFunctionOptions,
+    /// Base material. Default: the standard beam's (E = 5e6 Pa, nu = 0.45, rho = 1000).
+    pub material: Material,
+    /// Region overrides applied in order on top of `material`.
+    pub overrides: Vec<MaterialOverride>,
+    /// Eigensolver. Default LOBPCG.
+    pub solver: SolverChoice,
+    /// Relative eigen-residual tolerance. Default 1e-8.
+    pub tol: f64,
+    /// Eigensolver iteration cap. Default 1000.
+    pub max_iter: usize,
+    /// Point-cloud quadrature options (voxel size, total volume).
+    pub cloud: CloudVolumeOptions,
+    /// Rounds of local support enlargement (x1.25 on the 4 kernels nearest each badly covered
+    /// point) before giving up with a coverage error. Default 3.
+    pub coverage_repair_rounds: usize,
+}
+
+impl Default for BasisOptions {
+    fn default() -> Self {
+        Self {
+            kernels: 1000,
+            modes: 16,
+            resolution: None,
+            kernel: KernelType::Cubic,
+            support: SupportOptions::default(),
+            shape_functions: ShapeFunctionOptions::default(),
+            material: Material::default(),
+            overrides: Vec::new(),
+            solver: SolverChoice::Lobpcg,
+            tol: 1e-8,
+            max_iter: 1000,
+            cloud: CloudVolumeOptions::default(),
+            coverage_repair_rounds: 3,
+        }
+    }
+}
+
+/// Default integration point count for K kernels: 50 K, clamped to [20,000, 2,000,000].
+/// 50 points per kernel resolves each support (~30 kernels overlap a point, ~1,500 points lie
+/// in a support) so quadrature error stays below the kernel approximation error; the cap keeps
+/// K = 100,000 within memory (the issue's 2M-point sizing).
+pub fn default_points(kernels: usize) -> usize {
+    kernels.saturating_mul(50).clamp(20_000, 2_000_000)
+}
+
+/// Most kernels [`BasisOptions::validate`] accepts: 10 million. K = 100,000 peaks at 4.75 GB
+/// (docs/performance.md), so 10 million would need ~500 GB; a larger request is a typo (or a
+/// unit mistake) and is rejected before anything is allocated.
+pub const MAX_KERNELS: usize = 10_000_000;
+
+/// Most integration points [`BasisOptions::validate`] accepts: 100 million (each point holds
+/// ~30 shape-function values and gradients, so this is already ~100 GB).
+pub const MAX_POINTS: usize = 100_000_000;
+
+impl BasisOptions {
+    /// Check every parameter's range (before any work is done).
+    pub fn validate(&self) -> Result<()> {
+        if self.kernels < 10 {
+            return Err(Error::param(
+                "kernels",
+                self.kernels,
+                "need at least 10 kernels",
+            ));
+        }
+        if self.modes == 0 {
+            return Err(Error::param(
+                "modes",
+                0,
+                "ask for at least one non-constant mode",
+            ));
+        }
+        if self.kernels > MAX_KERNELS {
+            return Err(Error::param(
+                "kernels",
+                self.kernels,
+                format!(
+                    "more than {MAX_KERNELS} kernels would need far more memory than any \
+                     machine has; use at most a few 100,000 (default 1000)"
+                ),
+            ));
+        }
+        if self.modes.saturating_add(1) >= self.kernels {
+            return Err(Error::param(
+                "modes",
+                self.modes,
+                format!(
+                    "m must be smaller than K - 1 = {} (K = {} kernels)",
+                    self.kernels - 1,
+                    self.kernels
+                ),
+            ));
+        }
+        if !(self.tol.is_finite() && self.tol > 0.0 && self.tol < 1.0) {
+            return Err(Error::param(
+                "tol",
+                self.tol,
+                "tolerance must lie in (0, 1), e.g. 1e-8",
+            ));
+        }
+        if self.max_iter == 0 {
+            return Err(Error::param("max_iter", 0, "need at least one iteration"));
+        }
+        if let Some(Resolution::Count(n)) = self.resolution {
+            if n < self.kernels {
+                return Err(Error::param(
+                    "points",
+                    n,
+                    format!("fewer integration points than kernels ({})", self.kernels),
+                ));
+            }
+            if n > MAX_POINTS {
+                return Err(Error::param(
+                    "points",
+                    n,
+                    format!(
+                        "more than {MAX_POINTS} integration points would need far more memory \
+                         than any machine has; 50 per kernel is plenty (the default)"
+                    ),
+                ));
+            }
+        }
+        self.support.validate()?;
+        if !(self.shape_functions.min_rcond > 0.0 && self.shape_functions.min_rcond < 1.0) {
+            return Err(Error::param(
+                "min_rcond",
+                self.shape_functions.min_rcond,
+                "must lie in (0, 1)",
+            ));
+        }
+        self.material.validate()?;
+        for o in &self.overrides {
+            o.region.validate()?;
+            o.material.validate()?;
+        }
+        Ok(())
+    }
+}

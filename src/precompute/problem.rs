@@ -1,0 +1,392 @@
+//! The precomputation as one object: a [`Problem`] is built from a shape or from points
+//! (sampled, kernels placed, shape functions evaluated, H_w and M assembled), then solved with
+//! a chosen eigensolver into a [`BasisRun`] (the basis and its report).
+
+use super::assembly::{assemble, Assembled};
+use super::centers::{farthest_point_sampling, morton_order};
+use super::options::BasisOptions;
+use super::quality::{check_quality, CoverageReport, ModesReport};
+use super::rkpm::{self, support_radii, Kernels, ReproducingError, ShapeFunctions, ShapeStats};
+use super::sampling::{sample_with_material, IntegrationPoints};
+use super::skinning::Basis;
+use crate::eigen::{EigenRequest, Eigensolver};
+use crate::geometry::Shape;
+use crate::material::MaterialField;
+use crate::progress::Progress;
+use crate::report::{peak_memory_bytes, Monitors, Stopwatch, Timings};
+use crate::{Error, Point3, Result};
+
+/// Everything a precomputation produces.
+#[derive(Debug, Clone)]
+pub struct BasisRun {
+    /// The skinning basis.
+    pub basis: Basis,
+    /// Integration points and volumes used.
+    pub points: IntegrationPoints,
+    /// Material per integration point.
+    pub material: MaterialField,
+    /// Report.
+    pub report: ModesReport,
+}
+
+/// Run the whole precomputation on a shape with `opts.solver`: the one-liner for
+/// `Problem::from_shape(shape, opts, progress)?.solve(progress)`.
+///
+/// ```
+/// use freeform::geometry::Shape;
+/// use freeform::precompute::{build_basis, BasisOptions};
+/// let shape = Shape::parse("box:2,1,1", &Default::default())?;
+/// let opts = BasisOptions { kernels: 60, modes: 4, ..BasisOptions::default() };
+/// let run = build_basis(&shape, &opts, &freeform::progress::Silent)?;
+/// assert_eq!(run.basis.modes(), 5); // m + 1 handles, the first the constant mode
+/// assert!(run.report.max_relative_residual < 1e-6);
+/// # Ok::<(), freeform::Error>(())
+/// ```
+pub fn build_basis(
+    shape: &Shape,
+    opts: &BasisOptions,
+    progress: &dyn Progress,
+) -> Result<BasisRun> {
+    Problem::from_shape(shape, opts, progress)?.solve(progress)
+}
+
+/// The assembled generalized eigenproblem H_w c = lambda M c of one object, with everything
+/// needed to turn its solution into a basis and a report. Built by [`Problem::from_shape`] or
+/// [`Problem::from_points`]; solved by [`Problem::solve`] (the solver `options.solver` names)
+/// or [`Problem::solve_with`] (any [`Eigensolver`], e.g. SLEPc). [`Problem::matrices`] is what
+/// `freeform export` writes and `freeform compare` hands to each solver.
+///
+/// ```
+/// use freeform::geometry::Shape;
+/// use freeform::precompute::{BasisOptions, Problem};
+/// use freeform::eigen::dense::DenseSolver;
+/// let shape = Shape::parse("sphere:0.5", &Default::default())?;
+/// let opts = BasisOptions { kernels: 50, modes: 3, ..BasisOptions::default() };
+/// let problem = Problem::from_shape(&shape, &opts, &freeform::progress::Silent)?;
+/// assert_eq!(problem.matrices().hessian.nrows(), 50); // K x K
+/// let run = problem.solve_with(&DenseSolver, &freeform::progress::Silent)?;
+/// assert_eq!(run.report.solver, "dense");
+/// # Ok::<(), freeform::Error>(())
+/// ```
+#[derive(Debug, Clone)]
+pub struct Problem {
+    options: BasisOptions,
+    kernels: Kernels,
+    assembled: Assembled,
+    points: IntegrationPoints,
+    material: MaterialField,
+    timings: Timings,
+    reproducing: ReproducingError,
+    coverage: CoverageReport,
+    warnings: Vec<String>,
+}
+
+/// Kernel centres by farthest point sampling of `points` (N x 3, metres), in Morton order
+/// (the row and column order of H_w and M), with support radii by `opts.support`: the stage
+/// that the pipeline and the MPI path share, so every rank places the same kernels.
+pub fn place_kernels(points: &[Point3], opts: &BasisOptions) -> Result<Kernels> {
+    let n = points.len();
+    if n < opts.kernels {
+        return Err(Error::param(
+            "kernels",
+            opts.kernels,
+            format!("only {n} integration points; use fewer kernels or more points"),
+        ));
+    }
+    let mut idx = farthest_point_sampling(points, opts.kernels)?;
+    morton_order(points, &mut idx);
+    let centers: Vec<Point3> = idx.iter().map(|&i| points[i]).collect();
+    let radii = support_radii(&centers, &opts.support)?;
+    Ok(Kernels {
+        centers,
+        radii,
+        kind: opts.kernel,
+    })
+}
+
+impl Problem {
+    /// Sample `shape` ([`sample_with_material`]: `opts.resolution`, `opts.material`,
+    /// `opts.overrides`) and assemble its eigenproblem.
+    pub fn from_shape(shape: &Shape, opts: &BasisOptions, progress: &dyn Progress) -> Result<Self> {
+        opts.validate()?;
+        let clock = Stopwatch::start();
+        progress.begin("sampling", None);
+        let (points, material) = sample_with_material(shape, opts)?;
+        progress.finish();
+        let sampling = clock.elapsed();
+        let mut problem = Self::from_points(points, material, opts, progress)?;
+        problem.timings.sampling = sampling;
+        problem.timings.total += sampling;
+        Ok(problem)
+    }
+
+    /// Assemble the eigenproblem on given integration points (N x 3, metres, with volumes,
+    /// m^3) and per-point materials (N entries). `opts.resolution`, `opts.material`,
+    /// `opts.overrides` and `opts.cloud` are not used here (the caller made those choices).
+    pub fn from_points(
+        points: IntegrationPoints,
+        material: MaterialField,
+        opts: &BasisOptions,
+        progress: &dyn Progress,
+    ) -> Result<Self> {
+        opts.validate()?;
+        let n = points.len();
+        if points.volumes.len() != n {
+            return Err(Error::LengthMismatch {
+                what: "volumes",
+                expected: n,
+                got: points.volumes.len(),
+            });
+        }
+        if material.len() != n {
+            return Err(Error::LengthMismatch {
+                what: "material values",
+                expected: n,
+                got: material.len(),
+            });
+        }
+        crate::error::check_finite_points("integration points", &points.points)?;
+        if let Some(i) = points
+            .volumes
+            .iter()
+            .position(|v| !(v.is_finite() && *v > 0.0))
+        {
+            return Err(Error::param(
+                "volumes",
+                format!("{} at point {i}", points.volumes[i]),
+                "every integration volume must be positive and finite",
+            ));
+        }
+        let mut timings = Timings::default();
+        let mut clock = Stopwatch::start();
+        let total_clock = Stopwatch::start();
+        let mut warnings = Vec::new();
+
+        progress.begin("centers", Some(opts.kernels as u64));
+        let mut kernels = place_kernels(&points.points, opts)?;
+        progress.finish();
+        timings.centers = clock.lap();
+
+        // Shape functions and assembly run on the points in Morton order: the points of one
+        // kernel's support are then close in memory, which speeds assembly up severalfold at
+        // large N. Only the order of the sums changes; the caller's point order is untouched.
+        let mut order: Vec<usize> = (0..n).collect();
+        morton_order(&points.points, &mut order);
+        let sorted: Vec<Point3> = order.iter().map(|&i| points.points[i]).collect();
+        progress.begin("shape functions", None);
+        let (sf, stats, enlarged, neighbor_time) =
+            shape_functions_with_repair(&mut kernels, &sorted, opts).map_err(|e| match e {
+                // Report the caller's point index, not the sorted one.
+                Error::Coverage {
+                    count,
+                    index,
+                    position,
+                    covering,
+                    rcond,
+                    min_rcond,
+                } => Error::Coverage {
+                    count,
+                    index: order[index],
+                    position,
+                    covering,
+                    rcond,
+                    min_rcond,
+                },
+                other => other,
+            })?;
+        progress.finish();
+        timings.neighbors = neighbor_time;
+        timings.shape_functions = clock.lap() - neighbor_time;
+        let reproducing = rkpm::reproducing_error(&kernels, &sorted, &sf);
+        if enlarged > 0 {
+            warnings.push(format!(
+                "{enlarged} kernel supports were enlarged to cover badly conditioned points"
+            ));
+        }
+
+        progress.begin("assembly", None);
+        let all_weights = material.hessian_weights();
+        let volumes: Vec<f64> = order.iter().map(|&i| points.volumes[i]).collect();
+        let weights: Vec<f64> = order.iter().map(|&i| all_weights[i]).collect();
+        let assembled = assemble(&sf, &volumes, &weights, kernels.len())?;
+        let sf_bytes = sf.memory_bytes();
+        drop((sf, sorted, volumes, weights, all_weights));
+        progress.finish();
+        timings.assembly = clock.lap();
+
+        timings.total = total_clock.elapsed();
+        Ok(Self {
+            options: opts.clone(),
+            kernels,
+            assembled,
+            points,
+            material,
+            timings,
+            reproducing,
+            coverage: CoverageReport {
+                min_moment_rcond: stats.min_rcond,
+                min_cover: stats.min_cover,
+                mean_cover: stats.mean_cover,
+                max_cover: stats.max_cover,
+                enlarged_kernels: enlarged,
+                shape_function_bytes: sf_bytes,
+            },
+            warnings,
+        })
+    }
+
+    /// The options the problem was built with.
+    pub fn options(&self) -> &BasisOptions {
+        &self.options
+    }
+
+    /// H_w (Pa m) and M (m^3), K x K, rows and columns in the kernels' (Morton) order.
+    pub fn matrices(&self) -> &Assembled {
+        &self.assembled
+    }
+
+    /// The matrices, without the rest of the problem.
+    pub fn into_matrices(self) -> Assembled {
+        self.assembled
+    }
+
+    /// The kernels (Morton order: the row and column order of the matrices).
+    pub fn kernels(&self) -> &Kernels {
+        &self.kernels
+    }
+
+    /// Integration points and volumes, in the caller's order.
+    pub fn points(&self) -> &IntegrationPoints {
+        &self.points
+    }
+
+    /// Material per integration point.
+    pub fn material(&self) -> &MaterialField {
+        &self.material
+    }
+
+    /// Stage timings so far (sampling to assembly; the eigensolve is not yet run), seconds.
+    pub fn timings(&self) -> &Timings {
+        &self.timings
+    }
+
+    /// Coverage figures of the shape-function stage.
+    pub fn coverage(&self) -> &CoverageReport {
+        &self.coverage
+    }
+
+    /// The eigenproblem's request: m + 1 pairs at the options' tolerance and iteration cap.
+    pub fn request(&self) -> EigenRequest {
+        EigenRequest {
+            nev: self.options.modes + 1,
+            tol: self.options.tol,
+            max_iter: self.options.max_iter,
+        }
+    }
+
+    /// Solve with the eigensolver `options.solver` names, at its default settings.
+    pub fn solve(self, progress: &dyn Progress) -> Result<BasisRun> {
+        let solver = self.options.solver.build()?;
+        self.solve_with(solver.as_ref(), progress)
+    }
+
+    /// Solve with `solver` and build the basis and its report (the report names the solver
+    /// that ran).
+    pub fn solve_with(self, solver: &dyn Eigensolver, progress: &dyn Progress) -> Result<BasisRun> {
+        let request = self.request();
+        let Problem {
+            options: opts,
+            kernels,
+            assembled,
+            points,
+            material,
+            mut timings,
+            reproducing: repro,
+            coverage,
+            warnings,
+        } = self;
+        let clock = Stopwatch::start();
+        let solution = solver.solve(&assembled.hessian, &assembled.mass, &request, progress)?;
+        timings.eigensolve = clock.elapsed();
+        timings.total += timings.eigensolve;
+        let mut report = ModesReport {
+            kernels: kernels.len(),
+            points: points.len(),
+            modes: opts.modes,
+            nnz_hessian: assembled.hessian.compute_nnz(),
+            nnz_mass: assembled.mass.compute_nnz(),
+            solver: solver.name().to_string(),
+            eigenvalues: solution.values.clone(),
+            max_relative_residual: solution.info.max_relative_residual,
+            orthonormality_error: solution.info.orthonormality_error,
+            reproducing_error: repro.max(),
+            reproducing_detail: repro,
+            timings_s: timings,
+            peak_memory_bytes: peak_memory_bytes().unwrap_or(0),
+            volume: points.total_volume(),
+            kernel: opts.kernel,
+            support: opts.support,
+            coverage,
+            eigen: solution.info.clone(),
+            tol: opts.tol,
+            warnings,
+            monitors: Monitors::default(),
+        };
+        check_quality(&mut report);
+        let basis = Basis {
+            kernels,
+            coefficients: solution.vectors,
+            eigenvalues: solution.values,
+        };
+        Ok(BasisRun {
+            basis,
+            points,
+            material,
+            report,
+        })
+    }
+}
+
+/// Shape functions at the integration points, enlarging the supports of kernels near badly
+/// covered points for up to `opts.coverage_repair_rounds` rounds. Returns the shape functions,
+/// their stats, the number of enlarged kernels and the neighbour-search time (s).
+fn shape_functions_with_repair(
+    kernels: &mut Kernels,
+    points: &[Point3],
+    opts: &BasisOptions,
+) -> Result<(ShapeFunctions, ShapeStats, usize, f64)> {
+    use kiddo::{ImmutableKdTree, SquaredEuclidean};
+    let mut enlarged = std::collections::BTreeSet::new();
+    let mut neighbor_time = 0.0;
+    let mut round = 0;
+    loop {
+        let t = Stopwatch::start();
+        let pattern = rkpm::covering_kernels(kernels, points);
+        neighbor_time += t.elapsed();
+        let (sf, stats) = rkpm::evaluate_on(kernels, points, pattern, &opts.shape_functions);
+        if stats.failed.is_empty() {
+            return Ok((sf, stats, enlarged.len(), neighbor_time));
+        }
+        if round == opts.coverage_repair_rounds {
+            rkpm::coverage_error(points, &sf, &stats, opts.shape_functions.min_rcond)?;
+        }
+        round += 1;
+        let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(&kernels.centers)
+            .map_err(|e| Error::param("kernels", kernels.len(), format!("k-d tree: {e:?}")))?;
+        let four = std::num::NonZero::new(4).expect("4 > 0");
+        let mut grow = std::collections::BTreeSet::new();
+        for &i in &stats.failed {
+            for r in tree
+                .query(&points[i])
+                .nearest_n::<SquaredEuclidean<f64>>(four)
+                .execute()
+            {
+                grow.insert(r.item as usize);
+            }
+        }
+        for &k in &grow {
+            kernels.radii[k] *= 1.25;
+        }
+        enlarged.extend(grow);
+    }
+}
