@@ -86,6 +86,17 @@ pub enum Error {
         /// What is wrong, with the line and column for parse errors.
         message: String,
     },
+    /// Setting up one object of a scene failed: the object's index and name around the
+    /// stage's own error (match on `source` for, e.g., a [`Error::Coverage`] of object 2).
+    #[error("scene: object '{name}': {source}")]
+    Object {
+        /// Index of the object in the scene (`[[object]]` order, from 0).
+        index: usize,
+        /// The object's name.
+        name: String,
+        /// What went wrong.
+        source: Box<Error>,
+    },
     /// A basis file is malformed or from an incompatible version.
     #[error("{path}: not a valid freeform basis file: {reason}")]
     BasisFile {

@@ -20,14 +20,19 @@
 //! ```
 
 mod cache;
+mod frames;
 mod run;
+mod setup;
 mod spec;
+mod world;
 
+pub use frames::{FrameObserver, FrameWriter};
 pub use run::{run, ObjectSummary, RunSettings, RunSummary, StepRow};
 pub use spec::{
     BasisSettings, CacheSettings, Format, ObjectSpec, OutputSettings, Scene, Simulation,
     SolverSettings,
 };
+pub use world::{SceneObject, World};
 
 use crate::material::{Material, MaterialOverride, Region};
 use crate::sim::motion::Motion;

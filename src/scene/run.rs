@@ -1,21 +1,15 @@
-//! Running a scene: per object, the basis (from the cache or computed), the reduced model,
-//! the render points and their weights; then the time loop, frame output and the summary.
+//! Running a scene as a batch: a loop over a [`World`] with a [`FrameWriter`] observing it,
+//! and the summary of the run.
 
-use super::cache;
-use super::spec::{Format, ObjectSpec, Scene};
-use crate::error::check_strict;
-use crate::geometry::{Shape, ShapeOptions};
-use crate::io::vtk::{self, PointData};
-use crate::material::MaterialField;
-use crate::precompute::sampling::IntegrationPoints;
-use crate::precompute::skinning::{Basis, SkinningWeights};
-use crate::precompute::{build_basis, sample_with_material, BasisOptions};
+use super::frames::{FrameObserver, FrameWriter};
+use super::spec::Scene;
+use super::world::World;
 use crate::progress::Progress;
 use crate::report::{Monitors, Stopwatch};
-use crate::sim::{ReducedSim, SimOptions, StepReport};
-use crate::{Error, Point3, Result};
+use crate::sim::StepReport;
+use crate::Result;
 use serde::Serialize;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Where a run reads relative paths from and writes to.
 #[derive(Debug, Clone, Default)]
@@ -150,400 +144,51 @@ pub struct RunSummary {
     pub warnings: Vec<String>,
 }
 
-/// An object ready to step.
-struct Prepared {
-    spec: ObjectSpec,
-    sim: ReducedSim,
-    render: Vec<Point3>,
-    triangles: Option<Vec<[u32; 3]>>,
-    weights: SkinningWeights,
-    summary: ObjectSummary,
-    pvd: Vec<(f64, String)>,
-    /// Whether the inversion warning was given.
-    warned_inverted: bool,
-}
-
-fn is_primitive(spec: &str) -> bool {
-    let t = spec.trim().to_ascii_lowercase();
-    t.starts_with("box:") || t.starts_with("sphere:")
-}
-
-/// Resolve a relative shape path against `base`.
-fn resolve_shape(spec: &str, base: &Path) -> (String, Option<PathBuf>) {
-    if is_primitive(spec) {
-        return (spec.to_string(), None);
-    }
-    let p = Path::new(spec.trim());
-    let full = if p.is_relative() {
-        base.join(p)
-    } else {
-        p.to_path_buf()
-    };
-    (full.display().to_string(), Some(full))
-}
-
-/// An object's shape with the specification it was read from.
-struct ResolvedShape {
-    shape: Shape,
-    /// The specification with relative paths resolved.
-    spec: String,
-    /// The file, for file shapes.
-    file: Option<PathBuf>,
-}
-
-/// What [`object_basis`] returns.
-struct ObjectBasis {
-    basis: Basis,
-    points: IntegrationPoints,
-    material: MaterialField,
-    cached: bool,
-    file: Option<PathBuf>,
-    /// Precomputation monitors (from the cache file's metadata for a cached basis).
-    monitors: Monitors,
-}
-
-/// Basis, integration points and materials of an object (from the cache when possible).
-fn object_basis(
-    spec: &ObjectSpec,
-    shape: &ResolvedShape,
-    scene: &Scene,
-    settings: &RunSettings,
-    progress: &dyn Progress,
-    warnings: &mut Vec<String>,
-) -> Result<ObjectBasis> {
-    let opts: BasisOptions = spec.basis_options()?;
-    let cache_dir = scene.cache.enabled.then(|| {
-        if scene.cache.dir.is_relative() {
-            settings.base_dir.join(&scene.cache.dir)
-        } else {
-            scene.cache.dir.clone()
-        }
-    });
-    let key = match &cache_dir {
-        Some(_) => Some(cache::key(
-            // Paths enter the key by content, not by name.
-            if shape.file.is_some() {
-                "file"
-            } else {
-                &shape.spec
-            },
-            shape.file.as_deref(),
-            &opts,
-        )?),
+/// Run `scene`: set up a [`World`] (every object's basis from the cache or computed),
+/// step it `scene.simulation.steps` times, write frames to `settings.out` through a
+/// [`FrameWriter`] and return the summary. Non-converged steps are reported in the summary
+/// and its warnings, never hidden; the state always stays finite.
+pub fn run(scene: &Scene, settings: &RunSettings, progress: &dyn Progress) -> Result<RunSummary> {
+    let total = Stopwatch::start();
+    let mut world = World::new(scene, settings, progress)?;
+    let mut writer = match &settings.out {
+        Some(out) => Some(FrameWriter::new(out, &scene.output.formats)?),
         None => None,
     };
-    if let (Some(dir), Some(key)) = (&cache_dir, &key) {
-        let mut warn = |w: String| warnings.push(format!("object '{}': {w}", spec.name));
-        if let Some((basis, metadata)) = cache::load(dir, key, opts.modes, &mut warn) {
-            let (points, material) = sample_with_material(&shape.shape, &opts)?;
-            // The warnings of the run that produced the cached basis still apply.
-            let stored = metadata
-                .get("report")
-                .and_then(|r| r.get("warnings"))
-                .and_then(|w| w.as_array())
-                .into_iter()
-                .flatten()
-                .filter_map(|w| w.as_str());
-            warnings.extend(stored.map(|w| format!("object '{}': {w}", spec.name)));
-            return Ok(ObjectBasis {
-                basis,
-                points,
-                material,
-                cached: true,
-                file: Some(cache::path(dir, key)),
-                monitors: Monitors::from_metadata(&metadata),
-            });
-        }
-    }
-    let run = build_basis(&shape.shape, &opts, progress)?;
-    warnings.extend(
-        run.report
-            .warnings
-            .iter()
-            .map(|w| format!("object '{}': {w}", spec.name)),
-    );
-    let mut file_out = None;
-    if let (Some(dir), Some(key)) = (&cache_dir, &key) {
-        let meta = serde_json::json!({
-            "freeform_version": env!("CARGO_PKG_VERSION"),
-            "shape": shape.spec,
-            "options": opts,
-            "report": run.report,
-        });
-        file_out = Some(cache::store(dir, key, &run.basis, &meta)?);
-    }
-    Ok(ObjectBasis {
-        basis: run.basis,
-        points: run.points,
-        material: run.material,
-        cached: false,
-        file: file_out,
-        monitors: run.report.monitors,
-    })
-}
-
-fn prepare(
-    spec: &ObjectSpec,
-    scene: &Scene,
-    settings: &RunSettings,
-    progress: &dyn Progress,
-    warnings: &mut Vec<String>,
-) -> Result<Prepared> {
-    let ctx = |e: Error| Error::Scene {
-        message: format!("object '{}': {e}", spec.name),
-    };
-    let (shape_spec, file) = resolve_shape(&spec.shape, &settings.base_dir);
-    let shape = Shape::parse(
-        &shape_spec,
-        &ShapeOptions {
-            allow_open_mesh: spec.allow_open_mesh,
-        },
-    )
-    .map_err(|e| ctx(e.into()))?;
-    let resolved = ResolvedShape {
-        shape,
-        spec: shape_spec,
-        file,
-    };
-    let clock = Stopwatch::start();
-    let ObjectBasis {
-        basis,
-        points,
-        material,
-        cached,
-        file: basis_file,
-        monitors,
-    } = object_basis(spec, &resolved, scene, settings, progress, warnings).map_err(ctx)?;
-    let shape = resolved.shape;
-    let precompute_s = clock.elapsed();
-    let clock = Stopwatch::start();
-    progress.begin(&format!("setup {}", spec.name), None);
-    let opts = SimOptions {
-        dt: scene.simulation.dt,
-        gravity: scene.simulation.gravity,
-        cubature: spec.cubature.unwrap_or(scene.solver.cubature),
-        newton: scene.solver.newton(),
-        boundaries: spec.boundaries.clone(),
-        colliders: scene.colliders.clone(),
-        placement: spec.placement,
-    };
-    // The weights at the integration points feed the simulator; a primitive is also drawn
-    // at those points, so it reuses them instead of evaluating the basis twice.
-    let ip_weights = basis.weights(&points.points).map_err(ctx)?;
-    let sim =
-        ReducedSim::with_weights(&basis, &points, &material, &ip_weights, &opts).map_err(ctx)?;
-    let (render, triangles, own) = match &shape {
-        Shape::Mesh(m) => (m.vertices().to_vec(), Some(m.triangles().to_vec()), true),
-        other => match other.render_points() {
-            Some(p) => (p.to_vec(), None, true),
-            None => (points.points.clone(), None, false),
-        },
-    };
-    let weights = if own {
-        basis.weights(&render).map_err(|e| {
-            ctx(Error::Scene {
-                message: format!(
-                    "the skinning weights cannot be evaluated at the render points ({e}); \
-                     more kernels or a larger support factor cover them"
-                ),
-            })
-        })?
-    } else {
-        ip_weights
-    };
-    progress.finish();
-    let summary = ObjectSummary {
-        name: spec.name.clone(),
-        shape: spec.shape.clone(),
-        kernels: basis.kernels.len(),
-        modes: basis.modes() - 1,
-        points: points.len(),
-        cubature_points: sim.cubature().len(),
-        render_points: render.len(),
-        terms: sim.terms(),
-        basis_cached: cached,
-        basis_file: basis_file.map(|p| p.display().to_string()),
-        precompute_s,
-        setup_s: clock.elapsed(),
-        step_ms_mean: 0.0,
-        step_ms_max: 0.0,
-        iterations_mean: 0.0,
-        iterations_max: 0,
-        nonconverged_steps: 0,
-        line_search_failures: 0,
-        line_search_cutbacks: 0,
-        min_det: f64::INFINITY,
-        monitors,
-        steps: Vec::new(),
-    };
-    Ok(Prepared {
-        spec: spec.clone(),
-        sim,
-        render,
-        triangles,
-        weights,
-        summary,
-        pvd: Vec::new(),
-        warned_inverted: false,
-    })
-}
-
-/// Write one frame of an object; returns the files written.
-fn write_frame(
-    p: &mut Prepared,
-    out: &Path,
-    frame: usize,
-    formats: &[Format],
-) -> Result<Vec<String>> {
-    let dir = out.join(&p.spec.name);
-    std::fs::create_dir_all(&dir).map_err(|source| Error::Io {
-        path: dir.clone(),
-        source,
-    })?;
-    let x = p.sim.positions(&p.render, &p.weights);
-    let disp: Vec<[f64; 3]> = x
-        .iter()
-        .zip(&p.render)
-        .map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]])
-        .collect();
-    let stem = format!("{}_{frame:06}", p.spec.name);
-    let mut files = Vec::new();
-    for f in formats {
-        match f {
-            Format::Vtk => {
-                let path = dir.join(format!("{stem}.vtp"));
-                vtk::write_vtp(
-                    &path,
-                    &x,
-                    p.triangles.as_deref(),
-                    &[PointData::Vector("displacement", &disp)],
-                )?;
-                p.pvd
-                    .push((p.sim.time, format!("{}/{stem}.vtp", p.spec.name)));
-                files.push(path.display().to_string());
-            }
-            Format::Ply => {
-                let path = dir.join(format!("{stem}.ply"));
-                crate::io::write_atomically(&path, |tmp| {
-                    match &p.triangles {
-                        Some(t) => crate::io::ply::write_ply_mesh(
-                            tmp,
-                            &x,
-                            t,
-                            crate::io::ply::PlyWriteOptions::default(),
-                        )?,
-                        None => crate::io::ply::write_ply_points(tmp, &x, &[])?,
-                    }
-                    Ok(())
-                })?;
-                files.push(path.display().to_string());
-            }
-        }
-    }
-    Ok(files)
-}
-
-/// Run `scene`: precompute (or load) every object's basis, simulate all steps, write frames
-/// to `settings.out` and return the summary. Non-converged steps are reported in the
-/// summary and its warnings, never hidden; the state always stays finite.
-pub fn run(scene: &Scene, settings: &RunSettings, progress: &dyn Progress) -> Result<RunSummary> {
-    scene.validate()?;
-    let total = Stopwatch::start();
-    let mut warnings = Vec::new();
-    let mut objects = Vec::new();
-    for spec in &scene.objects {
-        objects.push(prepare(spec, scene, settings, progress, &mut warnings)?);
-    }
-    check_strict(settings.strict, &warnings)?;
-    let formats = &scene.output.formats;
-    let mut files = Vec::new();
-    let mut frames = 0;
-    if let Some(out) = &settings.out {
-        std::fs::create_dir_all(out).map_err(|source| Error::Io {
-            path: out.clone(),
-            source,
-        })?;
-        for p in objects.iter_mut() {
-            files.extend(write_frame(p, out, 0, formats)?);
-        }
-        frames = 1;
+    if let Some(w) = writer.as_mut() {
+        w.frame(&world, 0)?;
     }
     let steps = scene.simulation.steps;
     progress.begin("simulate", Some(steps as u64));
     for step in 1..=steps {
-        for p in objects.iter_mut() {
-            let rep = p.sim.step();
-            if !rep.solve.converged {
-                warnings.push(format!(
-                    "object '{}': step {step} did not converge ({} iterations, residual {:.2e}{})",
-                    p.spec.name,
-                    rep.solve.iterations,
-                    rep.solve.residual,
-                    if rep.solve.line_search_failed {
-                        ", line search failed"
-                    } else {
-                        ""
-                    }
-                ));
-            }
-            p.summary.steps.push(StepRow::from(&rep));
-            p.summary.monitors.add_step(&rep.solve);
-            if rep.solve.info.inverted > 0 && !p.warned_inverted {
-                // Once per object: the stable Neo-Hookean energy stays finite through
-                // inversion, but the result is rarely what the user meant.
-                p.warned_inverted = true;
-                warnings.push(format!(
-                    "object '{}': step {step}: {} cubature point(s) inverted (det F = {:.2} <= 0); \
-                     the material is too soft for the load or the time step too large \
-                     (later inversions are counted in the monitors' min_det and each step's `inverted`)",
-                    p.spec.name, rep.solve.info.inverted, rep.solve.info.min_det
-                ));
-            }
-            if rep.solve.cholesky_fallbacks > 0 {
-                warnings.push(format!(
-                    "object '{}': step {step}: {} Newton Hessian(s) were not positive definite; \
-                     the rest Hessian was used instead",
-                    p.spec.name, rep.solve.cholesky_fallbacks
-                ));
-            }
-            check_strict(settings.strict, &warnings)?;
-        }
-        if let Some(out) = &settings.out {
+        world.step()?;
+        if let Some(w) = writer.as_mut() {
             if step % scene.output.every == 0 || step == steps {
-                for p in objects.iter_mut() {
-                    files.extend(write_frame(p, out, step, formats)?);
-                }
-                frames += 1;
+                w.frame(&world, step)?;
             }
         }
         progress.set_position(step as u64);
     }
     progress.finish();
-    if let Some(out) = &settings.out {
-        if formats.contains(&Format::Vtk) {
-            for p in &objects {
-                let path = out.join(format!("{}.pvd", p.spec.name));
-                vtk::write_pvd(&path, &p.pvd)?;
-                files.push(path.display().to_string());
-            }
+    let (frames, files) = match writer.as_mut() {
+        Some(w) => {
+            w.finish(&world)?;
+            (w.frames(), w.files().to_vec())
         }
-    }
-    let objects = objects
-        .into_iter()
-        .map(|p| finish_summary(p.summary))
-        .collect();
+        None => (0, Vec::new()),
+    };
     Ok(RunSummary {
         dt: scene.simulation.dt,
         steps,
         frames,
         files,
-        objects,
+        objects: world.summaries(),
         total_s: total.elapsed(),
-        warnings,
+        warnings: world.warnings().to_vec(),
     })
 }
 
-fn finish_summary(mut s: ObjectSummary) -> ObjectSummary {
+pub(super) fn finish_summary(mut s: ObjectSummary) -> ObjectSummary {
     let n = s.steps.len().max(1) as f64;
     s.step_ms_mean = s.steps.iter().map(|r| r.wall_ms).sum::<f64>() / n;
     s.step_ms_max = s.steps.iter().map(|r| r.wall_ms).fold(0.0, f64::max);

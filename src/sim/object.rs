@@ -463,6 +463,80 @@ impl ReducedSim {
         }
     }
 
+    /// Gravity from the next step on, m/s^2 (None: no gravity term).
+    pub fn set_gravity(&mut self, gravity: Option<[f64; 3]>) -> Result<()> {
+        if let Some(g) = gravity {
+            if !g.iter().all(|v| v.is_finite()) {
+                return Err(Error::param("gravity", format!("{g:?}"), "must be finite"));
+            }
+        }
+        self.gravity = gravity;
+        Ok(())
+    }
+
+    /// Gravity, m/s^2 (None: no gravity term).
+    pub fn gravity(&self) -> Option<[f64; 3]> {
+        self.gravity
+    }
+
+    /// Prescribe a new motion for boundary `index` (in the order of
+    /// [`SimOptions::boundaries`]) from the next step on. The motion is evaluated at the
+    /// simulation time (a keyframe at [`ReducedSim::time`] starts from now) and acts on the
+    /// placed rest positions, like the motion it replaces; the region and its stiffness stay.
+    pub fn set_boundary_motion(&mut self, index: usize, motion: Motion) -> Result<()> {
+        motion.validate()?;
+        let count = self.boundaries.len();
+        let b = self.boundaries.get_mut(index).ok_or_else(|| {
+            Error::param(
+                "boundary",
+                index,
+                format!("the object has {count} boundaries (indices from 0)"),
+            )
+        })?;
+        b.motion = motion;
+        Ok(())
+    }
+
+    /// Replace the shape of collider `index` (in the order of [`SimOptions::colliders`]) from
+    /// the next step on, e.g. to move an obstacle; its penalty stiffness stays.
+    pub fn set_collider_shape(&mut self, index: usize, shape: ColliderShape) -> Result<()> {
+        shape.validate()?;
+        let count = self.contacts.as_ref().map_or(0, |c| c.shapes.len());
+        match self.contacts.as_mut().and_then(|c| c.shapes.get_mut(index)) {
+            Some(s) => {
+                *s = shape;
+                Ok(())
+            }
+            None => Err(Error::param(
+                "collider",
+                index,
+                format!("the object has {count} colliders (indices from 0)"),
+            )),
+        }
+    }
+
+    /// Put the object back into its rest shape at `placement`, with the placement's initial
+    /// velocities, as at setup: the deformation, the velocity and the solver's history are
+    /// dropped; time and step count go on. Boundary motions act on the new placement.
+    pub fn reset_placement(&mut self, placement: &Placement) -> Result<()> {
+        let rigid = placement_transform(placement)?;
+        let old = (self.z.clone(), self.zdot.clone());
+        self.z.fill(0.0);
+        self.zdot.fill(0.0);
+        if let Err(e) = self.place(placement, &rigid) {
+            // All or nothing: a rejected placement leaves the state as it was.
+            (self.z, self.zdot) = old;
+            return Err(e);
+        }
+        // No acceleration is implied by a reset: the extrapolated start sees zdot_prev = zdot.
+        self.zdot_prev.copy_from_slice(&self.zdot);
+        self.history = Default::default();
+        for b in &mut self.boundaries {
+            b.placement = rigid;
+        }
+        Ok(())
+    }
+
     /// Elastic energy (J) of the current state.
     pub fn elastic_energy(&self) -> f64 {
         self.elastic.energy(&self.z).0

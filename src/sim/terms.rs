@@ -287,6 +287,39 @@ impl ColliderShape {
         }
     }
 
+    /// The obstacle moved by the rigid transform `pose` (x -> R x + t): a plane's point and
+    /// normal move with it; an axis-aligned box can only be translated (a pose that rotates
+    /// it is an error, since the result would not be axis-aligned).
+    pub fn transformed(&self, pose: &Rigid) -> crate::Result<ColliderShape> {
+        let r = &pose.rotation;
+        let rotate = |v: &[f64; 3]| -> [f64; 3] {
+            std::array::from_fn(|i| r[i][0] * v[0] + r[i][1] * v[1] + r[i][2] * v[2])
+        };
+        match self {
+            ColliderShape::Plane { point, normal } => Ok(ColliderShape::Plane {
+                point: pose.apply(point),
+                normal: rotate(normal),
+            }),
+            ColliderShape::Box { min, max } => {
+                // Exact identity only: a rotation by rounding error would still be refused,
+                // so callers pass Rigid::IDENTITY.rotation for a pure translation.
+                if *r != Rigid::IDENTITY.rotation {
+                    return Err(crate::Error::param(
+                        "collider pose",
+                        format!("{r:?}"),
+                        "an axis-aligned box collider can only be translated (pass the \
+                         identity rotation); use a plane collider for a rotating obstacle",
+                    ));
+                }
+                let t = pose.translation;
+                Ok(ColliderShape::Box {
+                    min: std::array::from_fn(|d| min[d] + t[d]),
+                    max: std::array::from_fn(|d| max[d] + t[d]),
+                })
+            }
+        }
+    }
+
     /// Penetration depth d >= 0 (m) and the unit push-out direction, or None outside.
     pub fn penetration(&self, x: &Point3) -> Option<(f64, [f64; 3])> {
         match self {

@@ -1,0 +1,137 @@
+//! Setting up one object of a scene: its shape (relative paths resolved against the scene's
+//! directory) and its basis, integration points and materials, from the basis cache when it
+//! holds them, otherwise computed (and stored).
+
+use super::cache;
+use super::run::RunSettings;
+use super::spec::{ObjectSpec, Scene};
+use crate::geometry::Shape;
+use crate::material::MaterialField;
+use crate::precompute::sampling::IntegrationPoints;
+use crate::precompute::skinning::Basis;
+use crate::precompute::{build_basis, sample_with_material, BasisOptions};
+use crate::progress::Progress;
+use crate::report::Monitors;
+use crate::Result;
+use std::path::{Path, PathBuf};
+
+fn is_primitive(spec: &str) -> bool {
+    let t = spec.trim().to_ascii_lowercase();
+    t.starts_with("box:") || t.starts_with("sphere:")
+}
+
+/// Resolve a relative shape path against `base`.
+pub(super) fn resolve_shape(spec: &str, base: &Path) -> (String, Option<PathBuf>) {
+    if is_primitive(spec) {
+        return (spec.to_string(), None);
+    }
+    let p = Path::new(spec.trim());
+    let full = if p.is_relative() {
+        base.join(p)
+    } else {
+        p.to_path_buf()
+    };
+    (full.display().to_string(), Some(full))
+}
+
+/// An object's shape with the specification it was read from.
+pub(super) struct ResolvedShape {
+    pub shape: Shape,
+    /// The specification with relative paths resolved.
+    pub spec: String,
+    /// The file, for file shapes.
+    pub file: Option<PathBuf>,
+}
+
+/// What [`object_basis`] returns.
+pub(super) struct ObjectBasis {
+    pub basis: Basis,
+    pub points: IntegrationPoints,
+    pub material: MaterialField,
+    /// Whether the basis came from the cache.
+    pub cached: bool,
+    /// The cache file, when caching is on.
+    pub file: Option<PathBuf>,
+    /// Precomputation monitors (from the cache file's metadata for a cached basis).
+    pub monitors: Monitors,
+}
+
+/// Basis, integration points and materials of an object (from the cache when possible).
+pub(super) fn object_basis(
+    spec: &ObjectSpec,
+    shape: &ResolvedShape,
+    scene: &Scene,
+    settings: &RunSettings,
+    progress: &dyn Progress,
+    warnings: &mut Vec<String>,
+) -> Result<ObjectBasis> {
+    let opts: BasisOptions = spec.basis_options()?;
+    let cache_dir = scene.cache.enabled.then(|| {
+        if scene.cache.dir.is_relative() {
+            settings.base_dir.join(&scene.cache.dir)
+        } else {
+            scene.cache.dir.clone()
+        }
+    });
+    let key = match &cache_dir {
+        Some(_) => Some(cache::key(
+            // Paths enter the key by content, not by name.
+            if shape.file.is_some() {
+                "file"
+            } else {
+                &shape.spec
+            },
+            shape.file.as_deref(),
+            &opts,
+        )?),
+        None => None,
+    };
+    if let (Some(dir), Some(key)) = (&cache_dir, &key) {
+        let mut warn = |w: String| warnings.push(format!("object '{}': {w}", spec.name));
+        if let Some((basis, metadata)) = cache::load(dir, key, opts.modes, &mut warn) {
+            let (points, material) = sample_with_material(&shape.shape, &opts)?;
+            // The warnings of the run that produced the cached basis still apply.
+            let stored = metadata
+                .get("report")
+                .and_then(|r| r.get("warnings"))
+                .and_then(|w| w.as_array())
+                .into_iter()
+                .flatten()
+                .filter_map(|w| w.as_str());
+            warnings.extend(stored.map(|w| format!("object '{}': {w}", spec.name)));
+            return Ok(ObjectBasis {
+                basis,
+                points,
+                material,
+                cached: true,
+                file: Some(cache::path(dir, key)),
+                monitors: Monitors::from_metadata(&metadata),
+            });
+        }
+    }
+    let run = build_basis(&shape.shape, &opts, progress)?;
+    warnings.extend(
+        run.report
+            .warnings
+            .iter()
+            .map(|w| format!("object '{}': {w}", spec.name)),
+    );
+    let mut file_out = None;
+    if let (Some(dir), Some(key)) = (&cache_dir, &key) {
+        let meta = serde_json::json!({
+            "freeform_version": env!("CARGO_PKG_VERSION"),
+            "shape": shape.spec,
+            "options": opts,
+            "report": run.report,
+        });
+        file_out = Some(cache::store(dir, key, &run.basis, &meta)?);
+    }
+    Ok(ObjectBasis {
+        basis: run.basis,
+        points: run.points,
+        material: run.material,
+        cached: false,
+        file: file_out,
+        monitors: run.report.monitors,
+    })
+}

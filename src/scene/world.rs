@@ -1,0 +1,511 @@
+//! A scene being simulated: the live [`World`] you step, read and change between steps.
+
+use super::run::{ObjectSummary, RunSettings, StepRow};
+use super::setup::{object_basis, resolve_shape, ObjectBasis, ResolvedShape};
+use super::spec::{ObjectSpec, Scene};
+use crate::error::check_strict;
+use crate::geometry::{Shape, ShapeOptions};
+use crate::precompute::sampling::IntegrationPoints;
+use crate::precompute::skinning::{Basis, SkinningWeights};
+use crate::progress::Progress;
+use crate::report::Stopwatch;
+use crate::sim::motion::{Motion, Rigid};
+use crate::sim::terms::ColliderShape;
+use crate::sim::{Placement, ReducedSim, SimOptions, StepReport};
+use crate::{Error, Point3, Result};
+use std::sync::OnceLock;
+
+/// The points an object is drawn with: the mesh's vertices, a point cloud's points, or (for
+/// primitives) the integration points; rest positions with their skinning weights.
+struct RenderPoints {
+    /// Rest positions, N x 3, metres; None: the integration points.
+    rest: Option<Vec<Point3>>,
+    /// Skinning weights at the render points (the integration points' when `rest` is None).
+    weights: SkinningWeights,
+    /// Mesh triangles (indices into the render points), for mesh shapes.
+    triangles: Option<Vec<[u32; 3]>>,
+}
+
+/// One object of a [`World`]: its reduced model, its rest points and their skinning
+/// weights, and its running summary.
+pub struct SceneObject {
+    spec: ObjectSpec,
+    sim: ReducedSim,
+    basis: Basis,
+    points: IntegrationPoints,
+    /// Weights at the integration points when they are not the render points: evaluated on
+    /// the first request (they are large and only the simulator's setup needs them).
+    ip_weights: OnceLock<SkinningWeights>,
+    render: RenderPoints,
+    summary: ObjectSummary,
+    /// Whether the inversion warning was given.
+    warned_inverted: bool,
+}
+
+impl std::fmt::Debug for SceneObject {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SceneObject")
+            .field("name", &self.spec.name)
+            .field("kernels", &self.basis.kernels.len())
+            .field("modes", &self.basis.modes())
+            .field("time", &self.sim.time)
+            .finish_non_exhaustive()
+    }
+}
+
+impl SceneObject {
+    /// Build object `index` of `scene`: its shape, basis (cached or computed), reduced model
+    /// and render points. Errors name the object ([`Error::Object`]).
+    fn new(
+        index: usize,
+        spec: &ObjectSpec,
+        scene: &Scene,
+        settings: &RunSettings,
+        progress: &dyn Progress,
+        warnings: &mut Vec<String>,
+    ) -> Result<SceneObject> {
+        let ctx = |e: Error| Error::Object {
+            index,
+            name: spec.name.clone(),
+            source: Box::new(e),
+        };
+        let (shape_spec, file) = resolve_shape(&spec.shape, &settings.base_dir);
+        let shape = Shape::parse(
+            &shape_spec,
+            &ShapeOptions {
+                allow_open_mesh: spec.allow_open_mesh,
+            },
+        )
+        .map_err(|e| ctx(e.into()))?;
+        let resolved = ResolvedShape {
+            shape,
+            spec: shape_spec,
+            file,
+        };
+        let clock = Stopwatch::start();
+        let ObjectBasis {
+            basis,
+            points,
+            material,
+            cached,
+            file: basis_file,
+            monitors,
+        } = object_basis(spec, &resolved, scene, settings, progress, warnings).map_err(ctx)?;
+        let shape = resolved.shape;
+        let precompute_s = clock.elapsed();
+        let clock = Stopwatch::start();
+        progress.begin(&format!("setup {}", spec.name), None);
+        let opts = SimOptions {
+            dt: scene.simulation.dt,
+            gravity: scene.simulation.gravity,
+            cubature: spec.cubature.unwrap_or(scene.solver.cubature),
+            newton: scene.solver.newton(),
+            boundaries: spec.boundaries.clone(),
+            colliders: scene.colliders.clone(),
+            placement: spec.placement,
+        };
+        // The weights at the integration points feed the simulator; a primitive is also drawn
+        // at those points, so it keeps them instead of evaluating the basis twice.
+        let ip_weights = basis.weights(&points.points).map_err(ctx)?;
+        let sim = ReducedSim::with_weights(&basis, &points, &material, &ip_weights, &opts)
+            .map_err(ctx)?;
+        let (rest, triangles) = match &shape {
+            Shape::Mesh(m) => (Some(m.vertices().to_vec()), Some(m.triangles().to_vec())),
+            other => (other.render_points().map(<[Point3]>::to_vec), None),
+        };
+        let render_weights = match &rest {
+            Some(r) => basis.weights(r).map_err(|e| {
+                ctx(Error::Scene {
+                    message: format!(
+                        "the skinning weights cannot be evaluated at the render points ({e}); \
+                         more kernels or a larger support factor cover them"
+                    ),
+                })
+            })?,
+            None => ip_weights,
+        };
+        progress.finish();
+        let render_count = rest.as_ref().map_or(points.len(), Vec::len);
+        let summary = ObjectSummary {
+            name: spec.name.clone(),
+            shape: spec.shape.clone(),
+            kernels: basis.kernels.len(),
+            modes: basis.modes() - 1,
+            points: points.len(),
+            cubature_points: sim.cubature().len(),
+            render_points: render_count,
+            terms: sim.terms(),
+            basis_cached: cached,
+            basis_file: basis_file.map(|p| p.display().to_string()),
+            precompute_s,
+            setup_s: clock.elapsed(),
+            step_ms_mean: 0.0,
+            step_ms_max: 0.0,
+            iterations_mean: 0.0,
+            iterations_max: 0,
+            nonconverged_steps: 0,
+            line_search_failures: 0,
+            line_search_cutbacks: 0,
+            min_det: f64::INFINITY,
+            monitors,
+            steps: Vec::new(),
+        };
+        Ok(SceneObject {
+            spec: spec.clone(),
+            sim,
+            basis,
+            points,
+            ip_weights: OnceLock::new(),
+            render: RenderPoints {
+                rest,
+                weights: render_weights,
+                triangles,
+            },
+            summary,
+            warned_inverted: false,
+        })
+    }
+
+    /// The object's name (from the scene).
+    pub fn name(&self) -> &str {
+        &self.spec.name
+    }
+
+    /// The object's specification as given in the scene.
+    pub fn spec(&self) -> &ObjectSpec {
+        &self.spec
+    }
+
+    /// The reduced model: state `z` and `zdot` (12 (m + 1) each), time, terms, cubature.
+    pub fn sim(&self) -> &ReducedSim {
+        &self.sim
+    }
+
+    /// The reduced model, mutable: set `zdot` (a kick) or the state between steps.
+    pub fn sim_mut(&mut self) -> &mut ReducedSim {
+        &mut self.sim
+    }
+
+    /// The skinning basis (kernels, coefficients, eigenvalues).
+    pub fn basis(&self) -> &Basis {
+        &self.basis
+    }
+
+    /// Integration points at rest (N x 3, metres) with their volumes (m^3).
+    pub fn rest_points(&self) -> &IntegrationPoints {
+        &self.points
+    }
+
+    fn ip_weights(&self) -> Result<&SkinningWeights> {
+        if self.render.rest.is_none() {
+            return Ok(&self.render.weights);
+        }
+        if let Some(w) = self.ip_weights.get() {
+            return Ok(w);
+        }
+        // The simulator was built from these weights, so they evaluate here too.
+        let w = self.basis.weights(&self.points.points)?;
+        Ok(self.ip_weights.get_or_init(|| w))
+    }
+
+    /// Deformed positions of the integration points, N x 3, metres. For a mesh or a point
+    /// cloud their skinning weights are evaluated on the first call and kept.
+    pub fn integration_positions(&self) -> Result<Vec<Point3>> {
+        let w = self.ip_weights()?;
+        Ok(self.sim.positions(&self.points.points, w))
+    }
+
+    /// Rest positions of the render points, N x 3, metres: a mesh's vertices, a point
+    /// cloud's points, or a primitive's integration points.
+    pub fn render_rest(&self) -> &[Point3] {
+        self.render.rest.as_deref().unwrap_or(&self.points.points)
+    }
+
+    /// Mesh triangles over the render points (mesh shapes only).
+    pub fn triangles(&self) -> Option<&[[u32; 3]]> {
+        self.render.triangles.as_deref()
+    }
+
+    /// Deformed positions of the render points (what the frames hold), N x 3, metres.
+    pub fn render_positions(&self) -> Vec<Point3> {
+        self.sim.positions(self.render_rest(), &self.render.weights)
+    }
+
+    /// Deformed mesh vertices, V x 3, metres (None unless the shape is a mesh).
+    pub fn mesh_vertices(&self) -> Option<Vec<Point3>> {
+        self.render
+            .triangles
+            .as_ref()
+            .map(|_| self.render_positions())
+    }
+
+    /// The summary so far (per-step rows, monitors; means are filled at the end).
+    pub fn summary(&self) -> &ObjectSummary {
+        &self.summary
+    }
+
+    /// One step; the report's warnings go to `warnings`.
+    fn step(&mut self, warnings: &mut Vec<String>) -> StepReport {
+        let rep = self.sim.step();
+        let step = rep.step;
+        let name = &self.spec.name;
+        if !rep.solve.converged {
+            warnings.push(format!(
+                "object '{name}': step {step} did not converge ({} iterations, residual {:.2e}{})",
+                rep.solve.iterations,
+                rep.solve.residual,
+                if rep.solve.line_search_failed {
+                    ", line search failed"
+                } else {
+                    ""
+                }
+            ));
+        }
+        self.summary.steps.push(StepRow::from(&rep));
+        self.summary.monitors.add_step(&rep.solve);
+        if rep.solve.info.inverted > 0 && !self.warned_inverted {
+            // Once per object: the stable Neo-Hookean energy stays finite through
+            // inversion, but the result is rarely what the user meant.
+            self.warned_inverted = true;
+            warnings.push(format!(
+                "object '{name}': step {step}: {} cubature point(s) inverted (det F = {:.2} <= 0); \
+                 the material is too soft for the load or the time step too large \
+                 (later inversions are counted in the monitors' min_det and each step's `inverted`)",
+                rep.solve.info.inverted, rep.solve.info.min_det
+            ));
+        }
+        if rep.solve.cholesky_fallbacks > 0 {
+            warnings.push(format!(
+                "object '{name}': step {step}: {} Newton Hessian(s) were not positive definite; \
+                 the rest Hessian was used instead",
+                rep.solve.cholesky_fallbacks
+            ));
+        }
+        rep
+    }
+}
+
+/// A scene being simulated, one step at a time: every object's reduced model, the shared
+/// colliders, the time and the warnings so far. [`crate::scene::run`] is a loop over it.
+///
+/// Between steps you can read each object's state and deformed points, and change gravity,
+/// a boundary's motion, an object's placement or a collider's pose.
+///
+/// ```
+/// use freeform::material::Region;
+/// use freeform::scene::{ObjectSpec, RunSettings, SceneBuilder, World};
+/// use freeform::sim::motion::{Keyframe, Motion};
+/// let scene = SceneBuilder::new(0.01, 10)
+///     .gravity([0.0, -9.81, 0.0])
+///     .object(
+///         ObjectSpec::new("beam", "box:2,0.5,0.5")
+///             .kernels(60)
+///             .modes(4)
+///             .hold(Region::HalfSpace { point: [0.2, 0.0, 0.0], normal: [-1.0, 0.0, 0.0] }),
+///     )
+///     .build()?;
+/// let mut world = World::new(&scene, &RunSettings::default(), &freeform::progress::Silent)?;
+/// world.step()?;
+/// let sagged = world.object(0).render_positions();
+/// // Lift the held end by 0.1 m over the next 0.05 s.
+/// let now = world.time();
+/// world.set_boundary_motion(0, 0, Motion::Keyframes {
+///     pivot: [0.0; 3],
+///     frames: vec![
+///         Keyframe { time: now, translation: [0.0; 3], rotation: None },
+///         Keyframe { time: now + 0.05, translation: [0.0, 0.1, 0.0], rotation: None },
+///     ],
+/// })?;
+/// for _ in 0..5 {
+///     world.step()?;
+/// }
+/// assert!((world.time() - 0.06).abs() < 1e-12);
+/// assert_eq!(sagged.len(), world.object(0).render_positions().len());
+/// # Ok::<(), freeform::Error>(())
+/// ```
+pub struct World {
+    objects: Vec<SceneObject>,
+    /// The scene's colliders as defined (rest poses), for [`World::set_collider_pose`].
+    colliders: Vec<ColliderShape>,
+    dt: f64,
+    time: f64,
+    steps: usize,
+    strict: bool,
+    warnings: Vec<String>,
+}
+
+impl std::fmt::Debug for World {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("World")
+            .field("objects", &self.objects)
+            .field("time", &self.time)
+            .field("steps", &self.steps)
+            .finish_non_exhaustive()
+    }
+}
+
+impl World {
+    /// Set up `scene`: every object's basis (from the cache or computed), reduced model and
+    /// render points. `settings.base_dir` resolves relative paths; `settings.out` is not used
+    /// here (frames are written by observers such as [`super::FrameWriter`]);
+    /// `settings.strict` makes the setup's and every step's warnings errors.
+    ///
+    /// # Errors
+    /// [`Error::Object`] (the object's index and name around the stage's own error) for a
+    /// shape, basis or setup failure; [`Error::Strict`] for a warning in strict mode.
+    pub fn new(scene: &Scene, settings: &RunSettings, progress: &dyn Progress) -> Result<World> {
+        scene.validate()?;
+        let mut warnings = Vec::new();
+        let mut objects = Vec::new();
+        for (index, spec) in scene.objects.iter().enumerate() {
+            objects.push(SceneObject::new(
+                index,
+                spec,
+                scene,
+                settings,
+                progress,
+                &mut warnings,
+            )?);
+        }
+        check_strict(settings.strict, &warnings)?;
+        Ok(World {
+            objects,
+            colliders: scene.colliders.iter().map(|c| c.shape).collect(),
+            dt: scene.simulation.dt,
+            time: 0.0,
+            steps: 0,
+            strict: settings.strict,
+            warnings,
+        })
+    }
+
+    /// Advance every object by one time step (backward Euler); returns each object's step
+    /// report, in object order. A step that does not converge is reported (in the report, the
+    /// warnings and the monitors), not an error; the state stays finite.
+    ///
+    /// # Errors
+    /// [`Error::Strict`] in strict mode at the first warning (objects after the one that
+    /// raised it are not stepped).
+    pub fn step(&mut self) -> Result<Vec<StepReport>> {
+        let mut reports = Vec::with_capacity(self.objects.len());
+        for object in &mut self.objects {
+            reports.push(object.step(&mut self.warnings));
+            check_strict(self.strict, &self.warnings)?;
+        }
+        self.time += self.dt;
+        self.steps += 1;
+        Ok(reports)
+    }
+
+    /// Simulated time, seconds.
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Time step, seconds.
+    pub fn dt(&self) -> f64 {
+        self.dt
+    }
+
+    /// Steps taken.
+    pub fn steps(&self) -> usize {
+        self.steps
+    }
+
+    /// The objects, in scene order.
+    pub fn objects(&self) -> &[SceneObject] {
+        &self.objects
+    }
+
+    /// Object `index` (scene order). Panics if out of range, like slice indexing; see
+    /// [`World::objects`] or [`World::object_index`].
+    pub fn object(&self, index: usize) -> &SceneObject {
+        &self.objects[index]
+    }
+
+    /// Object `index`, mutable (panics if out of range).
+    pub fn object_mut(&mut self, index: usize) -> &mut SceneObject {
+        &mut self.objects[index]
+    }
+
+    /// The index of the object named `name`.
+    pub fn object_index(&self, name: &str) -> Option<usize> {
+        self.objects.iter().position(|o| o.spec.name == name)
+    }
+
+    /// Warnings so far (setup, non-converged steps, inversions, Cholesky fallbacks).
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+
+    fn checked(&mut self, index: usize) -> Result<&mut SceneObject> {
+        let count = self.objects.len();
+        self.objects.get_mut(index).ok_or_else(|| {
+            Error::param(
+                "object",
+                index,
+                format!("the scene has {count} objects (indices from 0)"),
+            )
+        })
+    }
+
+    /// Gravity for every object from the next step on, m/s^2 (None: none).
+    pub fn set_gravity(&mut self, gravity: Option<[f64; 3]>) -> Result<()> {
+        // Every object validates the same value: the first refuses it or all take it.
+        for o in &mut self.objects {
+            o.sim.set_gravity(gravity)?;
+        }
+        Ok(())
+    }
+
+    /// A new motion for boundary `boundary` of object `object` (see
+    /// [`ReducedSim::set_boundary_motion`]: evaluated at the simulation time, on the placed
+    /// rest positions).
+    pub fn set_boundary_motion(
+        &mut self,
+        object: usize,
+        boundary: usize,
+        motion: Motion,
+    ) -> Result<()> {
+        self.checked(object)?
+            .sim
+            .set_boundary_motion(boundary, motion)
+    }
+
+    /// Put object `object` back into its rest shape at `placement`, with the placement's
+    /// velocities (see [`ReducedSim::reset_placement`]).
+    pub fn set_placement(&mut self, object: usize, placement: &Placement) -> Result<()> {
+        self.checked(object)?.sim.reset_placement(placement)
+    }
+
+    /// The kinematic pose of collider `index`: its shape as defined in the scene, moved by
+    /// `pose` (x -> R x + t, metres), for every object from the next step on. Poses are
+    /// absolute (relative to the scene's definition), not accumulated. Planes take any pose;
+    /// boxes are axis-aligned and take translations only.
+    pub fn set_collider_pose(&mut self, index: usize, pose: &Rigid) -> Result<()> {
+        let rest = self.colliders.get(index).ok_or_else(|| {
+            Error::param(
+                "collider",
+                index,
+                format!(
+                    "the scene has {} colliders (indices from 0)",
+                    self.colliders.len()
+                ),
+            )
+        })?;
+        let moved = rest.transformed(pose)?;
+        moved.validate()?;
+        for o in &mut self.objects {
+            o.sim.set_collider_shape(index, moved)?;
+        }
+        Ok(())
+    }
+
+    /// The summaries of all objects, with the means and counts of the steps taken.
+    pub fn summaries(&self) -> Vec<ObjectSummary> {
+        self.objects
+            .iter()
+            .map(|o| super::run::finish_summary(o.summary.clone()))
+            .collect()
+    }
+}

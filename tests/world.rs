@@ -1,0 +1,374 @@
+//! The live simulation ([`World`]): it writes the same frames as the batch runner on the
+//! example scenes, and what it changes between steps (gravity, a boundary's motion, an
+//! object's placement, a collider's pose) does what it says; errors name the object.
+
+use freeform::material::{Material, Region};
+use freeform::progress::Silent;
+use freeform::scene::{
+    run, CacheSettings, FrameObserver, FrameWriter, ObjectSpec, RunSettings, Scene, SceneBuilder,
+    World,
+};
+use freeform::sim::motion::{AxisAngle, Keyframe, Motion, Rigid};
+use freeform::sim::terms::ColliderShape;
+use freeform::sim::{Collider, Placement};
+use freeform::Error;
+use std::path::{Path, PathBuf};
+
+fn examples_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("examples")
+}
+
+/// Every file below `dir`, as (path relative to `dir`, bytes), sorted by path.
+fn tree(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).unwrap() {
+            let p = entry.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                let bytes = std::fs::read(&p).unwrap();
+                out.push((p.strip_prefix(dir).unwrap().to_path_buf(), bytes));
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// The loop a caller of the live API writes: step, look, write frames.
+fn live_frames(scene: &Scene, settings: &RunSettings, out: &Path) -> World {
+    let mut world = World::new(scene, settings, &Silent).unwrap();
+    let mut writer = FrameWriter::new(out, &scene.output.formats).unwrap();
+    writer.frame(&world, 0).unwrap();
+    let steps = scene.simulation.steps;
+    for step in 1..=steps {
+        let reports = world.step().unwrap();
+        assert_eq!(reports.len(), world.objects().len());
+        assert_eq!(world.steps(), step);
+        if step % scene.output.every == 0 || step == steps {
+            writer.frame(&world, step).unwrap();
+        }
+    }
+    writer.finish(&world).unwrap();
+    world
+}
+
+#[test]
+fn live_world_writes_the_same_frames_as_the_batch_run_on_the_example_scenes() {
+    for file in ["beam_bend.toml", "drop.toml"] {
+        let tmp = tempfile::tempdir().unwrap();
+        let mut scene = Scene::load(&examples_dir().join(file)).unwrap();
+        // The batch run computes the basis and caches it; the live run loads it, so this
+        // also checks that a cached basis simulates bit for bit like a fresh one.
+        scene.cache = CacheSettings {
+            enabled: true,
+            dir: tmp.path().join("cache"),
+        };
+        let batch_dir = tmp.path().join("batch");
+        let settings = RunSettings {
+            base_dir: examples_dir(),
+            out: Some(batch_dir.clone()),
+            strict: false,
+        };
+        let summary = run(&scene, &settings, &Silent).unwrap();
+        assert!(!summary.objects[0].basis_cached);
+        let live_dir = tmp.path().join("live");
+        let world = live_frames(
+            &scene,
+            &RunSettings {
+                out: None,
+                ..settings.clone()
+            },
+            &live_dir,
+        );
+        assert!(world.objects()[0].summary().basis_cached);
+        let (batch, live) = (tree(&batch_dir), tree(&live_dir));
+        // 51 frames per format plus the .pvd collection(s).
+        assert!(batch.len() > 50, "{file}: {} files", batch.len());
+        assert_eq!(batch.len(), live.len(), "{file}");
+        for ((pb, bb), (pl, bl)) in batch.iter().zip(&live) {
+            assert_eq!(pb, pl, "{file}");
+            assert!(bb == bl, "{file}: {} differs", pb.display());
+        }
+        // The step rows agree too (wall times aside).
+        let live_rows = &world.summaries()[0].steps;
+        let batch_rows = &summary.objects[0].steps;
+        assert_eq!(live_rows.len(), batch_rows.len());
+        for (a, b) in live_rows.iter().zip(batch_rows) {
+            assert_eq!(
+                (
+                    a.iterations,
+                    a.evaluations,
+                    a.energy.to_bits(),
+                    a.residual.to_bits()
+                ),
+                (
+                    b.iterations,
+                    b.evaluations,
+                    b.energy.to_bits(),
+                    b.residual.to_bits()
+                ),
+                "{file}: step {}",
+                a.step
+            );
+        }
+        assert_eq!(world.warnings(), summary.warnings.as_slice(), "{file}");
+        assert!((world.time() - scene.simulation.dt * scene.simulation.steps as f64).abs() < 1e-12);
+    }
+}
+
+/// A small, fast bar: 1 x 0.2 x 0.2 m with few kernels.
+fn small_bar(name: &str) -> ObjectSpec {
+    ObjectSpec::new(name, "box:1,0.2,0.2")
+        .kernels(60)
+        .modes(6)
+        .points(3000)
+        .material(Material {
+            youngs: 1e5,
+            poisson: 0.4,
+            density: 1000.0,
+        })
+}
+
+fn no_cache() -> CacheSettings {
+    CacheSettings {
+        enabled: false,
+        ..CacheSettings::default()
+    }
+}
+
+fn max_distance(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (0..3).map(|d| (x[d] - y[d]).powi(2)).sum::<f64>().sqrt())
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn gravity_switched_on_between_steps_starts_a_free_fall() {
+    let scene = SceneBuilder::new(0.01, 1)
+        .cubature(400)
+        .cache(no_cache())
+        .object(small_bar("bar"))
+        .build()
+        .unwrap();
+    let mut world = World::new(&scene, &RunSettings::default(), &Silent).unwrap();
+    let rest = world.object(0).render_positions();
+    world.step().unwrap();
+    // Nothing acts on it: not a point moves (the one mandatory iteration finds nothing).
+    assert_eq!(
+        max_distance(&rest, &world.object(0).render_positions()),
+        0.0
+    );
+    world.set_gravity(Some([0.0, -9.81, 0.0])).unwrap();
+    assert!(world
+        .object(0)
+        .sim()
+        .terms()
+        .contains(&"gravity".to_string()));
+    let steps = 10;
+    for _ in 0..steps {
+        world.step().unwrap();
+    }
+    // Backward Euler free fall from rest: after n steps of h the drop is g h^2 n (n + 1) / 2,
+    // and an unconstrained body deforms nowhere, so every point drops by it. Each step's
+    // potential is then quadratic with the rest system matrix as its Hessian, which the solver
+    // factorizes, so the first iterate is exact: only rounding remains (measured 7e-15 m).
+    let (g, h) = (9.81, 0.01);
+    let drop = g * h * h * (steps * (steps + 1)) as f64 / 2.0;
+    let now = world.object(0).render_positions();
+    for (x, x0) in now.iter().zip(&rest) {
+        assert!(
+            (x0[1] - x[1] - drop).abs() < 1e-10,
+            "drop {} vs {drop}",
+            x0[1] - x[1]
+        );
+        assert!((x[0] - x0[0]).abs() < 1e-10 && (x[2] - x0[2]).abs() < 1e-10);
+    }
+    assert!(world.set_gravity(Some([0.0, f64::NAN, 0.0])).is_err());
+}
+
+#[test]
+fn a_moved_boundary_target_carries_the_held_region_with_it() {
+    let scene = SceneBuilder::new(0.01, 1)
+        .cubature(400)
+        .cache(no_cache())
+        .object(small_bar("bar").hold(Region::HalfSpace {
+            point: [0.2, 0.0, 0.0],
+            normal: [-1.0, 0.0, 0.0],
+        }))
+        .build()
+        .unwrap();
+    let mut world = World::new(&scene, &RunSettings::default(), &Silent).unwrap();
+    world.step().unwrap();
+    let now = world.time();
+    let lift = [0.0, 0.05, 0.0];
+    world
+        .set_boundary_motion(
+            0,
+            0,
+            Motion::Keyframes {
+                pivot: [0.0; 3],
+                frames: vec![
+                    Keyframe {
+                        time: now,
+                        translation: [0.0; 3],
+                        rotation: None,
+                    },
+                    Keyframe {
+                        time: now + 0.05,
+                        translation: lift,
+                        rotation: None,
+                    },
+                ],
+            },
+        )
+        .unwrap();
+    for _ in 0..30 {
+        world.step().unwrap();
+    }
+    // The held integration points follow the target up to the penalty's give under the
+    // inertia of the rest of the bar (measured: 1.8e-4 m at worst, 0.4% of the lift; the
+    // region's mean 1e-6 m off). Bounds: 1% of the lift at worst, 0.2% on the mean.
+    let object = world.object(0);
+    let x = object.integration_positions().unwrap();
+    let rest = &object.rest_points().points;
+    let b = &object.sim().boundaries()[0];
+    let dev = b.max_deviation(world.time(), rest, &x);
+    assert!(dev < 0.01 * lift[1], "deviation {dev} m");
+    let mean_lift: f64 =
+        b.points.iter().map(|&i| x[i][1] - rest[i][1]).sum::<f64>() / b.points.len() as f64;
+    assert!(
+        (mean_lift - lift[1]).abs() < 0.002 * lift[1],
+        "mean lift {mean_lift}"
+    );
+    // A boundary that does not exist, or a bad motion, is refused and changes nothing.
+    assert!(world.set_boundary_motion(0, 1, Motion::Fixed).is_err());
+    assert!(world.set_boundary_motion(3, 0, Motion::Fixed).is_err());
+    let bad = Motion::Translate {
+        velocity: [f64::INFINITY, 0.0, 0.0],
+    };
+    assert!(world.set_boundary_motion(0, 0, bad).is_err());
+}
+
+#[test]
+fn a_new_placement_puts_the_rest_shape_where_asked() {
+    let scene = SceneBuilder::new(0.01, 1)
+        .gravity([0.0, -9.81, 0.0])
+        .cubature(400)
+        .cache(no_cache())
+        .object(small_bar("bar"))
+        .build()
+        .unwrap();
+    let mut world = World::new(&scene, &RunSettings::default(), &Silent).unwrap();
+    for _ in 0..5 {
+        world.step().unwrap();
+    }
+    let placement = Placement {
+        translation: [1.0, 2.0, -0.5],
+        rotation: Some(AxisAngle {
+            axis: [0.0, 0.0, 1.0],
+            degrees: 90.0,
+        }),
+        ..Placement::default()
+    };
+    world.set_placement(0, &placement).unwrap();
+    let object = world.object(0);
+    let rest = object.render_rest();
+    let x = object.render_positions();
+    // 90 degrees about z: (x, y, z) -> (-y, x, z), then the translation; exact up to the
+    // rounding of cos(pi / 2) and of the reduced map (a few ulps of the coordinates).
+    for (p, y) in rest.iter().zip(&x) {
+        let want = [-p[1] + 1.0, p[0] + 2.0, p[2] - 0.5];
+        assert!(max_distance(&[want], &[*y]) < 1e-12, "{y:?} vs {want:?}");
+    }
+    assert!(object.sim().zdot.iter().all(|v| *v == 0.0));
+    // A bad placement is refused and leaves the state alone.
+    let z = world.object(0).sim().z.clone();
+    let bad = Placement {
+        velocity: [f64::NAN, 0.0, 0.0],
+        ..Placement::default()
+    };
+    assert!(world.set_placement(0, &bad).is_err());
+    assert_eq!(world.object(0).sim().z, z);
+}
+
+#[test]
+fn a_raised_floor_pushes_the_object_up_and_a_rotated_box_is_refused() {
+    let floor = Collider {
+        shape: ColliderShape::Plane {
+            point: [0.0, -0.5, 0.0],
+            normal: [0.0, 1.0, 0.0],
+        },
+        stiffness: None,
+    };
+    let wall = Collider {
+        shape: ColliderShape::Box {
+            min: [5.0, 5.0, 5.0],
+            max: [6.0, 6.0, 6.0],
+        },
+        stiffness: None,
+    };
+    let scene = SceneBuilder::new(0.01, 1)
+        .cubature(400)
+        .cache(no_cache())
+        .object(small_bar("bar"))
+        .collider(floor)
+        .collider(wall)
+        .build()
+        .unwrap();
+    let mut world = World::new(&scene, &RunSettings::default(), &Silent).unwrap();
+    let reports = world.step().unwrap();
+    assert_eq!(reports[0].solve.info.contacts, 0);
+    // Raise the floor through the bar's lower half (the bar spans y in [0, 0.2]).
+    let up = Rigid {
+        translation: [0.0, 0.6, 0.0],
+        ..Rigid::IDENTITY
+    };
+    world.set_collider_pose(0, &up).unwrap();
+    let reports = world.step().unwrap();
+    assert!(reports[0].solve.info.contacts > 0);
+    let x = world.object(0).render_positions();
+    let mean_y = x.iter().map(|p| p[1]).sum::<f64>() / x.len() as f64;
+    assert!(mean_y > 0.1, "the floor pushed the bar up: mean y {mean_y}");
+    // Boxes translate but do not rotate; unknown colliders are refused.
+    let turn = Rigid {
+        rotation: [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]],
+        translation: [0.0; 3],
+    };
+    assert!(world.set_collider_pose(1, &up).is_ok());
+    assert!(world.set_collider_pose(1, &turn).is_err());
+    assert!(world.set_collider_pose(0, &turn).is_ok());
+    assert!(world.set_collider_pose(2, &up).is_err());
+}
+
+#[test]
+fn a_failing_object_is_named_by_index_and_name_with_its_own_error() {
+    let scene = SceneBuilder::new(0.01, 1)
+        .cache(no_cache())
+        .object(small_bar("fine"))
+        .object(ObjectSpec::new("missing", "no_such_file.obj"))
+        .build()
+        .unwrap();
+    let err = World::new(&scene, &RunSettings::default(), &Silent).unwrap_err();
+    match &err {
+        Error::Object {
+            index,
+            name,
+            source,
+        } => {
+            assert_eq!((*index, name.as_str()), (1, "missing"));
+            assert!(matches!(**source, Error::Geometry(_)), "{source:?}");
+        }
+        other => panic!("expected Error::Object, got {other:?}"),
+    }
+    assert!(
+        err.to_string().starts_with("scene: object 'missing': "),
+        "{err}"
+    );
+    // The batch runner reports the same error.
+    let batch = run(&scene, &RunSettings::default(), &Silent).unwrap_err();
+    assert_eq!(batch.to_string(), err.to_string());
+}
