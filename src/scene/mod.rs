@@ -1,6 +1,13 @@
 //! Scenes: objects, boundary conditions, colliders, time stepping and outputs, from a TOML
-//! file (`freeform run scene.toml`) or built in code with [`SceneBuilder`]; [`run`] executes
-//! them. docs/scenes.md documents the format with every default.
+//! file (`freeform run scene.toml`) or built in code with [`SceneBuilder`]. A [`World`] is a
+//! scene being simulated: step it, read every object's state and deformed points, change
+//! gravity, boundary motions, placements and collider poses between steps; observers such as
+//! [`FrameWriter`] write its frames; [`run`] is the batch loop over both. docs/scenes.md
+//! documents the format with every default.
+//!
+//! - `spec`: the scene description and its validation; `setup`: an object's shape and basis
+//!   (through the `cache`); `world`: the live simulation; `frames`: frame output; `run`: the
+//!   batch loop and its summary.
 //!
 //! ```no_run
 //! use freeform::material::Region;
