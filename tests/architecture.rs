@@ -455,7 +455,11 @@ fn graph_of(edges: &[(&str, &str)]) -> BTreeMap<String, BTreeSet<String>> {
 
 #[test]
 fn cycle_finder_finds_hand_made_cycles() {
-    let acyclic = graph_of(&[("sim", "precompute"), ("precompute", "eigen"), ("sim", "eigen")]);
+    let acyclic = graph_of(&[
+        ("sim", "precompute"),
+        ("precompute", "eigen"),
+        ("sim", "eigen"),
+    ]);
     assert!(find_cycles(&acyclic).is_empty());
 
     let two = graph_of(&[
