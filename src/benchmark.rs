@@ -2,7 +2,6 @@
 //! reference on the same definition, with the error metric and both sides' costs.
 
 use crate::fem::beam::{run_beam_reference, BeamReference, BeamTest, FemBeamConfig};
-use crate::geometry::Shape;
 use crate::material::Region;
 use crate::precompute::sampling::Resolution;
 use crate::precompute::{build_basis, BasisOptions, BasisRun};
@@ -206,7 +205,7 @@ pub fn beam_basis(
 ) -> Result<BeamBasis> {
     let clock = Stopwatch::start();
     let spec = format!("box:{},{},{}", fem.size[0], fem.size[1], fem.size[2]);
-    let shape = Shape::parse(&spec, &Default::default())?;
+    let shape = crate::io::read_shape(&spec, &Default::default())?;
     let run = build_basis(&shape, &opts.basis_options(fem), progress)?;
     Ok(BeamBasis {
         run,

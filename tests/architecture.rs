@@ -1,5 +1,5 @@
 //! The library's top-level modules import along the data flow only: the module graph has no
-//! circles (docs/architecture.md; conventions: "leaves import no stage").
+//! circles (the data flow drawn in src/lib.rs; leaves import no stage).
 //!
 //! The test reads every `.rs` file under `src/` except `src/bin/` (the CLI is a caller, not
 //! part of the library), maps each file to its top-level module (`src/foo.rs` and

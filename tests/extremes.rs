@@ -11,7 +11,8 @@
 mod common;
 use common::{held_left, Rng};
 use freeform::eigen::compare::{max_eigenvalue_rel_diff, max_subspace_angle};
-use freeform::geometry::{Shape, ShapeOptions};
+use freeform::geometry::ShapeOptions;
+use freeform::io::read_shape;
 use freeform::material::{Material, MaterialField, MaterialOverride, Region};
 use freeform::precompute::assembly::assemble;
 use freeform::precompute::rkpm::{evaluate, ShapeFunctionOptions};
@@ -37,7 +38,7 @@ fn opts(k: usize, m: usize, n: usize, material: Material, solver: SolverChoice) 
 }
 
 fn basis(spec: &str, o: &BasisOptions) -> Result<BasisRun, Error> {
-    let shape = Shape::parse(spec, &ShapeOptions::default()).unwrap();
+    let shape = read_shape(spec, &ShapeOptions::default()).unwrap();
     build_basis(&shape, o, &Silent)
 }
 

@@ -4,14 +4,14 @@
 //! A shape answers three questions for the sampling stage: its bounding box, its volume (when
 //! it has a well-defined one) and, for solids, whether points are inside.
 //!
-//! - [`Shape`] is what the pipeline consumes; [`Shape::parse`] turns a CLI spec
-//!   (`box:LX,LY,LZ`, `sphere:R`, or a file path) into one.
+//! - [`Shape`] is what the pipeline consumes; [`ShapeSpec::parse`] parses a spec
+//!   (`box:LX,LY,LZ`, `sphere:R`, or a file path) without reading files, and
+//!   [`crate::io::read_shape`] turns a spec into a shape (reading the file it names).
 //! - [`TriMesh`] is a validated, outward-oriented triangle mesh whose inside test is the
 //!   generalized winding number, evaluated hierarchically by a [`WindingTree`].
 //! - [`PointCloud`] is a validated set of points (no inside test).
 //! - [`generate`] builds simple meshes (box, icosphere) for tests and examples.
 
-pub(crate) mod fileio;
 pub mod generate;
 mod mesh;
 mod pointcloud;
@@ -23,6 +23,7 @@ pub mod winding;
 pub use mesh::TriMesh;
 pub use pointcloud::PointCloud;
 pub use shape::Shape;
+pub use spec::{ShapeFileFormat, ShapeSpec};
 pub use topology::{weld_exact, EdgeReport};
 pub use winding::{WindingParams, WindingTree};
 

@@ -4,7 +4,7 @@ use crate::problem::BasisArgs;
 use crate::{emit, set_threads, CliResult};
 use clap::{Args, ValueEnum};
 use freeform::eigen::{EigenRequest, Eigensolver};
-use freeform::geometry::Shape;
+use freeform::io::read_shape;
 use freeform::precompute::{BasisOptions, Problem, SolverChoice};
 use freeform::progress::{Progress, Silent, TerminalProgress};
 use std::io::IsTerminal;
@@ -83,7 +83,7 @@ pub fn run(args: ModesArgs) -> CliResult {
     // Check the parameters before reading a possibly large file.
     opts.validate()?;
     let solver = make_solver(args.solver, &args.slepc, &args.petsc_options, opts.solver)?;
-    let shape = Shape::parse(&shape_arg, &args.basis.shape_options())?;
+    let shape = read_shape(&shape_arg, &args.basis.shape_options())?;
     let bar = TerminalProgress::new();
     let progress: &dyn Progress = if std::io::stderr().is_terminal() {
         &bar
