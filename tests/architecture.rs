@@ -16,6 +16,9 @@
 //! `crate::Point3` is defined at the root (no edge). Any other root item fails the test until
 //! it is added to [`root_item_module`].
 //!
+//! A second test checks that the leaves (errors, 3 x 3 algebra, the energy density, materials,
+//! reports, progress, sparse kernels) import only each other, with one documented exception.
+//!
 //! `cargo test --test architecture -- --nocapture` prints the graph as a list of edges.
 
 use std::collections::{BTreeMap, BTreeSet};
@@ -26,8 +29,8 @@ use std::path::{Path, PathBuf};
 /// edge as evidence.
 type Graph = BTreeMap<String, BTreeMap<String, String>>;
 
-#[test]
-fn module_graph_has_no_cycles() {
+/// The module graph of the library's sources (see the file's doc comment for what counts).
+fn module_graph() -> Graph {
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
     let modules = top_level_modules(&src);
     let mut files = Vec::new();
@@ -77,7 +80,12 @@ fn module_graph_has_no_cycles() {
         }
     }
     assert!(problems.is_empty(), "{}", problems.join("\n"));
+    graph
+}
 
+#[test]
+fn module_graph_has_no_cycles() {
+    let graph = module_graph();
     println!("module graph (importer -> imported, one place that makes the edge):");
     for (from, tos) in &graph {
         if tos.is_empty() {
@@ -110,6 +118,46 @@ fn module_graph_has_no_cycles() {
         panic!("{msg}");
     }
 }
+
+#[test]
+fn leaves_import_no_stage() {
+    let graph = module_graph();
+    let leaf_problems: Vec<String> = LEAVES
+        .iter()
+        .flat_map(|leaf| {
+            graph
+                .get(*leaf)
+                .unwrap_or_else(|| panic!("leaf `{leaf}` is not a module"))
+                .iter()
+                .filter(|(to, _)| !LEAVES.contains(&to.as_str()))
+                .filter(|(to, _)| !LEAF_EXCEPTIONS.contains(&(*leaf, to.as_str())))
+                .map(move |(to, place)| format!("  {leaf} -> {to}: {place}"))
+        })
+        .collect();
+    assert!(
+        leaf_problems.is_empty(),
+        "leaves import no stage, but:\n{}",
+        leaf_problems.join("\n")
+    );
+}
+
+/// Modules every stage may use (reports, 3 x 3 algebra, materials and the energy density, errors,
+/// progress, sparse kernels): they import no stage, only each other.
+const LEAVES: [&str; 8] = [
+    "elasticity",
+    "error",
+    "linalg3",
+    "material",
+    "progress",
+    "report",
+    "simd",
+    "sparse",
+];
+
+/// Edges out of a leaf that are known and allowed. `error -> eigen`: `crate::Error` wraps
+/// `EigenError`, which carries the eigensolver's partial result (`EigenSolution`) and so lives in
+/// `eigen`; `eigen` must then never use `crate::Error` (the circle check catches it).
+const LEAF_EXCEPTIONS: [(&str, &str); 1] = [("error", "eigen")];
 
 /// The module a root item (`crate::X`) belongs to: `Some(Some(m))` for a re-export of module
 /// `m`, `Some(None)` for an item defined at the root itself, `None` when unknown.
