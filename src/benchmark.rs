@@ -102,8 +102,8 @@ pub struct BeamComparison {
     /// Conditioning and convergence monitors of the reduced run (the same keys as in the
     /// `modes` and `run` reports).
     pub monitors: Monitors,
-    /// The basis warnings and one per non-converged reduced step (`--strict` makes them an
-    /// error).
+    /// The basis warnings and one per non-converged reduced step (strict mode,
+    /// [`crate::error::check_strict`], makes them an error).
     pub warnings: Vec<String>,
 }
 

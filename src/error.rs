@@ -61,8 +61,9 @@ pub enum Error {
     #[error(
         "{count} point(s) are not covered by enough kernels (worst at index {index}, \
          position [{:.6e}, {:.6e}, {:.6e}], {covering} covering kernel(s), reciprocal condition \
-         number {rcond:.3e} < {min_rcond:.1e}); increase the support factor (--support), the \
-         number of kernels, or check for isolated points", position[0], position[1], position[2]
+         number {rcond:.3e} < {min_rcond:.1e}); increase the support factor \
+         (BasisOptions::support.factor), the number of kernels, or check for isolated points",
+        position[0], position[1], position[2]
     )]
     Coverage {
         /// Number of points whose moment matrix failed the check.
@@ -197,7 +198,8 @@ pub enum GeometryError {
     /// The mesh is not closed.
     #[error(
         "{path}: mesh is not watertight ({boundary_edges} boundary edges, {nonmanifold_edges} \
-         non-manifold edges); repair it, or pass --allow-open-mesh to decide inside by winding number"
+         non-manifold edges); repair it, or allow open meshes (ShapeOptions::allow_open_mesh) to \
+         decide inside by winding number"
     )]
     NotWatertight {
         /// File (`<in-memory mesh>` for meshes built with
@@ -212,8 +214,8 @@ pub enum GeometryError {
     /// consistent inside and outside.
     #[error(
         "{path}: mesh orientation is inconsistent ({misoriented_edges} edges are traversed in the \
-         same direction by both of their triangles); fix the face winding, or pass \
-         --allow-open-mesh to use the winding number anyway"
+         same direction by both of their triangles); fix the face winding, or allow open meshes \
+         (ShapeOptions::allow_open_mesh) to use the winding number anyway"
     )]
     Misoriented {
         /// File (`<in-memory mesh>` for meshes built with

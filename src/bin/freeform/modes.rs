@@ -1,5 +1,6 @@
 //! `freeform modes`: compute skinning eigenmodes and write a basis file.
 
+use crate::messages::{localize, Front};
 use crate::problem::BasisArgs;
 use crate::{emit, set_threads, CliResult};
 use clap::{Args, ValueEnum};
@@ -111,7 +112,7 @@ pub fn run(args: ModesArgs) -> CliResult {
     });
     if args.strict && !run.report.warnings.is_empty() {
         for w in &run.report.warnings {
-            eprintln!("warning: {w}");
+            eprintln!("warning: {}", localize(w, Front::Flags));
         }
     }
     freeform::error::check_strict(args.strict, &run.report.warnings)?;
@@ -147,7 +148,11 @@ fn summary(r: &freeform::precompute::ModesReport, shape: &str, out: &std::path::
         ),
         format!("  peak memory {:.1} MB", r.peak_memory_bytes as f64 / 1e6),
     ];
-    lines.extend(r.warnings.iter().map(|w| format!("  warning: {w}")));
+    lines.extend(
+        r.warnings
+            .iter()
+            .map(|w| format!("  warning: {}", localize(w, Front::Flags))),
+    );
     lines.push(format!("  basis written to {}", out.display()));
     lines.join("\n") + "\n"
 }
