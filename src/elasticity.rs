@@ -44,7 +44,7 @@ fn levi(i: usize, j: usize, k: usize) -> f64 {
     ((i - j) * (j - k) * (k - i)) as f64 / 2.0
 }
 
-/// A 9 x 9 matrix acting on vec(F) in row-major order: index 3 r + c for F[r][c].
+/// A 9 x 9 matrix acting on vec(F) in row-major order: index 3 r + c for `F[r][c]`.
 pub type Mat9 = [[f64; 9]; 9];
 
 /// Exact Hessian d2Psi/dF2, Pa, 9 x 9 on row-major vec(F):

@@ -140,9 +140,9 @@ fn orthogonal_to(a: &[f64; 3]) -> [f64; 3] {
 }
 
 /// Rotation-variant SVD F = U diag(s) V^T with U, V proper rotations (det = +1),
-/// s[0] >= s[1] >= |s[2]|, and s[2] < 0 exactly when det F < 0. V comes from the
+/// `s[0] >= s[1] >= |s[2]|`, and `s[2] < 0` exactly when det F < 0. V comes from the
 /// eigenvectors of F^T F, U by Gram-Schmidt on F V (completed by cross products when F is
-/// rank deficient), so F = U diag(s) V^T holds to O(eps ||F||^2 / s[1]).
+/// rank deficient), so F = U diag(s) V^T holds to `O(eps ||F||^2 / s[1])`.
 pub fn svd3_rv(f: &Mat3) -> (Mat3, [f64; 3], Mat3) {
     let ftf = mul(&transpose(f), f);
     let (w, mut v) = sym_eig3(&ftf);
