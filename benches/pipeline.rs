@@ -3,7 +3,8 @@
 //! grows with K and N. `cargo bench --bench pipeline`; numbers in docs/performance.md.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
-use freeform::geometry::{Shape, ShapeOptions};
+use freeform::geometry::ShapeOptions;
+use freeform::io::read_shape;
 use freeform::material::{Material, MaterialField};
 use freeform::precompute::assembly::assemble;
 use freeform::precompute::centers::{farthest_point_sampling, morton_order};
@@ -17,7 +18,7 @@ use freeform::Point3;
 use std::hint::black_box;
 
 fn stages(c: &mut Criterion) {
-    let shape = Shape::parse("box:5,1,1", &ShapeOptions::default()).expect("beam");
+    let shape = read_shape("box:5,1,1", &ShapeOptions::default()).expect("beam");
     let mut group = c.benchmark_group("stages");
     group.sample_size(10);
     for k in [250usize, 1000, 4000] {

@@ -10,7 +10,8 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use freeform::benchmark::beam_sim_options;
 use freeform::fem::beam::{BeamTest, FemBeamConfig};
-use freeform::geometry::{Shape, ShapeOptions};
+use freeform::geometry::ShapeOptions;
+use freeform::io::read_shape;
 use freeform::precompute::{build_basis, BasisOptions, BasisRun};
 use freeform::progress::Silent;
 use freeform::sim::elastic::Projection;
@@ -18,7 +19,7 @@ use freeform::sim::{HessianStrategy, NewtonOptions, ReducedSim};
 use std::hint::black_box;
 
 fn beam(modes: usize) -> BasisRun {
-    let shape = Shape::parse("box:5,1,1", &ShapeOptions::default()).expect("box");
+    let shape = read_shape("box:5,1,1", &ShapeOptions::default()).expect("box");
     let opts = BasisOptions {
         kernels: 1000,
         modes,

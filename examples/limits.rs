@@ -4,7 +4,8 @@
 //!
 //!     cargo run --release --example limits
 
-use freeform::geometry::{Shape, ShapeOptions};
+use freeform::geometry::ShapeOptions;
+use freeform::io::read_shape;
 use freeform::material::{Material, MaterialOverride, Region};
 use freeform::precompute::{build_basis, BasisOptions, BasisRun};
 use freeform::progress::Silent;
@@ -20,7 +21,7 @@ const BEAM: Material = Material {
 };
 
 fn basis(spec: &str, o: &BasisOptions) -> Result<(BasisRun, f64), freeform::Error> {
-    let shape = Shape::parse(spec, &ShapeOptions::default())?;
+    let shape = read_shape(spec, &ShapeOptions::default())?;
     let sw = Stopwatch::start();
     let run = build_basis(&shape, o, &Silent)?;
     Ok((run, sw.elapsed()))

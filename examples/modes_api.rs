@@ -3,13 +3,14 @@
 //!
 //! Run: `cargo run --release --example modes_api`
 
-use freeform::geometry::{Shape, ShapeOptions};
+use freeform::geometry::ShapeOptions;
+use freeform::io::read_shape;
 use freeform::material::{Material, MaterialOverride, Region};
 use freeform::precompute::{build_basis, BasisOptions};
 use freeform::progress::Silent;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let shape = Shape::parse("box:2,1,1", &ShapeOptions::default())?;
+    let shape = read_shape("box:2,1,1", &ShapeOptions::default())?;
     let core = MaterialOverride {
         region: Region::Sphere {
             center: [1.0, 0.5, 0.5],

@@ -13,7 +13,8 @@
 
 use freeform::benchmark::beam_sim_options;
 use freeform::fem::beam::{BeamTest, FemBeamConfig};
-use freeform::geometry::{Shape, ShapeOptions};
+use freeform::geometry::ShapeOptions;
+use freeform::io::read_shape;
 use freeform::precompute::{build_basis, BasisOptions, BasisRun};
 use freeform::progress::Silent;
 use freeform::report::Stopwatch;
@@ -35,7 +36,7 @@ struct Outcome {
 }
 
 fn beam(m: usize) -> BasisRun {
-    let shape = Shape::parse("box:5,1,1", &ShapeOptions::default()).expect("box");
+    let shape = read_shape("box:5,1,1", &ShapeOptions::default()).expect("box");
     let opts = BasisOptions {
         kernels: 1000,
         modes: m,

@@ -2,7 +2,6 @@
 //! reference on the same definition, with the error metric and both sides' costs.
 
 use crate::fem::beam::{run_beam_reference, BeamReference, BeamTest, FemBeamConfig};
-use crate::geometry::Shape;
 use crate::material::Region;
 use crate::precompute::sampling::Resolution;
 use crate::precompute::{build_basis, BasisOptions, BasisRun};
@@ -103,8 +102,8 @@ pub struct BeamComparison {
     /// Conditioning and convergence monitors of the reduced run (the same keys as in the
     /// `modes` and `run` reports).
     pub monitors: Monitors,
-    /// The basis warnings and one per non-converged reduced step (`--strict` makes them an
-    /// error).
+    /// The basis warnings and one per non-converged reduced step (strict mode,
+    /// [`crate::error::check_strict`], makes them an error).
     pub warnings: Vec<String>,
 }
 
@@ -206,7 +205,7 @@ pub fn beam_basis(
 ) -> Result<BeamBasis> {
     let clock = Stopwatch::start();
     let spec = format!("box:{},{},{}", fem.size[0], fem.size[1], fem.size[2]);
-    let shape = Shape::parse(&spec, &Default::default())?;
+    let shape = crate::io::read_shape(&spec, &Default::default())?;
     let run = build_basis(&shape, &opts.basis_options(fem), progress)?;
     Ok(BeamBasis {
         run,

@@ -9,38 +9,7 @@
 //! Psi(I) = 0, P(I) = 0 (stress free at rest), and its Hessian at F = I is the linear
 //! elasticity tensor with Lame parameters lambda, mu.
 
-/// A 3 x 3 matrix, row-major: `f[r][c]`.
-pub type Mat3 = [[f64; 3]; 3];
-
-/// det F.
-#[inline]
-pub fn det3(f: &Mat3) -> f64 {
-    f[0][0] * (f[1][1] * f[2][2] - f[1][2] * f[2][1])
-        - f[0][1] * (f[1][0] * f[2][2] - f[1][2] * f[2][0])
-        + f[0][2] * (f[1][0] * f[2][1] - f[1][1] * f[2][0])
-}
-
-/// Cofactor matrix of F (= det(F) F^-T), the derivative of det F with respect to F.
-#[inline]
-pub fn cofactor3(f: &Mat3) -> Mat3 {
-    [
-        [
-            f[1][1] * f[2][2] - f[1][2] * f[2][1],
-            f[1][2] * f[2][0] - f[1][0] * f[2][2],
-            f[1][0] * f[2][1] - f[1][1] * f[2][0],
-        ],
-        [
-            f[0][2] * f[2][1] - f[0][1] * f[2][2],
-            f[0][0] * f[2][2] - f[0][2] * f[2][0],
-            f[0][1] * f[2][0] - f[0][0] * f[2][1],
-        ],
-        [
-            f[0][1] * f[1][2] - f[0][2] * f[1][1],
-            f[0][2] * f[1][0] - f[0][0] * f[1][2],
-            f[0][0] * f[1][1] - f[0][1] * f[1][0],
-        ],
-    ]
-}
+use crate::linalg3::{cofactor3, det3, svd3_rv, sym_eig3, Mat3};
 
 /// Energy density Psi(F), J/m^3, for Lame parameters `lambda`, `mu` (Pa).
 #[inline]
@@ -75,7 +44,7 @@ fn levi(i: usize, j: usize, k: usize) -> f64 {
     ((i - j) * (j - k) * (k - i)) as f64 / 2.0
 }
 
-/// A 9 x 9 matrix acting on vec(F) in row-major order: index 3 r + c for F[r][c].
+/// A 9 x 9 matrix acting on vec(F) in row-major order: index 3 r + c for `F[r][c]`.
 pub type Mat9 = [[f64; 9]; 9];
 
 /// Exact Hessian d2Psi/dF2, Pa, 9 x 9 on row-major vec(F):
@@ -135,7 +104,7 @@ pub fn hessian_psd(f: &Mat3, lambda: f64, mu: f64) -> Mat9 {
 pub fn negative_eigenpairs(f: &Mat3, lambda: f64, mu: f64) -> Vec<(f64, [f64; 9])> {
     let lm = lambda + mu;
     let gamma = 1.0 + mu / lm;
-    let (u, s, v) = crate::linalg3::svd3_rv(f);
+    let (u, s, v) = svd3_rv(f);
     let k = lm * (s[0] * s[1] * s[2] - gamma);
     let mut out = Vec::new();
     let inv_sqrt2 = std::f64::consts::FRAC_1_SQRT_2;
@@ -163,7 +132,7 @@ pub fn negative_eigenpairs(f: &Mat3, lambda: f64, mu: f64) -> Vec<(f64, [f64; 9]
             d[i][j] = lm * g[i] * g[j] + if i == j { mu } else { k * s[3 - i - j] };
         }
     }
-    let (w, e) = crate::linalg3::sym_eig3(&d);
+    let (w, e) = sym_eig3(&d);
     for c in 0..3 {
         if w[c] < 0.0 {
             let mut q = [0.0; 9];

@@ -1,11 +1,17 @@
 //! The library's error type. Each stage has a small, precise error enum of its own; [`Error`]
 //! wraps them so callers of the whole pipeline match on one type.
+//!
+//! Every stage returns [`Error`], so this module sits below the stages: it defines the stage
+//! error enums that carry only paths, text and numbers ([`GeometryError`], [`FemError`]; their
+//! stages re-export them as `geometry::GeometryError` and `fem::FemError`). The one exception
+//! is [`EigenError`], which keeps the eigensolver's partial result
+//! ([`crate::eigen::EigenSolution`]) and so is defined in [`crate::eigen`]: `error` imports
+//! `eigen`, and `eigen` (with the modules it imports) must never use [`Error`]
+//! (`tests/architecture.rs` checks that the module graph has no circles).
 
 use std::path::PathBuf;
 
 pub use crate::eigen::EigenError;
-pub use crate::fem::FemError;
-pub use crate::geometry::GeometryError;
 
 /// Result alias used across the library.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
@@ -55,8 +61,9 @@ pub enum Error {
     #[error(
         "{count} point(s) are not covered by enough kernels (worst at index {index}, \
          position [{:.6e}, {:.6e}, {:.6e}], {covering} covering kernel(s), reciprocal condition \
-         number {rcond:.3e} < {min_rcond:.1e}); increase the support factor (--support), the \
-         number of kernels, or check for isolated points", position[0], position[1], position[2]
+         number {rcond:.3e} < {min_rcond:.1e}); increase the support factor \
+         (BasisOptions::support.factor), the number of kernels, or check for isolated points",
+        position[0], position[1], position[2]
     )]
     Coverage {
         /// Number of points whose moment matrix failed the check.
@@ -163,4 +170,183 @@ pub fn check_finite_points(what: &'static str, points: &[[f64; 3]]) -> Result<()
         Some(index) => Err(Error::NonFinite { what, index }),
         None => Ok(()),
     }
+}
+
+/// Geometry errors: reading files and unusable shapes (the geometry and shape-file stages' error,
+/// also named [`crate::geometry::GeometryError`]).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum GeometryError {
+    /// The shape spec is neither a primitive nor a supported file.
+    #[error(
+        "unknown shape `{0}`: use box:LX,LY,LZ, sphere:R, or a path to a .obj, .stl or .ply file"
+    )]
+    UnknownSpec(String),
+    /// A primitive spec has bad numbers.
+    #[error("bad shape `{spec}`: {reason}")]
+    BadPrimitive {
+        /// The spec as given.
+        spec: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The file could not be opened or read.
+    #[error("cannot read {path}: {source}")]
+    Io {
+        /// File.
+        path: PathBuf,
+        /// Cause.
+        source: std::io::Error,
+    },
+    /// The file content is malformed.
+    #[error("{path}: {reason}")]
+    Parse {
+        /// File.
+        path: PathBuf,
+        /// What is wrong (with a line or element number where known).
+        reason: String,
+    },
+    /// The mesh is not closed.
+    #[error(
+        "{path}: mesh is not watertight ({boundary_edges} boundary edges, {nonmanifold_edges} \
+         non-manifold edges); repair it, or allow open meshes (ShapeOptions::allow_open_mesh) to \
+         decide inside by winding number"
+    )]
+    NotWatertight {
+        /// File (`<in-memory mesh>` for meshes built with
+        /// [`TriMesh::new`](crate::geometry::TriMesh::new)).
+        path: PathBuf,
+        /// Edges used by exactly one triangle.
+        boundary_edges: usize,
+        /// Edges used by more than two triangles.
+        nonmanifold_edges: usize,
+    },
+    /// Two triangles that share an edge traverse it in the same direction, so the mesh has no
+    /// consistent inside and outside.
+    #[error(
+        "{path}: mesh orientation is inconsistent ({misoriented_edges} edges are traversed in the \
+         same direction by both of their triangles); fix the face winding, or allow open meshes \
+         (ShapeOptions::allow_open_mesh) to use the winding number anyway"
+    )]
+    Misoriented {
+        /// File (`<in-memory mesh>` for meshes built with
+        /// [`TriMesh::new`](crate::geometry::TriMesh::new)).
+        path: PathBuf,
+        /// Manifold edges whose two triangles disagree on orientation.
+        misoriented_edges: usize,
+    },
+    /// The shape encloses no volume or has no points.
+    #[error("{0}")]
+    Degenerate(String),
+    /// An argument to a geometry function (e.g. a writer) is inconsistent.
+    #[error("invalid input: {0}")]
+    InvalidInput(String),
+}
+
+impl GeometryError {
+    /// Attach a file path to errors raised while building a shape from that file's content
+    /// (`NotWatertight`, `Misoriented`, `Degenerate`); other variants are returned unchanged.
+    pub fn with_path(self, path: &std::path::Path) -> GeometryError {
+        match self {
+            GeometryError::NotWatertight {
+                boundary_edges,
+                nonmanifold_edges,
+                ..
+            } => GeometryError::NotWatertight {
+                path: path.to_path_buf(),
+                boundary_edges,
+                nonmanifold_edges,
+            },
+            GeometryError::Misoriented {
+                misoriented_edges, ..
+            } => GeometryError::Misoriented {
+                path: path.to_path_buf(),
+                misoriented_edges,
+            },
+            GeometryError::Degenerate(msg) => {
+                GeometryError::Degenerate(format!("{}: {msg}", path.display()))
+            }
+            other => other,
+        }
+    }
+}
+
+/// Errors of the FEM stage: mesh files, mesh validity, the Newton solver, trajectories (also
+/// named [`crate::fem::FemError`]).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum FemError {
+    /// A mesh file could not be parsed; `line` is 1-based (0 when the file ended early).
+    #[error("{path}:{line}: {reason}")]
+    Parse {
+        /// File involved.
+        path: PathBuf,
+        /// 1-based line number of the offending token (0: unexpected end of file).
+        line: usize,
+        /// What is wrong.
+        reason: String,
+    },
+    /// Reading or writing a file failed.
+    #[error("{path}: {source}")]
+    Io {
+        /// File involved.
+        path: PathBuf,
+        /// Underlying error.
+        source: std::io::Error,
+    },
+    /// The tetrahedral mesh is unusable (empty, bad index, non-finite or flat element).
+    #[error("invalid tetrahedral mesh: {0}")]
+    Mesh(String),
+    /// Newton did not reach the tolerance within the iteration cap. The solver state holds
+    /// the last iterate, so a caller may inspect it or continue.
+    #[error(
+        "Newton did not converge in step {step}: {iterations} iterations, last step \
+         max |dx| = {step_norm:.3e} m (tolerance {tolerance:.3e} m), gradient max norm \
+         {gradient_norm:.3e} N; reduce the time step or raise max_newton_iterations"
+    )]
+    NotConverged {
+        /// 0-based step index.
+        step: usize,
+        /// Iterations done.
+        iterations: usize,
+        /// Largest nodal update of the last iteration, metres.
+        step_norm: f64,
+        /// The absolute tolerance it was compared to, metres.
+        tolerance: f64,
+        /// Largest nodal gradient (force residual) at the last iterate, N.
+        gradient_norm: f64,
+    },
+    /// The line search found no decrease of the incremental potential along the Newton
+    /// direction (the direction is not a descent direction, or round-off dominates).
+    #[error("line search failed in step {step}, iteration {iteration}: {detail}")]
+    LineSearch {
+        /// 0-based step index.
+        step: usize,
+        /// 0-based Newton iteration.
+        iteration: usize,
+        /// Energies and step sizes tried.
+        detail: String,
+    },
+    /// A NaN or infinity appeared in the state, energy or gradient.
+    #[error("non-finite {what} in step {step}, iteration {iteration}")]
+    NonFinite {
+        /// What became non-finite.
+        what: &'static str,
+        /// 0-based step index.
+        step: usize,
+        /// 0-based Newton iteration.
+        iteration: usize,
+    },
+    /// The sparse Cholesky factorization failed (the system is not positive definite, e.g.
+    /// a static solve with too few held nodes).
+    #[error("sparse Cholesky failed: {0}")]
+    Factorization(String),
+    /// Trajectories handed to the error metric do not fit together.
+    #[error("trajectory {what}: {detail}")]
+    Trajectory {
+        /// Which input ("reference", "candidate", "rest").
+        what: &'static str,
+        /// Shape, NaN or emptiness problem, with frame and node indices.
+        detail: String,
+    },
 }

@@ -1,8 +1,40 @@
-//! Small 3 x 3 dense linear algebra used per integration point: a symmetric eigensolver
-//! (cyclic Jacobi) and the rotation-variant SVD (U, V proper rotations, the smallest singular
-//! value carries the sign of det F), as used for the analytic Hessian projection.
+//! Small 3 x 3 dense linear algebra used per integration point: the [`Mat3`] type, product,
+//! transpose, determinant and cofactor, a symmetric eigensolver (cyclic Jacobi) and the
+//! rotation-variant SVD (U, V proper rotations, the smallest singular value carries the sign of
+//! det F), as used for the analytic Hessian projection. A leaf: it imports no other module.
 
-use crate::elasticity::Mat3;
+/// A 3 x 3 matrix, row-major: `f[r][c]`.
+pub type Mat3 = [[f64; 3]; 3];
+
+/// det F.
+#[inline]
+pub fn det3(f: &Mat3) -> f64 {
+    f[0][0] * (f[1][1] * f[2][2] - f[1][2] * f[2][1])
+        - f[0][1] * (f[1][0] * f[2][2] - f[1][2] * f[2][0])
+        + f[0][2] * (f[1][0] * f[2][1] - f[1][1] * f[2][0])
+}
+
+/// Cofactor matrix of F (= det(F) F^-T), the derivative of det F with respect to F.
+#[inline]
+pub fn cofactor3(f: &Mat3) -> Mat3 {
+    [
+        [
+            f[1][1] * f[2][2] - f[1][2] * f[2][1],
+            f[1][2] * f[2][0] - f[1][0] * f[2][2],
+            f[1][0] * f[2][1] - f[1][1] * f[2][0],
+        ],
+        [
+            f[0][2] * f[2][1] - f[0][1] * f[2][2],
+            f[0][0] * f[2][2] - f[0][2] * f[2][0],
+            f[0][1] * f[2][0] - f[0][0] * f[2][1],
+        ],
+        [
+            f[0][1] * f[1][2] - f[0][2] * f[1][1],
+            f[0][2] * f[1][0] - f[0][0] * f[1][2],
+            f[0][0] * f[1][1] - f[0][1] * f[1][0],
+        ],
+    ]
+}
 
 /// Product A B.
 #[inline]
@@ -108,9 +140,9 @@ fn orthogonal_to(a: &[f64; 3]) -> [f64; 3] {
 }
 
 /// Rotation-variant SVD F = U diag(s) V^T with U, V proper rotations (det = +1),
-/// s[0] >= s[1] >= |s[2]|, and s[2] < 0 exactly when det F < 0. V comes from the
+/// `s[0] >= s[1] >= |s[2]|`, and `s[2] < 0` exactly when det F < 0. V comes from the
 /// eigenvectors of F^T F, U by Gram-Schmidt on F V (completed by cross products when F is
-/// rank deficient), so F = U diag(s) V^T holds to O(eps ||F||^2 / s[1]).
+/// rank deficient), so F = U diag(s) V^T holds to `O(eps ||F||^2 / s[1])`.
 pub fn svd3_rv(f: &Mat3) -> (Mat3, [f64; 3], Mat3) {
     let ftf = mul(&transpose(f), f);
     let (w, mut v) = sym_eig3(&ftf);
@@ -124,7 +156,7 @@ pub fn svd3_rv(f: &Mat3) -> (Mat3, [f64; 3], Mat3) {
         }
     }
     // Make V a proper rotation.
-    let det_v = crate::elasticity::det3(&v);
+    let det_v = det3(&v);
     if det_v < 0.0 {
         for row in v.iter_mut() {
             row[2] = -row[2];
@@ -189,10 +221,10 @@ mod tests {
             let id = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
             assert!(max_abs_diff(&mul(&transpose(&u), &u), &id) < 1e-14);
             assert!(max_abs_diff(&mul(&transpose(&v), &v), &id) < 1e-14);
-            assert!((crate::elasticity::det3(&u) - 1.0).abs() < 1e-14);
-            assert!((crate::elasticity::det3(&v) - 1.0).abs() < 1e-14);
+            assert!((det3(&u) - 1.0).abs() < 1e-14);
+            assert!((det3(&v) - 1.0).abs() < 1e-14);
             assert!(s[0] >= s[1] && s[1] >= s[2].abs());
-            let det = crate::elasticity::det3(f);
+            let det = det3(f);
             assert!((s[0] * s[1] * s[2] - det).abs() < 1e-12 * (1.0 + det.abs()));
         }
     }
@@ -209,7 +241,7 @@ mod tests {
         assert!(max_abs_diff(&back, &a) < 1e-14 * 8.0);
         // Trace and determinant are invariants.
         assert!((w.iter().sum::<f64>() - 9.0).abs() < 1e-13);
-        let det = crate::elasticity::det3(&a);
+        let det = det3(&a);
         assert!((w[0] * w[1] * w[2] - det).abs() < 1e-12);
     }
 }

@@ -7,8 +7,9 @@
 //! (`fuzz/corpus/<target>/`, see docs/fuzzing.md) through the same parse functions the fuzz
 //! targets call, on stable, so a fixed crash stays fixed.
 
-use freeform::geometry::{GeometryError, PointCloud, Shape, ShapeOptions, TriMesh};
+use freeform::geometry::{GeometryError, PointCloud, ShapeOptions, TriMesh};
 use freeform::io::matrix_market::read_matrix_market_from;
+use freeform::io::read_shape;
 use freeform::io::{obj, ply, stl};
 use freeform::precompute::BasisOptions;
 use freeform::scene::{RunSettings, Scene};
@@ -325,7 +326,7 @@ fn from_matrices_rejects_bad_matrix_files() {
 }
 
 /// The library gives the same typed errors as the CLI: every file case of `modes` through
-/// [`Shape::parse`], every scene case through [`Scene::load`] + [`freeform::scene::run`].
+/// [`read_shape`], every scene case through [`Scene::load`] + [`freeform::scene::run`].
 #[test]
 fn library_api_gives_the_same_errors() {
     let dir = corpus();
@@ -333,7 +334,7 @@ fn library_api_gives_the_same_errors() {
     let mut failures = Vec::new();
     for (args, needle) in MODES_FILES {
         let spec = expand(args[0], root);
-        let err = match Shape::parse(&spec, &ShapeOptions::default()) {
+        let err = match read_shape(&spec, &ShapeOptions::default()) {
             Ok(shape) => {
                 // Point clouds fail later, when their volumes are estimated.
                 let opts = BasisOptions {

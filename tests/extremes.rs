@@ -9,9 +9,15 @@
 #![allow(clippy::needless_range_loop)] // index loops mirror the formulas
 
 mod common;
+/// The CLI's rendering of library messages: coverage errors name the support factor by its
+/// library name, and say `--support` where the CLI prints them.
+#[allow(dead_code)]
+#[path = "../src/bin/freeform/messages.rs"]
+mod messages;
 use common::{held_left, Rng};
 use freeform::eigen::compare::{max_eigenvalue_rel_diff, max_subspace_angle};
-use freeform::geometry::{Shape, ShapeOptions};
+use freeform::geometry::ShapeOptions;
+use freeform::io::read_shape;
 use freeform::material::{Material, MaterialField, MaterialOverride, Region};
 use freeform::precompute::assembly::assemble;
 use freeform::precompute::rkpm::{evaluate, ShapeFunctionOptions};
@@ -23,6 +29,7 @@ use freeform::sim::newton::SolveReport;
 use freeform::sim::{Boundary, HessianStrategy, NewtonOptions, ReducedSim, SimOptions};
 use freeform::sparse::to_dense;
 use freeform::{Error, Point3};
+use messages::{error_message, Front};
 use std::f64::consts::PI;
 
 fn opts(k: usize, m: usize, n: usize, material: Material, solver: SolverChoice) -> BasisOptions {
@@ -37,7 +44,7 @@ fn opts(k: usize, m: usize, n: usize, material: Material, solver: SolverChoice) 
 }
 
 fn basis(spec: &str, o: &BasisOptions) -> Result<BasisRun, Error> {
-    let shape = Shape::parse(spec, &ShapeOptions::default()).unwrap();
+    let shape = read_shape(spec, &ShapeOptions::default()).unwrap();
     build_basis(&shape, o, &Silent)
 }
 
@@ -341,7 +348,7 @@ fn thin_plates_and_rods_reproduce_the_neumann_laplacian_or_say_why_not() {
                 assert!((lap / (PI * PI) - 1.0).abs() < 0.05, "{spec}: {lap}");
             }
             Err(e) => {
-                let msg = e.to_string();
+                let msg = error_message(&e, Front::Flags);
                 eprintln!("{spec}: {msg}");
                 assert!(matches!(e, Error::Coverage { .. }), "{spec}: {msg}");
                 assert!(
@@ -503,7 +510,7 @@ fn nearly_coplanar_points_are_an_error_that_names_the_place() {
         .collect();
     let v = vec![1e-3 / 3000.0; p.len()];
     let err = from_points(p, v, 60).unwrap_err();
-    let msg = err.to_string();
+    let msg = error_message(&err, Front::Flags);
     assert!(matches!(err, Error::Coverage { .. }), "{msg}");
     assert!(
         msg.contains("position") && msg.contains("--support"),

@@ -11,6 +11,7 @@ use freeform::io::ply::{
     read_ply, read_ply_points, write_ply_mesh, write_ply_points, write_ply_points_with, PlyFormat,
     PlyScalar, PlyWriteOptions,
 };
+use freeform::io::read_shape;
 use freeform::io::stl::{read_stl, write_stl, StlFormat};
 use freeform::Point3;
 use std::f64::consts::PI;
@@ -98,7 +99,7 @@ fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
 }
 
 fn parse(path: &Path) -> Result<Shape, GeometryError> {
-    Shape::parse(path.to_str().unwrap(), &closed())
+    read_shape(path.to_str().unwrap(), &closed())
 }
 
 fn expect_parse_error(path: &Path, needle: &str) {
@@ -123,7 +124,7 @@ fn expect_parse_error(path: &Path, needle: &str) {
 
 #[test]
 fn primitive_volumes_boxes_and_inside() {
-    let b = Shape::parse("box:2,3,4", &closed()).unwrap();
+    let b = read_shape("box:2,3,4", &closed()).unwrap();
     assert_eq!(b.volume(), Some(24.0));
     assert_eq!(
         b.bounding_box(),
@@ -142,7 +143,7 @@ fn primitive_volumes_boxes_and_inside() {
     ]);
     assert_eq!(inside, Some(vec![true, true, true, false]));
 
-    let s = Shape::parse("sphere:1.5", &closed()).unwrap();
+    let s = read_shape("sphere:1.5", &closed()).unwrap();
     let v = s.volume().unwrap();
     assert!((v - 4.0 / 3.0 * PI * 1.5f64.powi(3)).abs() < 1e-13 * v);
     assert_eq!(
@@ -163,7 +164,7 @@ fn primitive_volumes_boxes_and_inside() {
 
 #[test]
 fn spec_errors_name_the_problem() {
-    let bad = |spec: &str, needle: &str| match Shape::parse(spec, &closed()) {
+    let bad = |spec: &str, needle: &str| match read_shape(spec, &closed()) {
         Err(GeometryError::BadPrimitive { spec: s, reason }) => {
             assert_eq!(s, spec);
             assert!(
@@ -183,12 +184,12 @@ fn spec_errors_name_the_problem() {
     bad("sphere:", "no numbers given");
     for spec in ["torus:1,2", "model.step", "model", "model.obj.gz"] {
         assert!(
-            matches!(Shape::parse(spec, &closed()), Err(GeometryError::UnknownSpec(s)) if s == spec),
+            matches!(read_shape(spec, &closed()), Err(GeometryError::UnknownSpec(s)) if s == spec),
             "{spec}"
         );
     }
     // A supported extension that does not exist is an I/O error with the path.
-    match Shape::parse("/nonexistent/dir/model.OBJ", &closed()) {
+    match read_shape("/nonexistent/dir/model.OBJ", &closed()) {
         Err(GeometryError::Io { path, .. }) => assert!(path.ends_with("model.OBJ")),
         other => panic!("{other:?}"),
     }
@@ -522,7 +523,7 @@ fn open_mesh_rejected_with_edge_counts_and_accepted_on_opt_in() {
         }
         other => panic!("{other:?}"),
     }
-    let shape = Shape::parse(path.to_str().unwrap(), &open_ok()).unwrap();
+    let shape = read_shape(path.to_str().unwrap(), &open_ok()).unwrap();
     let Shape::Mesh(m) = &shape else {
         panic!("not a mesh")
     };
@@ -1297,7 +1298,7 @@ fn hostile_files_never_panic() {
             }
         }
         let p = write(d, &format!("case{case}.{ext}"), &b);
-        let ok = Shape::parse(p.to_str().unwrap(), &open_ok()).is_ok();
+        let ok = read_shape(p.to_str().unwrap(), &open_ok()).is_ok();
         outcomes[ok as usize] += 1;
     }
     eprintln!(

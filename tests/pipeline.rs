@@ -9,7 +9,8 @@ mod common;
 use common::{box_points, kernels_for};
 use freeform::eigen::dense::DenseSolver;
 use freeform::eigen::{EigenRequest, Eigensolver};
-use freeform::geometry::{Shape, ShapeOptions};
+use freeform::geometry::ShapeOptions;
+use freeform::io::read_shape;
 use freeform::material::{Material, MaterialField, MaterialOverride, Region};
 use freeform::precompute::assembly::assemble;
 use freeform::precompute::rkpm::{evaluate, KernelType, Kernels, ShapeFunctionOptions};
@@ -41,7 +42,7 @@ fn laplacian_spectrum(
     k: usize,
     m: usize,
 ) -> (freeform::precompute::BasisRun, Vec<f64>) {
-    let shape = Shape::parse(spec, &ShapeOptions::default()).unwrap();
+    let shape = read_shape(spec, &ShapeOptions::default()).unwrap();
     let run = build_basis(&shape, &small_opts(k, m, 30_000), &Silent).unwrap();
     let ev = run
         .report
@@ -274,7 +275,7 @@ fn stiff_inclusion_concentrates_low_mode_gradients_in_the_soft_part() {
 
 #[test]
 fn deterministic_bit_for_bit() {
-    let shape = Shape::parse("box:2,1,1", &ShapeOptions::default()).unwrap();
+    let shape = read_shape("box:2,1,1", &ShapeOptions::default()).unwrap();
     let opts = small_opts(150, 4, 8000);
     let a = build_basis(&shape, &opts, &Silent).unwrap();
     let b = build_basis(&shape, &opts, &Silent).unwrap();
@@ -292,7 +293,7 @@ fn deterministic_bit_for_bit() {
 
 #[test]
 fn weights_are_orthonormal_and_basis_file_round_trips() {
-    let shape = Shape::parse("box:2,1,1", &ShapeOptions::default()).unwrap();
+    let shape = read_shape("box:2,1,1", &ShapeOptions::default()).unwrap();
     let run = build_basis(&shape, &small_opts(150, 5, 8000), &Silent).unwrap();
     let w = run.basis.weights(&run.points.points).unwrap();
     // sum_i v_i W_a(X_i) W_b(X_i) = c^T M c = I: the weights, evaluated independently of the
@@ -328,7 +329,7 @@ fn weights_are_orthonormal_and_basis_file_round_trips() {
 
 #[test]
 fn bad_parameters_are_rejected_before_work() {
-    let shape = Shape::parse("box:2,1,1", &ShapeOptions::default()).unwrap();
+    let shape = read_shape("box:2,1,1", &ShapeOptions::default()).unwrap();
     let base = small_opts(150, 4, 8000);
     for (opts, needle) in [
         (
@@ -418,7 +419,7 @@ fn mesh_files_and_point_clouds_run_through_the_pipeline() {
     let exact = 2.081_575_977_8f64.powi(2);
     let opts = small_opts(300, 3, 20_000);
     for path in [&obj, &stl] {
-        let shape = Shape::parse(path.to_str().unwrap(), &ShapeOptions::default()).unwrap();
+        let shape = read_shape(path.to_str().unwrap(), &ShapeOptions::default()).unwrap();
         let run = build_basis(&shape, &opts, &Silent).unwrap();
         let ev1 = run.report.eigenvalues[1] / c_weight();
         // Icosphere (5,120 faces) volume is 0.3 % below the ball's; with K = 300 the
@@ -456,7 +457,7 @@ fn mesh_files_and_point_clouds_run_through_the_pipeline() {
         &[("opacity", &opacity), ("scale_0", &opacity)],
     )
     .unwrap();
-    let shape = Shape::parse(ply.to_str().unwrap(), &ShapeOptions::default()).unwrap();
+    let shape = read_shape(ply.to_str().unwrap(), &ShapeOptions::default()).unwrap();
     let run = build_basis(
         &shape,
         &BasisOptions {

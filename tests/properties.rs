@@ -6,8 +6,8 @@
 
 #![allow(clippy::needless_range_loop)] // index loops mirror the formulas
 
-use freeform::elasticity::{det3, energy_density, first_piola, hessian, hessian_psd, Mat3, Mat9};
-use freeform::linalg3::mul;
+use freeform::elasticity::{energy_density, first_piola, hessian, hessian_psd, Mat9};
+use freeform::linalg3::{det3, mul, Mat3};
 use freeform::material::Material;
 use freeform::precompute::rkpm::{evaluate, reproducing_error, support_radii, KernelType, Kernels};
 use freeform::precompute::rkpm::{ShapeFunctionOptions, SupportOptions};

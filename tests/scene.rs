@@ -312,7 +312,7 @@ fn frames_are_written_for_paraview_and_a_ball_rests_on_the_floor() {
     // The PLY of the last frame: every point above the floor up to the penalty's give.
     // Penetration under the ball's own weight ~ rho g H / kappa with kappa >= 1e3 rho/h^2:
     // ~ g H h^2 / 1e3 ~ 4e-7 m; the dynamic impact adds more. Allow 1% of the radius.
-    let ply = freeform::geometry::Shape::parse(
+    let ply = freeform::io::read_shape(
         out.join("ball/ball_000060.ply").to_str().unwrap(),
         &Default::default(),
     )
@@ -390,7 +390,7 @@ fn mesh_and_point_cloud_objects_write_deformed_meshes_and_points() {
         head.contains(&format!("NumberOfPolys=\"{}\"", t.len())),
         "{head}"
     );
-    let mesh = freeform::geometry::Shape::parse(
+    let mesh = freeform::io::read_shape(
         out.join("ball/ball_000004.ply").to_str().unwrap(),
         &Default::default(),
     )

@@ -4,7 +4,8 @@
 mod common;
 
 use common::{held_left, Rng};
-use freeform::geometry::{Shape, ShapeOptions};
+use freeform::geometry::ShapeOptions;
+use freeform::io::read_shape;
 use freeform::material::{Material, Region};
 use freeform::precompute::sampling::Resolution;
 use freeform::precompute::{build_basis, BasisOptions, BasisRun, SolverChoice};
@@ -19,7 +20,7 @@ use freeform::sim::{
 
 /// Basis of a 1 x 0.2 x 0.2 m bar (soft rubber-like default material).
 fn bar(kernels: usize, modes: usize, points: usize) -> BasisRun {
-    let shape = Shape::parse("box:1,0.2,0.2", &ShapeOptions::default()).unwrap();
+    let shape = read_shape("box:1,0.2,0.2", &ShapeOptions::default()).unwrap();
     let opts = BasisOptions {
         kernels,
         modes,

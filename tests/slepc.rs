@@ -82,9 +82,10 @@ fn every_preset_matches_the_analytic_spectrum_and_the_dense_solver() {
 #[test]
 fn rkpm_matrices_agree_with_the_dense_solver() {
     use freeform::eigen::compare::{max_eigenvalue_rel_diff, max_subspace_angle};
-    use freeform::geometry::{Shape, ShapeOptions};
+    use freeform::geometry::ShapeOptions;
+    use freeform::io::read_shape;
     use freeform::precompute::{BasisOptions, Problem};
-    let shape = Shape::parse("box:2,1,1", &ShapeOptions::default()).unwrap();
+    let shape = read_shape("box:2,1,1", &ShapeOptions::default()).unwrap();
     let opts = BasisOptions {
         kernels: 300,
         modes: 8,
@@ -294,9 +295,10 @@ fn box_pencil(
     freeform::sparse::SparseMatrix,
     freeform::sparse::SparseMatrix,
 ) {
-    use freeform::geometry::{Shape, ShapeOptions};
+    use freeform::geometry::ShapeOptions;
+    use freeform::io::read_shape;
     use freeform::precompute::{BasisOptions, Problem};
-    let shape = Shape::parse("box:5,1,1", &ShapeOptions::default()).unwrap();
+    let shape = read_shape("box:5,1,1", &ShapeOptions::default()).unwrap();
     let opts = BasisOptions {
         kernels,
         ..BasisOptions::default()

@@ -86,7 +86,10 @@ pub enum EigenError {
     #[error("eigen request invalid: {0}")]
     InvalidRequest(String),
     /// The matrix is too large for this solver (dense solver on big K).
-    #[error("the {solver} solver refuses K = {k} (limit {limit}); use --solver lobpcg")]
+    #[error(
+        "the {solver} solver refuses K = {k} (limit {limit}); use the LOBPCG solver \
+         (eigen::lobpcg::Lobpcg)"
+    )]
     TooLarge {
         /// Solver name.
         solver: &'static str,

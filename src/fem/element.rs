@@ -29,7 +29,8 @@
 
 use super::tetmesh::TetMesh;
 use super::FemError;
-use crate::elasticity::{self, Mat3};
+use crate::elasticity;
+use crate::linalg3::{cofactor3, Mat3};
 use crate::material::{Material, MaterialField, MaterialOverride};
 use crate::Point3;
 use rayon::prelude::*;
@@ -190,7 +191,7 @@ impl Elements {
             let x = tet.map(|i| mesh.nodes()[i as usize]);
             let dm: Mat3 = [0, 1, 2].map(|r| [0, 1, 2].map(|c| x[c + 1][r] - x[0][r]));
             // D_m^-1 = cof(D_m)^T / det(D_m), det(D_m) = 6 V > 0 for a valid mesh.
-            let cof = elasticity::cofactor3(&dm);
+            let cof = cofactor3(&dm);
             let mut g = [[0.0; 3]; 4];
             for a in 0..3 {
                 for c in 0..3 {

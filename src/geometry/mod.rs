@@ -4,14 +4,14 @@
 //! A shape answers three questions for the sampling stage: its bounding box, its volume (when
 //! it has a well-defined one) and, for solids, whether points are inside.
 //!
-//! - [`Shape`] is what the pipeline consumes; [`Shape::parse`] turns a CLI spec
-//!   (`box:LX,LY,LZ`, `sphere:R`, or a file path) into one.
+//! - [`Shape`] is what the pipeline consumes; [`ShapeSpec::parse`] parses a spec
+//!   (`box:LX,LY,LZ`, `sphere:R`, or a file path) without reading files, and
+//!   [`crate::io::read_shape`] turns a spec into a shape (reading the file it names).
 //! - [`TriMesh`] is a validated, outward-oriented triangle mesh whose inside test is the
 //!   generalized winding number, evaluated hierarchically by a [`WindingTree`].
 //! - [`PointCloud`] is a validated set of points (no inside test).
 //! - [`generate`] builds simple meshes (box, icosphere) for tests and examples.
 
-pub(crate) mod fileio;
 pub mod generate;
 mod mesh;
 mod pointcloud;
@@ -23,11 +23,12 @@ pub mod winding;
 pub use mesh::TriMesh;
 pub use pointcloud::PointCloud;
 pub use shape::Shape;
+pub use spec::{ShapeFileFormat, ShapeSpec};
 pub use topology::{weld_exact, EdgeReport};
 pub use winding::{WindingParams, WindingTree};
 
+pub use crate::error::GeometryError;
 use crate::Point3;
-use std::path::PathBuf;
 
 /// Axis-aligned bounding box, metres.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -85,101 +86,6 @@ pub struct ShapeOptions {
     /// oriented neighbouring triangles; inside is then decided by the generalized winding
     /// number >= 0.5 (see [`TriMesh`]). Off by default: such a mesh is an error.
     pub allow_open_mesh: bool,
-}
-
-/// Geometry errors: reading files and unusable shapes.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum GeometryError {
-    /// The shape spec is neither a primitive nor a supported file.
-    #[error(
-        "unknown shape `{0}`: use box:LX,LY,LZ, sphere:R, or a path to a .obj, .stl or .ply file"
-    )]
-    UnknownSpec(String),
-    /// A primitive spec has bad numbers.
-    #[error("bad shape `{spec}`: {reason}")]
-    BadPrimitive {
-        /// The spec as given.
-        spec: String,
-        /// What is wrong.
-        reason: String,
-    },
-    /// The file could not be opened or read.
-    #[error("cannot read {path}: {source}")]
-    Io {
-        /// File.
-        path: PathBuf,
-        /// Cause.
-        source: std::io::Error,
-    },
-    /// The file content is malformed.
-    #[error("{path}: {reason}")]
-    Parse {
-        /// File.
-        path: PathBuf,
-        /// What is wrong (with a line or element number where known).
-        reason: String,
-    },
-    /// The mesh is not closed.
-    #[error(
-        "{path}: mesh is not watertight ({boundary_edges} boundary edges, {nonmanifold_edges} \
-         non-manifold edges); repair it, or pass --allow-open-mesh to decide inside by winding number"
-    )]
-    NotWatertight {
-        /// File (`<in-memory mesh>` for meshes built with [`TriMesh::new`]).
-        path: PathBuf,
-        /// Edges used by exactly one triangle.
-        boundary_edges: usize,
-        /// Edges used by more than two triangles.
-        nonmanifold_edges: usize,
-    },
-    /// Two triangles that share an edge traverse it in the same direction, so the mesh has no
-    /// consistent inside and outside.
-    #[error(
-        "{path}: mesh orientation is inconsistent ({misoriented_edges} edges are traversed in the \
-         same direction by both of their triangles); fix the face winding, or pass \
-         --allow-open-mesh to use the winding number anyway"
-    )]
-    Misoriented {
-        /// File (`<in-memory mesh>` for meshes built with [`TriMesh::new`]).
-        path: PathBuf,
-        /// Manifold edges whose two triangles disagree on orientation.
-        misoriented_edges: usize,
-    },
-    /// The shape encloses no volume or has no points.
-    #[error("{0}")]
-    Degenerate(String),
-    /// An argument to a geometry function (e.g. a writer) is inconsistent.
-    #[error("invalid input: {0}")]
-    InvalidInput(String),
-}
-
-impl GeometryError {
-    /// Attach a file path to errors raised while building a shape from that file's content
-    /// (`NotWatertight`, `Misoriented`, `Degenerate`); other variants are returned unchanged.
-    pub fn with_path(self, path: &std::path::Path) -> GeometryError {
-        match self {
-            GeometryError::NotWatertight {
-                boundary_edges,
-                nonmanifold_edges,
-                ..
-            } => GeometryError::NotWatertight {
-                path: path.to_path_buf(),
-                boundary_edges,
-                nonmanifold_edges,
-            },
-            GeometryError::Misoriented {
-                misoriented_edges, ..
-            } => GeometryError::Misoriented {
-                path: path.to_path_buf(),
-                misoriented_edges,
-            },
-            GeometryError::Degenerate(msg) => {
-                GeometryError::Degenerate(format!("{}: {msg}", path.display()))
-            }
-            other => other,
-        }
-    }
 }
 
 /// Path label used in errors about meshes that did not come from a file.

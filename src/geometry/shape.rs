@@ -1,6 +1,6 @@
 //! The shape the pipeline samples: a primitive, a triangle mesh or a point cloud.
 
-use super::{spec, Aabb, GeometryError, PointCloud, ShapeOptions, TriMesh};
+use super::{Aabb, PointCloud, TriMesh};
 use crate::Point3;
 use rayon::prelude::*;
 
@@ -25,19 +25,6 @@ pub enum Shape {
 }
 
 impl Shape {
-    /// Parse a shape spec: `box:LX,LY,LZ` or `sphere:R` (positive finite numbers, metres;
-    /// prefix case-insensitive), or a path to a `.obj`, `.stl` (ASCII or binary) or `.ply`
-    /// file (extension case-insensitive). A PLY with a non-empty `face` element is a mesh,
-    /// otherwise a point cloud (Gaussian splat files included: only x, y, z are read).
-    ///
-    /// # Errors
-    /// [`GeometryError::BadPrimitive`] for missing, extra, non-numeric, non-finite, zero or
-    /// negative sizes; [`GeometryError::UnknownSpec`] for anything else that is not a
-    /// supported file name; the file readers' errors (`Io`, `Parse`, `NotWatertight`, ...).
-    pub fn parse(spec: &str, opts: &ShapeOptions) -> Result<Shape, GeometryError> {
-        spec::parse(spec, opts)
-    }
-
     /// Short name of the shape kind for reports: "box", "sphere", "mesh" or "point cloud".
     pub fn kind(&self) -> &'static str {
         match self {

@@ -1,37 +1,97 @@
-//! Parsing of shape specs: `box:LX,LY,LZ`, `sphere:R`, or a file path.
+//! Parsing of shape specs: `box:LX,LY,LZ`, `sphere:R`, or a path to a shape file. Parsing reads
+//! no file: [`crate::io::read_shape`] reads the files a spec names.
 
-use super::{GeometryError, Shape, ShapeOptions};
-use std::path::Path;
+use super::{GeometryError, Shape};
+use std::path::{Path, PathBuf};
 
-pub(super) fn parse(spec: &str, opts: &ShapeOptions) -> Result<Shape, GeometryError> {
-    let trimmed = spec.trim();
-    let lower = trimmed.to_ascii_lowercase();
-    if let Some(rest) = strip_prefix_ci(trimmed, "box:") {
-        let v = numbers(spec, rest, 3, "box:LX,LY,LZ (three edge lengths, metres)")?;
-        return Ok(Shape::Box {
-            size: [v[0], v[1], v[2]],
-        });
+/// A parsed shape spec: a primitive, or a shape file for [`crate::io`] to read
+/// ([`crate::io::read_shape_spec`]).
+#[derive(Debug, Clone, PartialEq)]
+pub enum ShapeSpec {
+    /// `box:LX,LY,LZ`: the box `[0, LX] x [0, LY] x [0, LZ]`, edge lengths in metres.
+    Box {
+        /// Edge lengths, metres, all positive.
+        size: [f64; 3],
+    },
+    /// `sphere:R`: the ball of radius R (metres) centred at the origin.
+    Sphere {
+        /// Radius, metres, positive.
+        radius: f64,
+    },
+    /// A path to a shape file of a supported format (by its extension, case-insensitive).
+    File {
+        /// The path as given (surrounding whitespace removed).
+        path: PathBuf,
+        /// The format its extension names.
+        format: ShapeFileFormat,
+    },
+}
+
+/// The shape file formats a spec may name, by extension (case-insensitive).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ShapeFileFormat {
+    /// `.obj`: a Wavefront OBJ triangle mesh ([`crate::io::obj`]).
+    Obj,
+    /// `.stl`: an ASCII or binary STL triangle mesh ([`crate::io::stl`]).
+    Stl,
+    /// `.ply`: a PLY mesh (non-empty `face` element) or point cloud, Gaussian splat files
+    /// included ([`crate::io::ply`]).
+    Ply,
+}
+
+impl ShapeSpec {
+    /// Parse a shape spec without reading any file: `box:LX,LY,LZ` or `sphere:R` (positive
+    /// finite numbers, metres; prefix case-insensitive), or a path to a `.obj`, `.stl` or `.ply`
+    /// file (extension case-insensitive).
+    ///
+    /// # Errors
+    /// [`GeometryError::BadPrimitive`] for missing, extra, non-numeric, non-finite, zero or
+    /// negative sizes; [`GeometryError::UnknownSpec`] for anything else that is not a
+    /// supported file name.
+    pub fn parse(spec: &str) -> Result<ShapeSpec, GeometryError> {
+        let trimmed = spec.trim();
+        let lower = trimmed.to_ascii_lowercase();
+        if let Some(rest) = strip_prefix_ci(trimmed, "box:") {
+            let v = numbers(spec, rest, 3, "box:LX,LY,LZ (three edge lengths, metres)")?;
+            return Ok(ShapeSpec::Box {
+                size: [v[0], v[1], v[2]],
+            });
+        }
+        if let Some(rest) = strip_prefix_ci(trimmed, "sphere:") {
+            let v = numbers(spec, rest, 1, "sphere:R (radius, metres)")?;
+            return Ok(ShapeSpec::Sphere { radius: v[0] });
+        }
+        if lower == "box" || lower == "sphere" {
+            return Err(bad(
+                spec,
+                format!("missing sizes: write {lower}:{}", usage(&lower)),
+            ));
+        }
+        let path = Path::new(trimmed);
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        let format = match ext.as_deref() {
+            Some("obj") => ShapeFileFormat::Obj,
+            Some("stl") => ShapeFileFormat::Stl,
+            Some("ply") => ShapeFileFormat::Ply,
+            _ => return Err(GeometryError::UnknownSpec(spec.to_string())),
+        };
+        Ok(ShapeSpec::File {
+            path: path.to_path_buf(),
+            format,
+        })
     }
-    if let Some(rest) = strip_prefix_ci(trimmed, "sphere:") {
-        let v = numbers(spec, rest, 1, "sphere:R (radius, metres)")?;
-        return Ok(Shape::Sphere { radius: v[0] });
-    }
-    if lower == "box" || lower == "sphere" {
-        return Err(bad(
-            spec,
-            format!("missing sizes: write {lower}:{}", usage(&lower)),
-        ));
-    }
-    let path = Path::new(trimmed);
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    match ext.as_deref() {
-        Some("obj") => Ok(Shape::Mesh(crate::io::obj::read_obj(path, opts)?)),
-        Some("stl") => Ok(Shape::Mesh(crate::io::stl::read_stl(path, opts)?)),
-        Some("ply") => crate::io::ply::read_ply(path, opts),
-        _ => Err(GeometryError::UnknownSpec(spec.to_string())),
+
+    /// The shape of a primitive spec; `None` for a file (read it with
+    /// [`crate::io::read_shape_spec`]).
+    pub fn primitive(&self) -> Option<Shape> {
+        match *self {
+            ShapeSpec::Box { size } => Some(Shape::Box { size }),
+            ShapeSpec::Sphere { radius } => Some(Shape::Sphere { radius }),
+            ShapeSpec::File { .. } => None,
+        }
     }
 }
 
@@ -121,7 +181,7 @@ mod tests {
     use super::*;
 
     fn reason(spec: &str) -> String {
-        match parse(spec, &ShapeOptions::default()) {
+        match ShapeSpec::parse(spec) {
             Err(GeometryError::BadPrimitive { reason, .. }) => reason,
             other => panic!("{spec}: expected BadPrimitive, got {other:?}"),
         }
@@ -129,15 +189,19 @@ mod tests {
 
     #[test]
     fn primitives_parse() {
-        let o = ShapeOptions::default();
+        let parse = ShapeSpec::parse;
         assert!(
-            matches!(parse("box:1,2,3.5", &o), Ok(Shape::Box { size }) if size == [1.0, 2.0, 3.5])
+            matches!(parse("box:1,2,3.5"), Ok(ShapeSpec::Box { size }) if size == [1.0, 2.0, 3.5])
         );
         assert!(
-            matches!(parse(" BOX: 1 , 2 ,3 ", &o), Ok(Shape::Box { size }) if size == [1.0, 2.0, 3.0])
+            matches!(parse(" BOX: 1 , 2 ,3 "), Ok(ShapeSpec::Box { size }) if size == [1.0, 2.0, 3.0])
         );
-        assert!(matches!(parse("sphere:0.25", &o), Ok(Shape::Sphere { radius }) if radius == 0.25));
-        assert!(matches!(parse("Sphere:1e-3", &o), Ok(Shape::Sphere { radius }) if radius == 1e-3));
+        assert!(matches!(parse("sphere:0.25"), Ok(ShapeSpec::Sphere { radius }) if radius == 0.25));
+        assert!(matches!(parse("Sphere:1e-3"), Ok(ShapeSpec::Sphere { radius }) if radius == 1e-3));
+        assert!(matches!(
+            parse("box:1,2,3.5").unwrap().primitive(),
+            Some(Shape::Box { size }) if size == [1.0, 2.0, 3.5]
+        ));
     }
 
     #[test]
@@ -161,10 +225,30 @@ mod tests {
     #[test]
     fn unknown_specs() {
         for spec in ["cube:1", "shape.txt", "noextension", "", "model.obj.bak"] {
-            match parse(spec, &ShapeOptions::default()) {
+            match ShapeSpec::parse(spec) {
                 Err(GeometryError::UnknownSpec(s)) => assert_eq!(s, spec),
                 other => panic!("{spec}: {other:?}"),
             }
         }
+    }
+
+    #[test]
+    fn file_specs_name_their_format_without_reading() {
+        assert_eq!(
+            ShapeSpec::parse(" /no/such/dir/Model.PLY ").unwrap(),
+            ShapeSpec::File {
+                path: PathBuf::from("/no/such/dir/Model.PLY"),
+                format: ShapeFileFormat::Ply,
+            }
+        );
+        let spec = ShapeSpec::parse("a.obj").unwrap();
+        assert!(matches!(
+            spec,
+            ShapeSpec::File {
+                format: ShapeFileFormat::Obj,
+                ..
+            }
+        ));
+        assert!(spec.primitive().is_none());
     }
 }

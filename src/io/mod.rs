@@ -1,12 +1,18 @@
 //! File formats: shape inputs (OBJ, STL, PLY meshes and point clouds), the basis file (.npz)
 //! and matrix exchange (MatrixMarket, PETSc binary).
+//!
+//! [`read_shape`] is the entry for shapes: it parses a spec ([`crate::geometry::ShapeSpec`]) and
+//! reads the file it names with the reader of its format.
 
 pub mod basis;
 pub mod matrix_market;
 pub mod obj;
 pub mod ply;
+mod shape;
 pub mod stl;
 pub mod vtk;
+
+pub use shape::{read_shape, read_shape_spec};
 
 use crate::geometry::GeometryError;
 use std::path::{Path, PathBuf};

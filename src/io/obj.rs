@@ -17,7 +17,7 @@
 //! - Coordinates pass through `tobj`'s single-precision `Float` (its `use_f64` feature is
 //!   off in this build), so they are rounded to f32.
 
-use crate::geometry::fileio::{
+use super::shape::{
     create, finish, first_non_finite, io_error, mesh_from_file_data, parse_error, read_nonempty,
 };
 use crate::geometry::{GeometryError, ShapeOptions, TriMesh};

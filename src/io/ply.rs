@@ -19,9 +19,7 @@
 //! Writing: [`write_ply_points`] (binary little endian, `float` properties) and
 //! [`write_ply_points_with`] / [`write_ply_mesh`] with explicit [`PlyWriteOptions`].
 
-use crate::geometry::fileio::{
-    create, finish, first_non_finite, io_error, mesh_from_file_data, parse_error,
-};
+use super::shape::{create, finish, first_non_finite, io_error, mesh_from_file_data, parse_error};
 use crate::geometry::{GeometryError, PointCloud, Shape, ShapeOptions};
 use crate::Point3;
 use ply_rs_bw::parser::{Parser, Reader};

@@ -9,7 +9,7 @@
 //! byte 80 is binary; otherwise a file starting with `solid` is ASCII; anything else is read as
 //! binary and rejected with the size mismatch.
 
-use crate::geometry::fileio::{create, finish, io_error, mesh_from_file_data, parse_error};
+use super::shape::{create, finish, io_error, mesh_from_file_data, parse_error, read_nonempty};
 use crate::geometry::{GeometryError, ShapeOptions, TriMesh};
 use crate::Point3;
 use std::io::{Cursor, Write};
@@ -38,7 +38,7 @@ pub fn read_stl(path: &Path, opts: &ShapeOptions) -> Result<TriMesh, GeometryErr
 /// Read an STL file as an unwelded triangle soup: vertices (3F x 3, metres, `[3t, 3t+1, 3t+2]`
 /// are triangle t) and the trivial triangles. Errors as [`read_stl`] minus mesh validation.
 pub fn read_stl_soup(path: &Path) -> Result<(Vec<Point3>, Vec<[u32; 3]>), GeometryError> {
-    let bytes = crate::geometry::fileio::read_nonempty(path)?;
+    let bytes = read_nonempty(path)?;
     soup_from_bytes(path, bytes)
 }
 

@@ -47,7 +47,8 @@ fn check(points: &[Point3], k: usize) -> Result<()> {
             "kernels",
             k,
             format!(
-                "only {} integration points to choose centres from; use fewer kernels or more points (--points / --spacing)",
+                "only {} integration points to choose centres from; use fewer kernels or more points \
+                 (Resolution::Count / Resolution::Spacing)",
                 points.len()
             ),
         ));

@@ -17,7 +17,8 @@
 //!
 //! Limitation: the coverage repair of [`crate::precompute`] (enlarging supports around badly
 //! covered points) needs every point's shape functions, so it is not run here; a coverage
-//! failure on any rank is an error on all ranks (run without MPI, or raise `--support`).
+//! failure on any rank is an error on all ranks (run without MPI, or raise
+//! [`BasisOptions::support`](super::BasisOptions::support)'s factor).
 
 use super::assembly::assemble;
 use super::centers::morton_order;
@@ -124,7 +125,8 @@ pub fn build_basis_mpi(
             opts.support.factor,
             format!(
                 "{} point(s) on other MPI ranks are not covered by enough kernels; the \
-                 distributed run does not repair coverage: raise --support or run without MPI",
+                 distributed run does not repair coverage: raise the support factor \
+                 (BasisOptions::support.factor) or run without MPI",
                 failed[0]
             ),
         ));

@@ -35,7 +35,7 @@ pub struct BasisRun {
 /// ```
 /// use freeform::geometry::Shape;
 /// use freeform::precompute::{build_basis, BasisOptions};
-/// let shape = Shape::parse("box:2,1,1", &Default::default())?;
+/// let shape = freeform::io::read_shape("box:2,1,1", &Default::default())?;
 /// let opts = BasisOptions { kernels: 60, modes: 4, ..BasisOptions::default() };
 /// let run = build_basis(&shape, &opts, &freeform::progress::Silent)?;
 /// assert_eq!(run.basis.modes(), 5); // m + 1 handles, the first the constant mode
@@ -60,7 +60,7 @@ pub fn build_basis(
 /// use freeform::geometry::Shape;
 /// use freeform::precompute::{BasisOptions, Problem};
 /// use freeform::eigen::dense::DenseSolver;
-/// let shape = Shape::parse("sphere:0.5", &Default::default())?;
+/// let shape = freeform::io::read_shape("sphere:0.5", &Default::default())?;
 /// let opts = BasisOptions { kernels: 50, modes: 3, ..BasisOptions::default() };
 /// let problem = Problem::from_shape(&shape, &opts, &freeform::progress::Silent)?;
 /// assert_eq!(problem.matrices().hessian.nrows(), 50); // K x K

@@ -64,7 +64,8 @@ pub struct ModesReport {
     pub eigen: EigenInfo,
     /// Tolerance asked for.
     pub tol: f64,
-    /// Warnings worth a look (none means none). `--strict` turns them into errors.
+    /// Warnings worth a look (none means none). Strict mode ([`crate::error::check_strict`])
+    /// turns them into errors.
     pub warnings: Vec<String>,
     /// Conditioning and convergence monitors (the same keys as in `run` and `beam`).
     pub monitors: Monitors,
@@ -93,7 +94,8 @@ pub fn check_quality(report: &mut ModesReport) {
         w.push(format!(
             "smallest moment-matrix reciprocal condition number {rc:.1e} is below {RCOND_WARNING:.0e}: \
              some points are covered by nearly coplanar kernels (thin features or too few kernels \
-             across them); use more kernels or more integration points there, or a larger --support"
+             across them); use more kernels or more integration points there, or a larger support \
+             factor (BasisOptions::support.factor)"
         ));
     }
     if report.reproducing_error > REPRODUCING_WARNING {

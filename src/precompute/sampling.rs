@@ -257,7 +257,9 @@ pub fn sample_shape(
                 Resolution::Count(n) if n < all.len() => downsample(all, n),
                 Resolution::Count(_) => all.to_vec(),
                 Resolution::Spacing(h) => {
-                    return Err(Error::param("spacing", h, "a point cloud's points are its integration points; use --points N to downsample"))
+                    let why = "a point cloud's points are its integration points; give a point \
+                               count (Resolution::Count) to downsample";
+                    return Err(Error::param("spacing", h, why));
                 }
             };
             let (volumes, _) = cloud_volumes(&points, cloud)?;

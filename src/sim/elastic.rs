@@ -11,7 +11,8 @@
 //! matrix products over chunks of points (see [`ElasticTerm::hessian`] for why the energy's
 //! structure does not reduce that work).
 
-use crate::elasticity::{hessian, hessian_psd, Mat3, Mat9};
+use crate::elasticity::{hessian, hessian_psd, Mat9};
+use crate::linalg3::Mat3;
 use crate::precompute::skinning::SkinningWeights;
 use crate::sim::cubature::Cubature;
 use crate::sim::lanes::{LaneData, Partial, LANES};

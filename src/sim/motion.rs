@@ -1,7 +1,7 @@
 //! Prescribed rigid motions for kinematic boundary conditions: x(t) = pivot + R(t)(X - pivot)
 //! + translation(t).
 
-use crate::elasticity::Mat3;
+use crate::linalg3::Mat3;
 use crate::{Error, Point3, Result};
 use serde::{Deserialize, Serialize};
 

@@ -1,6 +1,7 @@
 //! `freeform beam bend|twist`: the reduced model against the cached FEM reference on the
 //! standard beam (design.md section 3).
 
+use crate::messages::{localize, Front};
 use crate::{emit, set_threads, CliResult};
 use clap::{Args, ValueEnum};
 use freeform::benchmark::{compare_beam, ReducedBeamOptions};
@@ -168,7 +169,7 @@ pub fn run(args: BeamArgs) -> CliResult {
             if r.fem_cached { ", cached" } else { "" }
         ))?;
         for w in &r.warnings {
-            emit(&format!("  warning: {w}\n"))?;
+            emit(&format!("  warning: {}\n", localize(w, Front::Flags)))?;
         }
     }
     freeform::error::check_strict(args.strict, &r.warnings)?;

@@ -3,12 +3,14 @@
 mod beam;
 mod compare;
 mod export;
+mod messages;
 mod modes;
 mod problem;
 mod run;
 mod sweep;
 
 use clap::{Parser, Subcommand};
+use messages::{error_message, Front};
 use std::process::ExitCode;
 
 /// What every subcommand returns: errors are printed by `main` and give exit code 1.
@@ -111,12 +113,17 @@ fn dispatch(command: Command) -> CliResult {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // Library messages name options by their library names; print ours in their place.
+    let front = match cli.command {
+        Command::Run(_) => Front::Scene,
+        _ => Front::Flags,
+    };
     // A panic must not skip PETSc/MPI finalization (mpirun would report an abort).
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| dispatch(cli.command)));
     let code = match result {
         Ok(Ok(())) => ExitCode::SUCCESS,
         Ok(Err(e)) => {
-            eprintln!("error: {e}");
+            eprintln!("error: {}", error_message(&*e, front));
             ExitCode::FAILURE
         }
         // The panic hook has printed the message.
@@ -129,7 +136,7 @@ fn main() -> ExitCode {
     };
     #[cfg(feature = "slepc")]
     if let Err(e) = freeform::eigen::slepc::finalize() {
-        eprintln!("error: {e}");
+        eprintln!("error: {}", error_message(&e, front));
         return ExitCode::FAILURE;
     }
     code

@@ -1,10 +1,11 @@
 //! `freeform modes`: compute skinning eigenmodes and write a basis file.
 
+use crate::messages::{localize, Front};
 use crate::problem::BasisArgs;
 use crate::{emit, set_threads, CliResult};
 use clap::{Args, ValueEnum};
 use freeform::eigen::{EigenRequest, Eigensolver};
-use freeform::geometry::Shape;
+use freeform::io::read_shape;
 use freeform::precompute::{BasisOptions, Problem, SolverChoice};
 use freeform::progress::{Progress, Silent, TerminalProgress};
 use std::io::IsTerminal;
@@ -83,7 +84,7 @@ pub fn run(args: ModesArgs) -> CliResult {
     // Check the parameters before reading a possibly large file.
     opts.validate()?;
     let solver = make_solver(args.solver, &args.slepc, &args.petsc_options, opts.solver)?;
-    let shape = Shape::parse(&shape_arg, &args.basis.shape_options())?;
+    let shape = read_shape(&shape_arg, &args.basis.shape_options())?;
     let bar = TerminalProgress::new();
     let progress: &dyn Progress = if std::io::stderr().is_terminal() {
         &bar
@@ -111,7 +112,7 @@ pub fn run(args: ModesArgs) -> CliResult {
     });
     if args.strict && !run.report.warnings.is_empty() {
         for w in &run.report.warnings {
-            eprintln!("warning: {w}");
+            eprintln!("warning: {}", localize(w, Front::Flags));
         }
     }
     freeform::error::check_strict(args.strict, &run.report.warnings)?;
@@ -147,7 +148,11 @@ fn summary(r: &freeform::precompute::ModesReport, shape: &str, out: &std::path::
         ),
         format!("  peak memory {:.1} MB", r.peak_memory_bytes as f64 / 1e6),
     ];
-    lines.extend(r.warnings.iter().map(|w| format!("  warning: {w}")));
+    lines.extend(
+        r.warnings
+            .iter()
+            .map(|w| format!("  warning: {}", localize(w, Front::Flags))),
+    );
     lines.push(format!("  basis written to {}", out.display()));
     lines.join("\n") + "\n"
 }

@@ -3,6 +3,7 @@
 
 use clap::{Args, ValueEnum};
 use freeform::geometry::{Shape, ShapeOptions};
+use freeform::io::read_shape;
 use freeform::material::Material;
 use freeform::precompute::rkpm::{KernelType, SupportOptions};
 use freeform::precompute::sampling::{CloudVolumeOptions, Resolution};
@@ -125,7 +126,7 @@ impl ShapeArgs {
     pub fn build(&self) -> Result<(Shape, BasisOptions), Box<dyn std::error::Error>> {
         let opts = self.basis.options();
         opts.validate()?;
-        let shape = Shape::parse(&self.shape, &self.basis.shape_options())?;
+        let shape = read_shape(&self.shape, &self.basis.shape_options())?;
         Ok((shape, opts))
     }
 }

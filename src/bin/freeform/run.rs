@@ -1,5 +1,6 @@
 //! `freeform run`: simulate a scene file and write frames for ParaView.
 
+use crate::messages::{localize, Front};
 use crate::{emit, set_threads, CliResult};
 use clap::Args;
 use freeform::progress::{Progress, Silent, TerminalProgress};
@@ -107,7 +108,7 @@ fn text_summary(s: &RunSummary, args: &RunArgs) -> String {
     lines.extend(
         s.warnings[..shown]
             .iter()
-            .map(|w| format!("  warning: {w}")),
+            .map(|w| format!("  warning: {}", localize(w, Front::Scene))),
     );
     if s.warnings.len() > shown {
         lines.push(format!(

@@ -4,6 +4,7 @@
 //! `error_vs_precompute.png`, `error_vs_step.png` (and `sweep.json` with `--json`) to `--out`.
 
 use crate::beam::{progress, FemArgs, HessianArg, TestArg};
+use crate::messages::{error_message, Front};
 use crate::{emit, set_threads, CliResult};
 use clap::Args;
 use freeform::benchmark::sweep::{
@@ -143,7 +144,7 @@ pub fn run(args: SweepArgs) -> CliResult {
                     String::new()
                 }
             ),
-            Err(e) => eprintln!("{what}: FAILED: {e}"),
+            Err(e) => eprintln!("{what}: FAILED: {}", error_message(&e, Front::Flags)),
         }
     };
     let bar = progress();
