@@ -70,7 +70,7 @@ impl SceneObject {
             source: Box::new(e),
         };
         let (shape_spec, file) = resolve_shape(&spec.shape, &settings.base_dir);
-        let shape = Shape::parse(
+        let shape = crate::io::read_shape(
             &shape_spec,
             &ShapeOptions {
                 allow_open_mesh: spec.allow_open_mesh,
