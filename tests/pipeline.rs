@@ -14,7 +14,7 @@ use freeform::material::{Material, MaterialField, MaterialOverride, Region};
 use freeform::precompute::assembly::assemble;
 use freeform::precompute::rkpm::{evaluate, KernelType, Kernels, ShapeFunctionOptions};
 use freeform::precompute::sampling::{IntegrationPoints, Resolution};
-use freeform::precompute::{build_basis, BasisOptions, Problem, SolverChoice};
+use freeform::precompute::{build_basis, BasisOptions, Problem, SolverConfig};
 use freeform::progress::Silent;
 use freeform::Point3;
 use std::f64::consts::PI;
@@ -29,7 +29,7 @@ fn small_opts(k: usize, m: usize, n: usize) -> BasisOptions {
         kernels: k,
         modes: m,
         resolution: Some(Resolution::Count(n)),
-        solver: SolverChoice::Dense,
+        solver: SolverConfig::Dense,
         ..BasisOptions::default()
     }
 }
@@ -227,7 +227,7 @@ fn right_half_gradient_share(overrides: Vec<MaterialOverride>) -> f64 {
     let opts = BasisOptions {
         kernels: 300,
         modes: 2,
-        solver: SolverChoice::Dense,
+        solver: SolverConfig::Dense,
         ..BasisOptions::default()
     };
     let run = Problem::from_points(ip.clone(), mat, &opts, &Silent)

@@ -7,7 +7,7 @@ use common::{held_left, Rng};
 use freeform::geometry::{Shape, ShapeOptions};
 use freeform::material::{Material, Region};
 use freeform::precompute::sampling::Resolution;
-use freeform::precompute::{build_basis, BasisOptions, BasisRun, SolverChoice};
+use freeform::precompute::{build_basis, BasisOptions, BasisRun, SolverConfig};
 use freeform::progress::Silent;
 use freeform::sim::elastic::{Precision, Projection};
 use freeform::sim::motion::{AxisAngle, Motion};
@@ -24,7 +24,7 @@ fn bar(kernels: usize, modes: usize, points: usize) -> BasisRun {
         kernels,
         modes,
         resolution: Some(Resolution::Count(points)),
-        solver: SolverChoice::Dense,
+        solver: SolverConfig::Dense,
         material: Material {
             youngs: 1e5,
             poisson: 0.4,

@@ -10,7 +10,8 @@
 //! ```
 //!
 //! [`build_basis`] runs it all; [`Problem`] splits it at the eigensolve (assemble once, solve
-//! with any [`crate::eigen::Eigensolver`], as `freeform compare` does); the stages are public
+//! with the [`SolverConfig`] of the options or with any [`crate::eigen::Eigensolver`], as
+//! `freeform compare` does); the stages are public
 //! modules so a caller can enter the flow anywhere. `distributed` (feature `slepc`) runs the
 //! same stages across MPI ranks.
 
@@ -33,4 +34,4 @@ pub use quality::{
     RCOND_WARNING, REPRODUCING_WARNING,
 };
 pub use sampling::{sample_shape, sample_with_material};
-pub use solver::SolverChoice;
+pub use solver::SolverConfig;

@@ -2,7 +2,7 @@
 
 use super::rkpm::{KernelType, ShapeFunctionOptions, SupportOptions};
 use super::sampling::{CloudVolumeOptions, Resolution};
-use super::solver::SolverChoice;
+use super::solver::SolverConfig;
 use crate::material::{Material, MaterialOverride};
 use crate::{Error, Result};
 use serde::Serialize;
@@ -27,8 +27,8 @@ pub struct BasisOptions {
     pub material: Material,
     /// Region overrides applied in order on top of `material`.
     pub overrides: Vec<MaterialOverride>,
-    /// Eigensolver. Default LOBPCG.
-    pub solver: SolverChoice,
+    /// Eigensolver and its settings. Default native LOBPCG at its default settings.
+    pub solver: SolverConfig,
     /// Relative eigen-residual tolerance. Default 1e-8.
     pub tol: f64,
     /// Eigensolver iteration cap. Default 1000.
@@ -51,7 +51,7 @@ impl Default for BasisOptions {
             shape_functions: ShapeFunctionOptions::default(),
             material: Material::default(),
             overrides: Vec::new(),
-            solver: SolverChoice::Lobpcg,
+            solver: SolverConfig::default(),
             tol: 1e-8,
             max_iter: 1000,
             cloud: CloudVolumeOptions::default(),

@@ -5,10 +5,8 @@ use crate::problem::ShapeArgs;
 use crate::{emit, set_threads, CliResult};
 use clap::Args;
 use freeform::eigen::compare::{max_eigenvalue_rel_diff, max_subspace_angle};
-use freeform::eigen::dense::DenseSolver;
-use freeform::eigen::lobpcg::{Lobpcg, LobpcgOptions};
 use freeform::eigen::{EigenRequest, EigenSolution, Eigensolver};
-use freeform::precompute::Problem;
+use freeform::precompute::{Problem, SolverConfig};
 use freeform::progress::Silent;
 use freeform::report::Stopwatch;
 use serde::Serialize;
@@ -77,29 +75,29 @@ struct Report {
     max_subspace_angle: f64,
 }
 
-fn solvers(args: &CompareArgs) -> Result<Vec<Box<dyn Eigensolver>>, Box<dyn std::error::Error>> {
-    let mut out: Vec<Box<dyn Eigensolver>> = Vec::new();
+/// The solvers to compare, in order: native LOBPCG, the SLEPc configurations, dense.
+fn solvers(args: &CompareArgs) -> Result<Vec<SolverConfig>, Box<dyn std::error::Error>> {
+    let mut out = Vec::new();
     if !args.no_native {
-        out.push(Box::new(Lobpcg::new(LobpcgOptions::default())));
+        out.push(SolverConfig::lobpcg());
     }
     #[cfg(feature = "slepc")]
     {
-        use freeform::eigen::slepc::{SlepcOptions, SlepcSolver};
         let specs: Vec<String> = if args.slepc.is_empty() {
             vec!["ks-sinvert".into(), "lobpcg-gamg".into()]
         } else {
             args.slepc.clone()
         };
         for spec in specs.iter().filter(|s| !s.trim().is_empty()) {
-            out.push(Box::new(SlepcSolver::new(SlepcOptions::parse(spec)?)));
+            out.push(SolverConfig::slepc(spec, "")?);
         }
     }
     #[cfg(not(feature = "slepc"))]
     if !args.slepc.is_empty() {
-        return Err(crate::NO_SLEPC.into());
+        return Err(crate::no_slepc());
     }
     if args.dense {
-        out.push(Box::new(DenseSolver));
+        out.push(SolverConfig::Dense);
     }
     if out.is_empty() {
         return Err("nothing to compare: no solver selected".into());
@@ -110,7 +108,10 @@ fn solvers(args: &CompareArgs) -> Result<Vec<Box<dyn Eigensolver>>, Box<dyn std:
 pub fn run(args: CompareArgs) -> CliResult {
     set_threads(args.threads)?;
     let (shape, opts) = args.shape.build()?;
-    let solvers = solvers(&args)?;
+    let solvers = solvers(&args)?
+        .iter()
+        .map(SolverConfig::build)
+        .collect::<Result<Vec<Box<dyn Eigensolver>>, _>>()?;
     let clock = Stopwatch::start();
     let problem = Problem::from_shape(&shape, &opts, &Silent)?;
     let matrices_s = clock.elapsed();
