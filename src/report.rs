@@ -5,7 +5,7 @@ use serde::Serialize;
 use std::time::Instant;
 
 /// Wall time per pipeline stage, seconds.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, serde::Deserialize)]
 pub struct Timings {
     /// Shape reading plus integration points and volumes.
     pub sampling: f64,
@@ -107,7 +107,10 @@ pub struct Monitors {
 
 impl Monitors {
     /// The precomputation monitors stored in a basis file's metadata (the `report.monitors`
-    /// entry written by the scene cache); all `None` when absent.
+    /// entry written by the scene cache); all `None` when absent. Superseded by
+    /// `io::basis::BasisMetadata::monitors` (this module imports no other); kept for
+    /// `scene::run` until it switches, then removed.
+    #[doc(hidden)]
     pub fn from_metadata(metadata: &serde_json::Value) -> Self {
         metadata
             .get("report")

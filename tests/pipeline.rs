@@ -312,12 +312,12 @@ fn weights_are_orthonormal_and_basis_file_round_trips() {
     }
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("basis.npz");
-    freeform::io::basis::save(&path, &run.basis, &serde_json::json!({"k": 150})).unwrap();
+    freeform::io::basis::save(&path, &run.basis, &serde_json::json!({"k": 150}).into()).unwrap();
     let back = freeform::io::basis::load(&path).unwrap();
     assert_eq!(back.basis.kernels, run.basis.kernels);
     assert_eq!(back.basis.eigenvalues, run.basis.eigenvalues);
     assert_eq!(back.basis.coefficients, run.basis.coefficients);
-    assert_eq!(back.metadata["k"], 150);
+    assert_eq!(back.metadata.extra["k"], 150);
     // Truncated and foreign files are errors, not panics.
     let bytes = std::fs::read(&path).unwrap();
     std::fs::write(&path, &bytes[..bytes.len() / 2]).unwrap();

@@ -47,8 +47,10 @@ impl Default for EigenRequest {
     }
 }
 
-/// Diagnostics that come back with a solution.
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+/// Diagnostics that come back with a solution. Deserializing (a report stored in basis
+/// metadata) takes the default for a missing field.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
 pub struct EigenInfo {
     /// Solver name ("lobpcg", "dense").
     pub solver: String,

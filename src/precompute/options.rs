@@ -8,7 +8,8 @@ use crate::{Error, Result};
 use serde::Serialize;
 
 /// Every knob of the precomputation, with documented defaults (see docs/guide.md).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+/// Deserializing (basis metadata) needs every field: missing ones are not invented.
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
 #[must_use]
 pub struct BasisOptions {
     /// Number of kernels K. Default 1000 (the paper's choice for the beam).

@@ -5,6 +5,7 @@ use crate::{emit, set_threads, CliResult};
 use clap::{Args, ValueEnum};
 use freeform::eigen::EigenRequest;
 use freeform::geometry::Shape;
+use freeform::io::basis::BasisMetadata;
 use freeform::precompute::{BasisOptions, Problem, SolverConfig};
 use freeform::progress::{Progress, Silent, TerminalProgress};
 use std::io::IsTerminal;
@@ -91,15 +92,7 @@ pub fn run(args: ModesArgs) -> CliResult {
     if !crate::is_root_rank(&opts.solver)? {
         return Ok(());
     }
-    let metadata = serde_json::json!({
-        "freeform_version": env!("CARGO_PKG_VERSION"),
-        "shape": shape_arg,
-        "options": opts,
-        "points": run.report.points,
-        "volume": run.report.volume,
-        "max_relative_residual": run.report.max_relative_residual,
-        "orthonormality_error": run.report.orthonormality_error,
-    });
+    let metadata = BasisMetadata::for_modes(&shape_arg, &opts, &run.report);
     if args.strict && !run.report.warnings.is_empty() {
         for w in &run.report.warnings {
             eprintln!("warning: {w}");
