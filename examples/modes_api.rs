@@ -57,7 +57,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     freeform::io::basis::save(
         &out,
         &run.basis,
-        &serde_json::json!({ "example": "modes_api" }),
+        &serde_json::json!({ "example": "modes_api" }).into(),
     )?;
     println!("basis written to {}", out.display());
     Ok(())

@@ -5,7 +5,7 @@ use serde::Serialize;
 use std::time::Instant;
 
 /// Wall time per pipeline stage, seconds.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, serde::Deserialize)]
 pub struct Timings {
     /// Shape reading plus integration points and volumes.
     pub sampling: f64,
@@ -54,6 +54,20 @@ pub fn peak_memory_bytes() -> Option<u64> {
     Some(kb * 1024)
 }
 
+/// User + system CPU seconds of this process so far (all threads), from /proc/self/stat
+/// (Linux; clock ticks of 1/100 s), or None elsewhere. Less sensitive than wall time to other
+/// processes sharing the cores.
+pub fn process_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the command name (which may contain spaces) end with ')'.
+    let rest = stat.rsplit_once(')')?.1;
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    // utime and stime are fields 14 and 15 of the whole line: 12 and 13 after ')'.
+    let utime: f64 = f.get(11)?.parse().ok()?;
+    let stime: f64 = f.get(12)?.parse().ok()?;
+    Some((utime + stime) / 100.0)
+}
+
 /// Conditioning and convergence monitors, with the same keys in every report (`modes`,
 /// `run`, `beam`; issue #6). A field is `None` when its stage did not run in this process
 /// and was not recorded (for example a basis loaded from an old cache file).
@@ -89,16 +103,4 @@ pub struct Monitors {
     pub line_search_cutbacks: Option<usize>,
     /// Smallest det F at any cubature point at the end of any step (<= 0: inverted).
     pub min_det: Option<f64>,
-}
-
-impl Monitors {
-    /// The precomputation monitors stored in a basis file's metadata (the `report.monitors`
-    /// entry written by the scene cache); all `None` when absent.
-    pub fn from_metadata(metadata: &serde_json::Value) -> Self {
-        metadata
-            .get("report")
-            .and_then(|r| r.get("monitors"))
-            .and_then(|m| serde_json::from_value(m.clone()).ok())
-            .unwrap_or_default()
-    }
 }

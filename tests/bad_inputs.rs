@@ -560,7 +560,7 @@ fn damaged_basis_files_are_rejected() {
     let dir = tempfile::tempdir().unwrap();
     let good = dir.path().join("good.npz");
     let basis = tiny_basis(KernelType::Cubic, 0.0);
-    freeform::io::basis::save(&good, &basis, &serde_json::json!({"test": true})).unwrap();
+    freeform::io::basis::save(&good, &basis, &serde_json::json!({"test": true}).into()).unwrap();
     let bytes = std::fs::read(&good).unwrap();
     assert!(freeform::io::basis::load(&good).is_ok());
     let bad = dir.path().join("bad.npz");
@@ -646,7 +646,7 @@ fn basis_array_beyond_its_limit_is_rejected() {
     let dir = tempfile::tempdir().unwrap();
     let good = dir.path().join("good.npz");
     let original = tiny_basis(KernelType::Quartic, 0.25);
-    basis::save(&good, &original, &serde_json::json!({"test": true})).unwrap();
+    basis::save(&good, &original, &serde_json::json!({"test": true}).into()).unwrap();
     let entries = zip_entries(&std::fs::read(&good).unwrap());
     let load = |name: &str, archive: &[u8]| {
         let path = dir.path().join(name);
@@ -657,7 +657,7 @@ fn basis_array_beyond_its_limit_is_rejected() {
         assert_eq!(loaded.basis.kernels, original.kernels, "{what}");
         assert_eq!(loaded.basis.coefficients, original.coefficients, "{what}");
         assert_eq!(loaded.basis.eigenvalues, original.eigenvalues, "{what}");
-        assert_eq!(loaded.metadata["test"], true, "{what}");
+        assert_eq!(loaded.metadata.extra["test"], true, "{what}");
     };
     same(basis::load(&good).unwrap(), "stored, as saved");
     same(

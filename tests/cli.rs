@@ -67,6 +67,19 @@ fn modes_json_report_has_every_key() {
     assert!(out.exists());
     let back = freeform::io::basis::load(&out).unwrap();
     assert_eq!(back.basis.modes(), 7);
+    // The metadata reads back typed: the options that made the basis and the run's figures.
+    let meta = &back.metadata;
+    assert_eq!(meta.shape.as_deref(), Some("box:2,1,1"));
+    let options = meta.options.as_ref().expect("typed options");
+    assert_eq!((options.kernels, options.modes), (200, 6));
+    assert_eq!(options.solver, freeform::precompute::SolverConfig::lobpcg());
+    assert_eq!(back.raw_metadata["options"]["solver"], "lobpcg");
+    assert_eq!(meta.points, r["points"].as_u64().map(|n| n as usize));
+    assert_eq!(
+        meta.max_relative_residual,
+        r["max_relative_residual"].as_f64()
+    );
+    assert!(meta.extra.is_empty(), "{:?}", meta.extra);
 }
 
 fn assert_fails(args: &[&str], needle: &str, out: &Path) {

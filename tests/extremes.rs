@@ -22,7 +22,7 @@ use freeform::material::{Material, MaterialField, MaterialOverride, Region};
 use freeform::precompute::assembly::assemble;
 use freeform::precompute::rkpm::{evaluate, ShapeFunctionOptions};
 use freeform::precompute::sampling::{IntegrationPoints, Resolution};
-use freeform::precompute::{build_basis, BasisOptions, BasisRun, Problem, SolverChoice};
+use freeform::precompute::{build_basis, BasisOptions, BasisRun, Problem, SolverConfig};
 use freeform::progress::Silent;
 use freeform::sim::motion::Motion;
 use freeform::sim::newton::SolveReport;
@@ -32,7 +32,7 @@ use freeform::{Error, Point3};
 use messages::{error_message, Front};
 use std::f64::consts::PI;
 
-fn opts(k: usize, m: usize, n: usize, material: Material, solver: SolverChoice) -> BasisOptions {
+fn opts(k: usize, m: usize, n: usize, material: Material, solver: SolverConfig) -> BasisOptions {
     BasisOptions {
         kernels: k,
         modes: m,
@@ -141,7 +141,7 @@ fn poisson_ratio_from_0_to_0_4999_scales_the_spectrum_exactly() {
         .map(|&nu| {
             basis(
                 "box:2,1,1",
-                &opts(150, 8, 6000, rubber(nu), SolverChoice::Lobpcg),
+                &opts(150, 8, 6000, rubber(nu), SolverConfig::lobpcg()),
             )
             .unwrap()
         })
@@ -174,7 +174,7 @@ fn poisson_ratio_from_0_to_0_4999_scales_the_spectrum_exactly() {
 fn youngs_modulus_from_1e3_to_1e11_scales_eigenvalues_linearly() {
     let base = basis(
         "box:2,1,1",
-        &opts(120, 6, 4000, rubber(0.3), SolverChoice::Lobpcg),
+        &opts(120, 6, 4000, rubber(0.3), SolverConfig::lobpcg()),
     )
     .unwrap();
     for e in [1e3, 1e7, 1e11] {
@@ -182,7 +182,11 @@ fn youngs_modulus_from_1e3_to_1e11_scales_eigenvalues_linearly() {
             youngs: e,
             ..rubber(0.3)
         };
-        let run = basis("box:2,1,1", &opts(120, 6, 4000, mat, SolverChoice::Lobpcg)).unwrap();
+        let run = basis(
+            "box:2,1,1",
+            &opts(120, 6, 4000, mat, SolverConfig::lobpcg()),
+        )
+        .unwrap();
         assert_healthy(&run, &format!("E = {e}"));
         for i in 1..7 {
             let predicted = base.report.eigenvalues[i] * e / 1e5;
@@ -196,7 +200,7 @@ fn youngs_modulus_from_1e3_to_1e11_scales_eigenvalues_linearly() {
 }
 
 /// Soft box with a stiff ball (or the reverse) at contrast `c`: E_ball = c E_box.
-fn inclusion(c: f64, k: usize, solver: SolverChoice, tol: f64) -> BasisRun {
+fn inclusion(c: f64, k: usize, solver: SolverConfig, tol: f64) -> BasisRun {
     let mut o = opts(k, 8, 5000, rubber(0.3), solver);
     o.tol = tol;
     o.overrides = vec![MaterialOverride {
@@ -228,8 +232,8 @@ fn material_contrast_up_to_1e6_matches_the_dense_solver() {
         (1e-3, 1e-8, 1e-10, 1e-6),
         (1e-6, 1e-8, 1e-10, 1e-6),
     ] {
-        let lob = inclusion(c, 150, SolverChoice::Lobpcg, tol);
-        let dense = inclusion(c, 150, SolverChoice::Dense, tol);
+        let lob = inclusion(c, 150, SolverConfig::lobpcg(), tol);
+        let dense = inclusion(c, 150, SolverConfig::Dense, tol);
         assert_healthy(&lob, &format!("contrast {c}"));
         assert_healthy(&dense, &format!("contrast {c}, dense"));
         let d =
@@ -249,7 +253,7 @@ fn material_contrast_up_to_1e6_matches_the_dense_solver() {
 #[test]
 fn a_sharp_interface_at_contrast_1e6_keeps_the_soft_side_moving() {
     // Left half soft, right half 1e6 times stiffer: the low modes live in the soft half.
-    let mut o = opts(150, 6, 6000, rubber(0.3), SolverChoice::Lobpcg);
+    let mut o = opts(150, 6, 6000, rubber(0.3), SolverConfig::lobpcg());
     o.overrides = vec![MaterialOverride {
         region: Region::HalfSpace {
             point: [1.0, 0.0, 0.0],
@@ -300,13 +304,13 @@ fn objects_from_a_millimetre_to_a_kilometre_have_the_same_modes() {
     // different but equally good kernel set, eigenvalues 4e-3 apart).
     let reference = basis(
         "box:2,1,1",
-        &opts(120, 6, 4000, rubber(0.3), SolverChoice::Lobpcg),
+        &opts(120, 6, 4000, rubber(0.3), SolverConfig::lobpcg()),
     )
     .unwrap();
     for s in [2f64.powi(-10), 2f64.powi(10)] {
         let run = basis(
             &format!("box:{},{},{}", 2.0 * s, s, s),
-            &opts(120, 6, 4000, rubber(0.3), SolverChoice::Lobpcg),
+            &opts(120, 6, 4000, rubber(0.3), SolverConfig::lobpcg()),
         )
         .unwrap();
         assert_healthy(&run, &format!("size {s}"));
@@ -338,7 +342,7 @@ fn thin_plates_and_rods_reproduce_the_neumann_laplacian_or_say_why_not() {
     // Lowest Neumann Laplacian eigenvalue of a 1 m plate or rod: (pi / 1)^2, the in-plane
     // (along-axis) cosine. The thin direction only adds higher modes.
     for (spec, k, n) in [("box:1,1,0.01", 400, 40_000), ("box:1,0.01,0.01", 80, 8000)] {
-        let o = opts(k, 4, n, rubber(0.0), SolverChoice::Lobpcg);
+        let o = opts(k, 4, n, rubber(0.0), SolverConfig::lobpcg());
         match basis(spec, &o) {
             Ok(run) => {
                 assert_healthy(&run, spec);
@@ -366,7 +370,7 @@ fn few_and_many_kernels_and_modes() {
     // to m = 64.
     let few = basis(
         "box:2,1,1",
-        &opts(10, 3, 3000, rubber(0.3), SolverChoice::Lobpcg),
+        &opts(10, 3, 3000, rubber(0.3), SolverConfig::lobpcg()),
     );
     match few {
         Ok(run) => assert_healthy(&run, "K = 10"),
@@ -374,19 +378,19 @@ fn few_and_many_kernels_and_modes() {
     }
     let one = basis(
         "box:2,1,1",
-        &opts(300, 1, 8000, rubber(0.3), SolverChoice::Lobpcg),
+        &opts(300, 1, 8000, rubber(0.3), SolverConfig::lobpcg()),
     )
     .unwrap();
     assert_healthy(&one, "m = 1");
     let many = basis(
         "box:2,1,1",
-        &opts(300, 64, 8000, rubber(0.3), SolverChoice::Lobpcg),
+        &opts(300, 64, 8000, rubber(0.3), SolverConfig::lobpcg()),
     )
     .unwrap();
     assert_healthy(&many, "m = 64");
     let dense = basis(
         "box:2,1,1",
-        &opts(300, 64, 8000, rubber(0.3), SolverChoice::Dense),
+        &opts(300, 64, 8000, rubber(0.3), SolverConfig::Dense),
     )
     .unwrap();
     // Eigenvalues against the dense oracle at m = 64 (the largest cluster-rich block).
@@ -422,7 +426,7 @@ fn from_points(points: Vec<Point3>, volumes: Vec<f64>, k: usize) -> Result<Basis
     let mat = MaterialField::homogeneous(ip.len(), &rubber(0.3)).unwrap();
     let o = BasisOptions {
         resolution: None,
-        ..opts(k, 6, k, rubber(0.3), SolverChoice::Lobpcg)
+        ..opts(k, 6, k, rubber(0.3), SolverConfig::lobpcg())
     };
     Problem::from_points(ip, mat, &o, &Silent)?.solve(&Silent)
 }
@@ -523,7 +527,7 @@ fn nearly_coplanar_points_are_an_error_that_names_the_place() {
 fn bar_basis(mat: Material, modes: usize) -> BasisRun {
     basis(
         "box:1,0.2,0.2",
-        &opts(60, modes, 3000, mat, SolverChoice::Dense),
+        &opts(60, modes, 3000, mat, SolverConfig::Dense),
     )
     .unwrap()
 }

@@ -15,7 +15,7 @@ use freeform::material::{Material, MaterialField, MaterialOverride, Region};
 use freeform::precompute::assembly::assemble;
 use freeform::precompute::rkpm::{evaluate, KernelType, Kernels, ShapeFunctionOptions};
 use freeform::precompute::sampling::{IntegrationPoints, Resolution};
-use freeform::precompute::{build_basis, BasisOptions, Problem, SolverChoice};
+use freeform::precompute::{build_basis, BasisOptions, Problem, SolverConfig};
 use freeform::progress::Silent;
 use freeform::Point3;
 use std::f64::consts::PI;
@@ -30,7 +30,7 @@ fn small_opts(k: usize, m: usize, n: usize) -> BasisOptions {
         kernels: k,
         modes: m,
         resolution: Some(Resolution::Count(n)),
-        solver: SolverChoice::Dense,
+        solver: SolverConfig::Dense,
         ..BasisOptions::default()
     }
 }
@@ -228,7 +228,7 @@ fn right_half_gradient_share(overrides: Vec<MaterialOverride>) -> f64 {
     let opts = BasisOptions {
         kernels: 300,
         modes: 2,
-        solver: SolverChoice::Dense,
+        solver: SolverConfig::Dense,
         ..BasisOptions::default()
     };
     let run = Problem::from_points(ip.clone(), mat, &opts, &Silent)
@@ -313,12 +313,12 @@ fn weights_are_orthonormal_and_basis_file_round_trips() {
     }
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("basis.npz");
-    freeform::io::basis::save(&path, &run.basis, &serde_json::json!({"k": 150})).unwrap();
+    freeform::io::basis::save(&path, &run.basis, &serde_json::json!({"k": 150}).into()).unwrap();
     let back = freeform::io::basis::load(&path).unwrap();
     assert_eq!(back.basis.kernels, run.basis.kernels);
     assert_eq!(back.basis.eigenvalues, run.basis.eigenvalues);
     assert_eq!(back.basis.coefficients, run.basis.coefficients);
-    assert_eq!(back.metadata["k"], 150);
+    assert_eq!(back.metadata.extra["k"], 150);
     // Truncated and foreign files are errors, not panics.
     let bytes = std::fs::read(&path).unwrap();
     std::fs::write(&path, &bytes[..bytes.len() / 2]).unwrap();

@@ -8,7 +8,7 @@ use freeform::geometry::ShapeOptions;
 use freeform::io::read_shape;
 use freeform::material::{Material, Region};
 use freeform::precompute::sampling::Resolution;
-use freeform::precompute::{build_basis, BasisOptions, BasisRun, SolverChoice};
+use freeform::precompute::{build_basis, BasisOptions, BasisRun, SolverConfig};
 use freeform::progress::Silent;
 use freeform::sim::elastic::{Precision, Projection};
 use freeform::sim::motion::{AxisAngle, Motion};
@@ -25,7 +25,7 @@ fn bar(kernels: usize, modes: usize, points: usize) -> BasisRun {
         kernels,
         modes,
         resolution: Some(Resolution::Count(points)),
-        solver: SolverChoice::Dense,
+        solver: SolverConfig::Dense,
         material: Material {
             youngs: 1e5,
             poisson: 0.4,

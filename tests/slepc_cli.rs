@@ -147,6 +147,35 @@ fn distributed_assembly_on_one_rank_is_the_same_problem() {
         .contains("distributed assembly: 1 rank(s)"));
 }
 
+/// A SLEPc run names SLEPc and its whole configuration (preset and `--petsc-options`) in the
+/// basis metadata, in the string form `SolverConfig` parses back, and in its report.
+#[test]
+fn slepc_basis_metadata_names_the_solver_that_ran() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("basis.npz");
+    let o = Command::new(env!("CARGO_BIN_EXE_freeform"))
+        .args(["modes", "box:2,1,1", "--kernels", "200", "--modes", "4"])
+        .args(["--solver", "slepc", "--slepc", "ks-sinvert"])
+        .args(["--petsc-options", "-eps_ncv 24", "--json", "--out"])
+        .arg(&out)
+        .env("OMP_NUM_THREADS", "1")
+        .output()
+        .unwrap();
+    let r = json(&o);
+    assert_eq!(r["solver"], "slepc");
+    assert_eq!(r["eigen"]["solver"], "slepc:ks-sinvert -eps_ncv 24");
+    let loaded = freeform::io::basis::load(&out).unwrap();
+    assert_eq!(
+        loaded.raw_metadata["options"]["solver"],
+        "slepc:ks-sinvert:-eps_ncv 24"
+    );
+    let options = loaded.metadata.options.expect("typed options");
+    assert_eq!(
+        options.solver,
+        freeform::precompute::SolverConfig::slepc("ks-sinvert", "-eps_ncv 24").unwrap()
+    );
+}
+
 /// `freeform modes box:5,1,1 --kernels K --modes M --solver slepc --slepc lobpcg-gamg` into a
 /// temporary directory, for runs that must fail: the whole stderr and its one `error:` line,
 /// after checking the exit status 1, that there is exactly one error line, no PETSc output,

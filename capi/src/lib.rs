@@ -15,7 +15,7 @@ use freeform::material::MaterialField;
 use freeform::precompute::rkpm::KernelType;
 use freeform::precompute::sampling::IntegrationPoints;
 use freeform::precompute::skinning::Basis;
-use freeform::precompute::{BasisOptions, Problem, SolverChoice};
+use freeform::precompute::{BasisOptions, Problem, SolverConfig};
 use freeform::progress::Silent;
 use std::cell::RefCell;
 use std::ffi::{c_char, c_int, CString};
@@ -192,8 +192,8 @@ pub unsafe extern "C" fn ff_basis_build(
             }
         };
         let solver = match o.solver {
-            0 => SolverChoice::Lobpcg,
-            1 => SolverChoice::Dense,
+            0 => SolverConfig::lobpcg(),
+            1 => SolverConfig::Dense,
             s => return Err((Status::InvalidArgument, format!("solver = {s}: use 0 or 1"))),
         };
         let mut opts = BasisOptions {

@@ -15,7 +15,10 @@ pub mod dense;
 pub mod lobpcg;
 #[cfg(feature = "slepc")]
 pub mod slepc;
+mod slepc_options;
 pub mod testing;
+
+pub use slepc_options::{SlepcOptions, SlepcPreset};
 
 use crate::progress::Progress;
 use crate::sparse::{self, SparseMatrix};
@@ -44,8 +47,10 @@ impl Default for EigenRequest {
     }
 }
 
-/// Diagnostics that come back with a solution.
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+/// Diagnostics that come back with a solution. Deserializing (a report stored in basis
+/// metadata) takes the default for a missing field.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
 pub struct EigenInfo {
     /// Solver name ("lobpcg", "dense").
     pub solver: String,
@@ -200,6 +205,12 @@ pub enum EigenError {
         /// The library's error message (with the call that failed).
         message: String,
     },
+    /// A SLEPc configuration was asked for in a build without the `slepc` feature.
+    #[error(
+        "this freeform was built without SLEPc: rebuild with `cargo build --release --features \
+         slepc` (needs libslepc-real-dev, see docs/slepc.md)"
+    )]
+    SlepcUnavailable,
 }
 
 /// The last part of [`EigenError::SlepcLobpcgBreakdown`]'s message: SLEPc's LOBPCG breaks down

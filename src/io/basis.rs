@@ -9,7 +9,7 @@
 //! | `kernel_type` | int64, (1,) | 0 cubic, 1 quartic, 2 gaussian |
 //! | `coefficients` | float64, (K, m+1) | c, column 0 the constant mode, c^T M c = I |
 //! | `eigenvalues` | float64, (m+1,) | ascending, first 0 |
-//! | `metadata` | uint8, (bytes,) | UTF-8 JSON: every parameter that produced the basis |
+//! | `metadata` | uint8, (bytes,) | UTF-8 JSON: every parameter that produced the basis ([`BasisMetadata`]) |
 //!
 //! Python: `z = numpy.load("basis.npz"); json.loads(bytes(z["metadata"]))`.
 //!
@@ -32,10 +32,13 @@
 
 use crate::precompute::rkpm::{KernelType, Kernels};
 use crate::precompute::skinning::Basis;
-use crate::precompute::MAX_KERNELS;
+use crate::precompute::{BasisOptions, ModesReport, MAX_KERNELS};
+use crate::report::Monitors;
 use crate::{Error, Point3, Result};
 use faer::Mat;
 use npyz::WriterBuilder;
+use serde::Serialize;
+use serde_json::{Map, Value};
 use std::io::{Read, Write};
 use std::path::Path;
 
@@ -87,10 +90,170 @@ fn npy_bytes<T: npyz::Serialize + npyz::AutoSerialize + Copy>(
     Ok(buf)
 }
 
-/// Write `basis` and its metadata (any JSON value) to `path` atomically: the archive is
-/// written to a temporary file next to it and renamed, so a failed write never leaves a
-/// half-written basis behind.
-pub fn save(path: &Path, basis: &Basis, metadata: &serde_json::Value) -> Result<()> {
+/// The metadata of a basis file: what produced the basis, stored as JSON in the `metadata`
+/// array. The CLI (`freeform modes`, [`BasisMetadata::for_modes`]) and the scene cache
+/// ([`BasisMetadata::for_cache`]) write it; [`load`] reads it back.
+///
+/// Reading is tolerant ([`BasisMetadata::from_json`]): a file written by an older or newer
+/// freeform or by Python with any JSON still loads. A known key whose value does not fit its
+/// field's type is left in [`BasisMetadata::extra`] (the field stays `None`), as is every
+/// unknown key; the metadata exactly as stored is [`LoadedBasis::raw_metadata`].
+///
+/// Written JSON (keys sorted, absent fields left out), e.g. by `freeform modes`:
+/// `{"freeform_version": "0.1.0", "max_relative_residual": 3e-10, "options": {...},
+/// "orthonormality_error": 2e-15, "points": 30000, "shape": "box:5,1,1", "volume": 5.0}`;
+/// Python: `json.loads(bytes(numpy.load("basis.npz")["metadata"]))["options"]`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct BasisMetadata {
+    /// Version of the freeform that wrote the file.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub freeform_version: Option<String>,
+    /// The shape specification (`box:5,1,1`, `sphere:0.5`, a mesh or point-cloud path).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub shape: Option<String>,
+    /// Every option of the precomputation, the eigensolver's configuration included.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub options: Option<BasisOptions>,
+    /// Integration points N (`freeform modes`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub points: Option<usize>,
+    /// Object volume, m^3 (`freeform modes`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub volume: Option<f64>,
+    /// Largest recomputed relative eigen-residual (`freeform modes`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_relative_residual: Option<f64>,
+    /// max |c^T M c - I| (`freeform modes`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub orthonormality_error: Option<f64>,
+    /// The whole precomputation report (the scene cache).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub report: Option<ModesReport>,
+    /// Every other key, as stored, and known keys whose value did not fit their field. Written
+    /// after the fields: a key here that names a field overrides it.
+    #[serde(flatten)]
+    pub extra: Map<String, Value>,
+}
+
+impl BasisMetadata {
+    /// What `freeform modes` writes: this freeform's version, the shape specification, the
+    /// options, and the run's N, volume, largest relative residual and orthonormality error.
+    pub fn for_modes(shape: &str, options: &BasisOptions, report: &ModesReport) -> Self {
+        Self {
+            points: Some(report.points),
+            volume: Some(report.volume),
+            max_relative_residual: Some(report.max_relative_residual),
+            orthonormality_error: Some(report.orthonormality_error),
+            ..Self::written_now(shape, options)
+        }
+    }
+
+    /// What the scene cache writes: this freeform's version, the shape specification, the
+    /// options and the whole report (its warnings and monitors apply to every later use).
+    pub fn for_cache(shape: &str, options: &BasisOptions, report: &ModesReport) -> Self {
+        Self {
+            report: Some(report.clone()),
+            ..Self::written_now(shape, options)
+        }
+    }
+
+    fn written_now(shape: &str, options: &BasisOptions) -> Self {
+        Self {
+            freeform_version: Some(env!("CARGO_PKG_VERSION").to_string()),
+            shape: Some(shape.to_string()),
+            options: Some(options.clone()),
+            ..Self::default()
+        }
+    }
+
+    /// Read any JSON without failing: each known key of an object that parses into its field's
+    /// type fills the field; every other key (unknown, or known with a value of another type)
+    /// goes to [`BasisMetadata::extra`] unchanged. Anything but an object gives empty metadata.
+    pub fn from_json(value: Value) -> Self {
+        let Value::Object(mut extra) = value else {
+            return Self::default();
+        };
+        fn take<T: serde::de::DeserializeOwned>(
+            map: &mut Map<String, Value>,
+            key: &str,
+        ) -> Option<T> {
+            let parsed = serde_json::from_value(map.get(key)?.clone()).ok()?;
+            map.remove(key);
+            Some(parsed)
+        }
+        Self {
+            freeform_version: take(&mut extra, "freeform_version"),
+            shape: take(&mut extra, "shape"),
+            options: take(&mut extra, "options"),
+            points: take(&mut extra, "points"),
+            volume: take(&mut extra, "volume"),
+            max_relative_residual: take(&mut extra, "max_relative_residual"),
+            orthonormality_error: take(&mut extra, "orthonormality_error"),
+            report: take(&mut extra, "report"),
+            extra,
+        }
+    }
+
+    /// The JSON object [`save`] writes (keys sorted).
+    pub fn to_json(&self) -> Value {
+        // Serializing plain data into a Value cannot fail (map keys are strings).
+        serde_json::to_value(self).unwrap_or_default()
+    }
+
+    /// The warnings of the run that produced the basis (`report.warnings`), which still apply
+    /// to every use of it; read from the stored JSON when the report did not parse as a whole.
+    pub fn warnings(&self) -> Vec<String> {
+        match (&self.report, self.extra.get("report")) {
+            (Some(report), _) => report.warnings.clone(),
+            (None, Some(raw)) => raw
+                .get("warnings")
+                .and_then(Value::as_array)
+                .into_iter()
+                .flatten()
+                .filter_map(|w| w.as_str().map(str::to_string))
+                .collect(),
+            (None, None) => Vec::new(),
+        }
+    }
+
+    /// The precomputation monitors of the run that produced the basis (`report.monitors`); all
+    /// `None` when absent (e.g. metadata written by `freeform modes`, which has no report).
+    pub fn monitors(&self) -> Monitors {
+        match (&self.report, self.extra.get("report")) {
+            (Some(report), _) => report.monitors.clone(),
+            (None, Some(raw)) => raw
+                .get("monitors")
+                .and_then(|m| serde_json::from_value(m.clone()).ok())
+                .unwrap_or_default(),
+            (None, None) => Monitors::default(),
+        }
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for BasisMetadata {
+    /// Tolerant, as [`BasisMetadata::from_json`]: any JSON value deserializes.
+    fn deserialize<D: serde::Deserializer<'de>>(
+        deserializer: D,
+    ) -> std::result::Result<Self, D::Error> {
+        Value::deserialize(deserializer).map(Self::from_json)
+    }
+}
+
+impl From<Value> for BasisMetadata {
+    fn from(value: Value) -> Self {
+        Self::from_json(value)
+    }
+}
+
+/// Write `basis` and its metadata to `path` atomically: the archive is written to a temporary
+/// file next to it and renamed, so a failed write never leaves a half-written basis behind.
+/// The metadata is [`BasisMetadata::to_json`], pretty-printed.
+pub fn save(path: &Path, basis: &Basis, metadata: &BasisMetadata) -> Result<()> {
+    save_json(path, basis, &metadata.to_json())
+}
+
+/// [`save`] with any JSON value as the metadata.
+fn save_json(path: &Path, basis: &Basis, metadata: &Value) -> Result<()> {
     let io_err = |source| Error::Io {
         path: path.to_path_buf(),
         source,
@@ -160,8 +323,10 @@ pub fn save(path: &Path, basis: &Basis, metadata: &serde_json::Value) -> Result<
 pub struct LoadedBasis {
     /// The basis.
     pub basis: Basis,
-    /// The metadata JSON stored with it.
-    pub metadata: serde_json::Value,
+    /// The metadata stored with it, typed ([`BasisMetadata::from_json`]: never fails).
+    pub metadata: BasisMetadata,
+    /// The metadata JSON exactly as stored (any JSON value).
+    pub raw_metadata: Value,
 }
 
 /// Read a basis written by [`save`] (or by Python with the same arrays).
@@ -277,7 +442,7 @@ pub fn load_from(path: &Path, reader: impl std::io::Read + std::io::Seek) -> Res
     }
     let (_, b) = read("metadata", MAX_METADATA_BYTES)?;
     let meta_bytes = decode::<u8>(&b).map_err(|e| bad(format!("metadata: {e}")))?;
-    let metadata = serde_json::from_slice(&meta_bytes)
+    let raw_metadata: Value = serde_json::from_slice(&meta_bytes)
         .map_err(|e| bad(format!("metadata is not JSON: {e}")))?;
     if centers
         .iter()
@@ -312,6 +477,176 @@ pub fn load_from(path: &Path, reader: impl std::io::Read + std::io::Seek) -> Res
             coefficients,
             eigenvalues,
         },
-        metadata,
+        metadata: BasisMetadata::from_json(raw_metadata.clone()),
+        raw_metadata,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::precompute::{build_basis, BasisRun, SolverConfig};
+    use crate::progress::Silent;
+    use serde_json::json;
+
+    fn small_run() -> (BasisOptions, BasisRun) {
+        let opts = BasisOptions {
+            kernels: 30,
+            modes: 3,
+            resolution: Some(crate::precompute::sampling::Resolution::Count(3000)),
+            solver: SolverConfig::Dense,
+            ..BasisOptions::default()
+        };
+        let shape = crate::io::read_shape("box:2,1,1", &Default::default()).unwrap();
+        let run = build_basis(&shape, &opts, &Silent).unwrap();
+        (opts, run)
+    }
+
+    fn keys(v: &Value) -> Vec<&str> {
+        v.as_object().unwrap().keys().map(String::as_str).collect()
+    }
+
+    #[test]
+    fn metadata_of_both_writers_round_trips() {
+        let (opts, mut run) = small_run();
+        run.report
+            .warnings
+            .push("a warning that still applies".into());
+        let dir = tempfile::tempdir().unwrap();
+
+        // `freeform modes`: the keys it has always written, with the same values.
+        let path = dir.path().join("modes.npz");
+        let written = BasisMetadata::for_modes("box:2,1,1", &opts, &run.report);
+        save(&path, &run.basis, &written).unwrap();
+        let back = load(&path).unwrap();
+        assert_eq!(back.metadata, written);
+        let raw = &back.raw_metadata;
+        assert_eq!(
+            keys(raw),
+            [
+                "freeform_version",
+                "max_relative_residual",
+                "options",
+                "orthonormality_error",
+                "points",
+                "shape",
+                "volume"
+            ]
+        );
+        assert_eq!(raw["options"], serde_json::to_value(&opts).unwrap());
+        assert_eq!(raw["options"]["solver"], "dense");
+        assert_eq!(raw["points"], run.report.points);
+        assert_eq!(raw["volume"], run.report.volume);
+        assert_eq!(raw["freeform_version"], env!("CARGO_PKG_VERSION"));
+        assert_eq!(back.metadata.options.as_ref(), Some(&opts));
+        assert!(back.metadata.warnings().is_empty());
+        assert_eq!(back.metadata.monitors(), Monitors::default());
+
+        // The scene cache: the whole report, its warnings and monitors typed.
+        let path = dir.path().join("cache.npz");
+        let written = BasisMetadata::for_cache("box:2,1,1", &opts, &run.report);
+        save(&path, &run.basis, &written).unwrap();
+        let back = load(&path).unwrap();
+        assert_eq!(back.metadata, written);
+        assert_eq!(back.metadata.report.as_ref(), Some(&run.report));
+        assert_eq!(
+            keys(&back.raw_metadata),
+            ["freeform_version", "options", "report", "shape"]
+        );
+        assert_eq!(
+            back.raw_metadata["report"],
+            serde_json::to_value(&run.report).unwrap()
+        );
+        assert_eq!(back.metadata.warnings(), ["a warning that still applies"]);
+        assert_eq!(back.metadata.monitors(), run.report.monitors);
+        assert!(back.metadata.monitors().eigen_iterations.is_some());
+        // Unknown keys survive a read and a write.
+        let mut extended = back.metadata.clone();
+        extended
+            .extra
+            .insert("note".into(), json!({"from": "python"}));
+        save(&path, &run.basis, &extended).unwrap();
+        assert_eq!(load(&path).unwrap().metadata, extended);
+    }
+
+    /// Metadata written by anyone (Python, another version) loads: what fits its field is
+    /// typed, the rest is kept as stored, and nothing makes the basis unreadable.
+    #[test]
+    fn any_json_metadata_loads() {
+        let (_, run) = small_run();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("any.npz");
+        for odd in [
+            json!([1, 2, 3]),
+            json!("text"),
+            json!(null),
+            json!(4.5),
+            json!({}),
+        ] {
+            save_json(&path, &run.basis, &odd).unwrap();
+            let back = load(&path).unwrap();
+            assert_eq!(back.basis.eigenvalues, run.basis.eigenvalues);
+            assert_eq!(back.raw_metadata, odd);
+            assert_eq!(back.metadata, BasisMetadata::default());
+            assert!(back.metadata.warnings().is_empty());
+        }
+        // Known keys of other types, a partial options table, a report that is not a whole
+        // `ModesReport` (a residual stored as null, as JSON writes infinity) but still has
+        // warnings and monitors.
+        let odd = json!({
+            "shape": 5,
+            "points": "many",
+            "volume": 2.0,
+            "options": {"kernels": 30},
+            "report": {
+                "max_relative_residual": null,
+                "warnings": ["stored warning", 7],
+                "monitors": {"eigen_iterations": 12, "steps": null}
+            },
+            "custom": {"nested": [true]}
+        });
+        save_json(&path, &run.basis, &odd).unwrap();
+        let back = load(&path).unwrap();
+        assert_eq!(back.raw_metadata, odd);
+        let m = &back.metadata;
+        assert_eq!(
+            (m.shape.as_deref(), m.points, m.volume),
+            (None, None, Some(2.0))
+        );
+        assert!(m.options.is_none() && m.report.is_none());
+        assert_eq!(m.extra["shape"], 5);
+        assert_eq!(m.extra["points"], "many");
+        assert_eq!(m.extra["options"], json!({"kernels": 30}));
+        assert_eq!(m.extra["custom"], json!({"nested": [true]}));
+        assert!(!m.extra.contains_key("volume"));
+        assert_eq!(m.warnings(), ["stored warning"]);
+        assert_eq!(m.monitors().eigen_iterations, Some(12));
+        // Written back, the same JSON (keys sorted).
+        assert_eq!(m.to_json(), odd);
+        // Deserialize is as tolerant as from_json.
+        let parsed: BasisMetadata = serde_json::from_value(odd.clone()).unwrap();
+        assert_eq!(&parsed, m);
+
+        // Metadata bytes that are not JSON at all are still an error (a damaged file).
+        let mut archive = zip::ZipArchive::new(std::fs::File::open(&path).unwrap()).unwrap();
+        let mut buf = Vec::new();
+        {
+            let mut zip = zip::ZipWriter::new(std::io::Cursor::new(&mut buf));
+            for i in 0..archive.len() {
+                let mut entry = archive.by_index(i).unwrap();
+                let name = entry.name().to_string();
+                let mut bytes = Vec::new();
+                entry.read_to_end(&mut bytes).unwrap();
+                if name == "metadata.npy" {
+                    bytes = npy_bytes(&[9], b"{not json").unwrap();
+                }
+                zip.start_file(name, zip::write::SimpleFileOptions::default())
+                    .unwrap();
+                zip.write_all(&bytes).unwrap();
+            }
+            zip.finish().unwrap();
+        }
+        let err = load_from(&path, std::io::Cursor::new(buf)).unwrap_err();
+        assert!(err.to_string().contains("metadata is not JSON"), "{err}");
+    }
 }

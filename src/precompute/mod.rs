@@ -10,12 +10,14 @@
 //! ```
 //!
 //! [`build_basis`] runs it all; [`Problem`] splits it at the eigensolve (assemble once, solve
-//! with any [`crate::eigen::Eigensolver`], as `freeform compare` does); the stages are public
+//! with the [`SolverConfig`] of the options or with any [`crate::eigen::Eigensolver`]; or
+//! compare solvers on it, [`Problem::compare`], as `freeform compare` does); the stages are public
 //! modules so a caller can enter the flow anywhere. `distributed` (feature `slepc`) runs the
 //! same stages across MPI ranks.
 
 pub mod assembly;
 pub mod centers;
+mod compare;
 #[cfg(feature = "slepc")]
 pub mod distributed;
 mod options;
@@ -26,6 +28,7 @@ pub mod sampling;
 pub mod skinning;
 mod solver;
 
+pub use compare::{compare_solvers, ProblemComparison, SolverComparison, SolverResult};
 pub use options::{default_points, BasisOptions, MAX_KERNELS, MAX_POINTS};
 pub use problem::{build_basis, place_kernels, BasisRun, Problem};
 pub use quality::{
@@ -33,4 +36,4 @@ pub use quality::{
     RCOND_WARNING, REPRODUCING_WARNING,
 };
 pub use sampling::{sample_shape, sample_with_material};
-pub use solver::SolverChoice;
+pub use solver::SolverConfig;

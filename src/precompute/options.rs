@@ -2,13 +2,14 @@
 
 use super::rkpm::{KernelType, ShapeFunctionOptions, SupportOptions};
 use super::sampling::{CloudVolumeOptions, Resolution};
-use super::solver::SolverChoice;
+use super::solver::SolverConfig;
 use crate::material::{Material, MaterialOverride};
 use crate::{Error, Result};
 use serde::Serialize;
 
 /// Every knob of the precomputation, with documented defaults (see docs/guide.md).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+/// Deserializing (basis metadata) needs every field: missing ones are not invented.
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
 #[must_use]
 pub struct BasisOptions {
     /// Number of kernels K. Default 1000 (the paper's choice for the beam).
@@ -27,8 +28,8 @@ pub struct BasisOptions {
     pub material: Material,
     /// Region overrides applied in order on top of `material`.
     pub overrides: Vec<MaterialOverride>,
-    /// Eigensolver. Default LOBPCG.
-    pub solver: SolverChoice,
+    /// Eigensolver and its settings. Default native LOBPCG at its default settings.
+    pub solver: SolverConfig,
     /// Relative eigen-residual tolerance. Default 1e-8.
     pub tol: f64,
     /// Eigensolver iteration cap. Default 1000.
@@ -51,7 +52,7 @@ impl Default for BasisOptions {
             shape_functions: ShapeFunctionOptions::default(),
             material: Material::default(),
             overrides: Vec::new(),
-            solver: SolverChoice::Lobpcg,
+            solver: SolverConfig::default(),
             tol: 1e-8,
             max_iter: 1000,
             cloud: CloudVolumeOptions::default(),

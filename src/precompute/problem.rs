@@ -284,7 +284,11 @@ impl Problem {
         }
     }
 
-    /// Solve with the eigensolver `options.solver` names, at its default settings.
+    /// Solve with the eigensolver `options.solver` describes.
+    ///
+    /// # Errors
+    /// [`crate::eigen::EigenError::SlepcUnavailable`] for SLEPc in a build without it; the
+    /// solver's own errors.
     pub fn solve(self, progress: &dyn Progress) -> Result<BasisRun> {
         let solver = self.options.solver.build()?;
         self.solve_with(solver.as_ref(), progress)

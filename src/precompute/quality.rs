@@ -7,7 +7,7 @@ use crate::report::{Monitors, Timings};
 use serde::Serialize;
 
 /// Quality and size figures of the shape-function stage.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, serde::Deserialize)]
 pub struct CoverageReport {
     /// Smallest reciprocal condition number of any moment matrix.
     pub min_moment_rcond: f64,
@@ -23,8 +23,9 @@ pub struct CoverageReport {
     pub shape_function_bytes: usize,
 }
 
-/// The JSON report of `freeform modes` (design.md section 6).
-#[derive(Debug, Clone, Serialize)]
+/// The JSON report of `freeform modes` (design.md section 6). Deserializing (a report stored
+/// in basis metadata by the scene cache) needs every field but `monitors` and `warnings`.
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
 pub struct ModesReport {
     /// Kernels K.
     pub kernels: usize,
@@ -66,8 +67,10 @@ pub struct ModesReport {
     pub tol: f64,
     /// Warnings worth a look (none means none). Strict mode ([`crate::error::check_strict`])
     /// turns them into errors.
+    #[serde(default)]
     pub warnings: Vec<String>,
     /// Conditioning and convergence monitors (the same keys as in `run` and `beam`).
+    #[serde(default)]
     pub monitors: Monitors,
 }
 

@@ -39,7 +39,7 @@ impl IntegrationPoints {
 }
 
 /// How dense the integration grid is.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Resolution {
     /// Grid spacing h, metres.
@@ -144,7 +144,7 @@ pub fn grid_points(
 }
 
 /// Options for point-cloud quadrature weights.
-#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct CloudVolumeOptions {
     /// Voxel edge, metres. Default: 2 x the median nearest-neighbour distance (over up to
     /// 20,000 sampled points), so a voxel holds a handful of points where the cloud is solid.

@@ -2,9 +2,11 @@
 //! where the key is the SHA-256 of everything that produced it: the cache format, the
 //! freeform version, the shape specification, the SHA-256 of the shape file's bytes (for
 //! files) and every basis option (material and region overrides included). Integration
-//! points and materials are cheap and deterministic, so they are recomputed, not stored.
+//! points and materials are cheap and deterministic, so they are recomputed, not stored. The
+//! file's metadata is [`BasisMetadata::for_cache`]: what produced the basis and its report,
+//! whose warnings and monitors apply to every later use.
 
-use crate::io::basis;
+use crate::io::basis::{self, BasisMetadata, LoadedBasis};
 use crate::precompute::skinning::Basis;
 use crate::precompute::BasisOptions;
 use crate::{Error, Result};
@@ -45,20 +47,21 @@ pub fn path(dir: &Path, key: &str) -> PathBuf {
     dir.join(format!("{key}.npz"))
 }
 
-/// The cached basis and its metadata, if present and readable with the expected number of modes. A damaged
-/// or mismatched file is reported through `warn` and ignored (it will be rewritten).
-pub fn load(
+/// The cached basis and its metadata, if present and readable with the expected number of
+/// modes (m + 1 for `modes` = m). A damaged or mismatched file is reported through `warn` and
+/// ignored (it will be rewritten).
+pub fn load_basis(
     dir: &Path,
     key: &str,
     modes: usize,
     warn: &mut dyn FnMut(String),
-) -> Option<(Basis, serde_json::Value)> {
+) -> Option<LoadedBasis> {
     let p = path(dir, key);
     if !p.exists() {
         return None;
     }
     match basis::load(&p) {
-        Ok(l) if l.basis.modes() == modes + 1 => Some((l.basis, l.metadata)),
+        Ok(l) if l.basis.modes() == modes + 1 => Some(l),
         Ok(l) => {
             warn(format!(
                 "cached basis {} has {} modes, expected {}; recomputing",
@@ -77,8 +80,9 @@ pub fn load(
     }
 }
 
-/// Store a basis under `key` (atomically; creates `dir`).
-pub fn store(dir: &Path, key: &str, b: &Basis, metadata: &serde_json::Value) -> Result<PathBuf> {
+/// Store a basis under `key` with its metadata ([`BasisMetadata::for_cache`]), atomically;
+/// creates `dir`. Returns the file's path.
+pub fn store_basis(dir: &Path, key: &str, b: &Basis, metadata: &BasisMetadata) -> Result<PathBuf> {
     std::fs::create_dir_all(dir).map_err(|source| Error::Io {
         path: dir.to_path_buf(),
         source,

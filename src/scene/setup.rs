@@ -6,6 +6,7 @@ use super::cache;
 use super::run::RunSettings;
 use super::spec::{ObjectSpec, Scene};
 use crate::geometry::Shape;
+use crate::io::basis::BasisMetadata;
 use crate::material::MaterialField;
 use crate::precompute::sampling::IntegrationPoints;
 use crate::precompute::skinning::Basis;
@@ -88,24 +89,22 @@ pub(super) fn object_basis(
     };
     if let (Some(dir), Some(key)) = (&cache_dir, &key) {
         let mut warn = |w: String| warnings.push(format!("object '{}': {w}", spec.name));
-        if let Some((basis, metadata)) = cache::load(dir, key, opts.modes, &mut warn) {
+        if let Some(loaded) = cache::load_basis(dir, key, opts.modes, &mut warn) {
             let (points, material) = sample_with_material(&shape.shape, &opts)?;
             // The warnings of the run that produced the cached basis still apply.
-            let stored = metadata
-                .get("report")
-                .and_then(|r| r.get("warnings"))
-                .and_then(|w| w.as_array())
-                .into_iter()
-                .flatten()
-                .filter_map(|w| w.as_str());
-            warnings.extend(stored.map(|w| format!("object '{}': {w}", spec.name)));
+            let stored = loaded.metadata.warnings();
+            warnings.extend(
+                stored
+                    .iter()
+                    .map(|w| format!("object '{}': {w}", spec.name)),
+            );
             return Ok(ObjectBasis {
-                basis,
+                basis: loaded.basis,
                 points,
                 material,
                 cached: true,
                 file: Some(cache::path(dir, key)),
-                monitors: Monitors::from_metadata(&metadata),
+                monitors: loaded.metadata.monitors(),
             });
         }
     }
@@ -118,13 +117,8 @@ pub(super) fn object_basis(
     );
     let mut file_out = None;
     if let (Some(dir), Some(key)) = (&cache_dir, &key) {
-        let meta = serde_json::json!({
-            "freeform_version": env!("CARGO_PKG_VERSION"),
-            "shape": shape.spec,
-            "options": opts,
-            "report": run.report,
-        });
-        file_out = Some(cache::store(dir, key, &run.basis, &meta)?);
+        let meta = BasisMetadata::for_cache(&shape.spec, &opts, &run.report);
+        file_out = Some(cache::store_basis(dir, key, &run.basis, &meta)?);
     }
     Ok(ObjectBasis {
         basis: run.basis,

@@ -5,7 +5,7 @@
 use crate::material::{Material, MaterialOverride};
 use crate::precompute::rkpm::{KernelType, SupportOptions};
 use crate::precompute::sampling::{CloudVolumeOptions, Resolution};
-use crate::precompute::{BasisOptions, SolverChoice};
+use crate::precompute::{BasisOptions, SolverConfig};
 use crate::sim::newton::{HessianStrategy, InitialGuess, Precision};
 use crate::sim::{Boundary, Collider, NewtonOptions, Placement};
 use crate::{Error, Result};
@@ -193,7 +193,7 @@ pub struct ObjectSpec {
 }
 
 /// Basis precomputation settings of an object (see `freeform modes --help`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct BasisSettings {
     /// RKPM kernels K, default 1000.
@@ -212,8 +212,9 @@ pub struct BasisSettings {
     pub support: f64,
     /// Support neighbour, default 4.
     pub support_neighbor: usize,
-    /// Eigensolver, default "lobpcg".
-    pub eigensolver: SolverChoice,
+    /// Eigensolver, default "lobpcg"; also "dense", "slepc" or "slepc:CONFIG", or a table
+    /// with LOBPCG settings (the string forms of [`SolverConfig`]).
+    pub eigensolver: SolverConfig,
     /// Eigensolver tolerance, default 1e-8.
     pub eigen_tol: f64,
     /// Point clouds: total volume, m^3.
@@ -272,7 +273,7 @@ impl ObjectSpec {
             },
             material: self.material,
             overrides: self.overrides.clone(),
-            solver: b.eigensolver,
+            solver: b.eigensolver.clone(),
             tol: b.eigen_tol,
             cloud: CloudVolumeOptions {
                 voxel: b.voxel,
@@ -391,4 +392,58 @@ fn scene_err(message: String) -> Error {
 
 fn in_object(name: &str, e: Error) -> Error {
     scene_err(format!("object '{name}': {e}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn with_basis(basis: &str) -> Result<Scene> {
+        Scene::from_toml(&format!(
+            "[simulation]\ndt = 0.01\nsteps = 1\n[[object]]\nname = \"a\"\nshape = \
+             \"box:1,1,1\"\nbasis = {basis}\n"
+        ))
+    }
+
+    #[test]
+    fn eigensolver_takes_every_solver_config() {
+        use crate::eigen::lobpcg::{LobpcgOptions, PreconditionerKind};
+        for (text, config) in [
+            (r#"{ eigensolver = "lobpcg" }"#, SolverConfig::lobpcg()),
+            (r#"{ eigensolver = "dense" }"#, SolverConfig::Dense),
+            (
+                r#"{ eigensolver = "slepc:lobpcg-gamg:-eps_max_it 50" }"#,
+                SolverConfig::slepc("lobpcg-gamg", "-eps_max_it 50").unwrap(),
+            ),
+            (
+                r#"{ eigensolver = { lobpcg = { preconditioner = "jacobi" } } }"#,
+                SolverConfig::Lobpcg(LobpcgOptions {
+                    preconditioner: PreconditionerKind::Jacobi,
+                    ..LobpcgOptions::default()
+                }),
+            ),
+        ] {
+            let scene = with_basis(text).unwrap_or_else(|e| panic!("{text}: {e}"));
+            let o = &scene.objects[0];
+            assert_eq!(o.basis.eigensolver, config, "{text}");
+            assert_eq!(o.basis_options().unwrap().solver, config, "{text}");
+            // And back through TOML.
+            let again = Scene::from_toml(&scene.to_toml().unwrap()).unwrap();
+            assert_eq!(again.objects[0].basis.eigensolver, config, "{text}");
+        }
+        let err = with_basis(r#"{ eigensolver = "arnoldi" }"#)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("invalid solver = \"arnoldi\"") && err.contains("use lobpcg, dense"),
+            "{err}"
+        );
+        let err = with_basis(r#"{ eigensolver = "slepc:bogus" }"#)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("unknown SLEPc configuration \"bogus\""),
+            "{err}"
+        );
+    }
 }

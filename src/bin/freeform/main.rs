@@ -44,15 +44,18 @@ enum Command {
     Export(export::ExportArgs),
 }
 
-/// The error for SLEPc options in a build without the `slepc` feature.
+/// The error for SLEPc options in a build without the `slepc` feature (the library's).
 #[cfg(not(feature = "slepc"))]
-pub const NO_SLEPC: &str = "this freeform was built without SLEPc: rebuild with \
-    `cargo build --release --features slepc` (needs libslepc-real-dev, see docs/slepc.md)";
+pub fn no_slepc() -> Box<dyn std::error::Error> {
+    freeform::eigen::EigenError::SlepcUnavailable.into()
+}
 
 /// Whether this process prints and writes: rank 0 of the MPI run when `solver` is SLEPc
 /// (every rank runs the command under mpirun), always otherwise.
-pub fn is_root_rank(solver: modes::SolverArg) -> Result<bool, Box<dyn std::error::Error>> {
-    if solver == modes::SolverArg::Slepc {
+pub fn is_root_rank(
+    solver: &freeform::precompute::SolverConfig,
+) -> Result<bool, Box<dyn std::error::Error>> {
+    if matches!(solver, freeform::precompute::SolverConfig::Slepc(_)) {
         is_root_rank_any()
     } else {
         Ok(true)

@@ -4,9 +4,10 @@ use crate::messages::{localize, Front};
 use crate::problem::BasisArgs;
 use crate::{emit, set_threads, CliResult};
 use clap::{Args, ValueEnum};
-use freeform::eigen::{EigenRequest, Eigensolver};
+use freeform::eigen::EigenRequest;
+use freeform::io::basis::BasisMetadata;
 use freeform::io::read_shape;
-use freeform::precompute::{BasisOptions, Problem, SolverChoice};
+use freeform::precompute::{BasisOptions, Problem, SolverConfig};
 use freeform::progress::{Progress, Silent, TerminalProgress};
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -73,17 +74,10 @@ pub fn run(args: ModesArgs) -> CliResult {
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from("basis.npz"));
-    let opts = BasisOptions {
-        solver: match args.solver {
-            SolverArg::Dense => SolverChoice::Dense,
-            // Slepc: the pipeline gets the solver object below.
-            SolverArg::Lobpcg | SolverArg::Slepc => SolverChoice::Lobpcg,
-        },
-        ..args.basis.options()
-    };
+    let mut opts = args.basis.options();
     // Check the parameters before reading a possibly large file.
     opts.validate()?;
-    let solver = make_solver(args.solver, &args.slepc, &args.petsc_options, opts.solver)?;
+    opts.solver = solver_config(args.solver, &args.slepc, &args.petsc_options)?;
     let shape = read_shape(&shape_arg, &args.basis.shape_options())?;
     let bar = TerminalProgress::new();
     let progress: &dyn Progress = if std::io::stderr().is_terminal() {
@@ -93,23 +87,13 @@ pub fn run(args: ModesArgs) -> CliResult {
     };
     let run = match distributed_run(&args, &shape, &opts, progress)? {
         Some(run) => run,
-        None => {
-            Problem::from_shape(&shape, &opts, progress)?.solve_with(solver.as_ref(), progress)?
-        }
+        None => Problem::from_shape(&shape, &opts, progress)?.solve(progress)?,
     };
     // Under mpirun every rank computed the same basis; only rank 0 writes and prints.
-    if !crate::is_root_rank(args.solver)? {
+    if !crate::is_root_rank(&opts.solver)? {
         return Ok(());
     }
-    let metadata = serde_json::json!({
-        "freeform_version": env!("CARGO_PKG_VERSION"),
-        "shape": shape_arg,
-        "options": opts,
-        "points": run.report.points,
-        "volume": run.report.volume,
-        "max_relative_residual": run.report.max_relative_residual,
-        "orthonormality_error": run.report.orthonormality_error,
-    });
+    let metadata = BasisMetadata::for_modes(&shape_arg, &opts, &run.report);
     if args.strict && !run.report.warnings.is_empty() {
         for w in &run.report.warnings {
             eprintln!("warning: {}", localize(w, Front::Flags));
@@ -157,35 +141,27 @@ fn summary(r: &freeform::precompute::ModesReport, shape: &str, out: &std::path::
     lines.join("\n") + "\n"
 }
 
-/// The eigensolver asked for on the command line. `slepc` and `petsc_options` only apply to
-/// `--solver slepc`.
-pub fn make_solver(
+/// The eigensolver asked for on the command line (`--solver`; `--slepc` and
+/// `--petsc-options` only apply to `--solver slepc`). A build without SLEPc says so before
+/// judging the `--slepc` value.
+pub fn solver_config(
     solver: SolverArg,
     slepc: &str,
     petsc_options: &str,
-    choice: SolverChoice,
-) -> Result<Box<dyn Eigensolver>, Box<dyn std::error::Error>> {
-    if solver != SolverArg::Slepc {
-        if !petsc_options.is_empty() {
-            return Err("--petsc-options applies to --solver slepc only".into());
+) -> Result<SolverConfig, Box<dyn std::error::Error>> {
+    match solver {
+        SolverArg::Lobpcg | SolverArg::Dense if !petsc_options.is_empty() => {
+            Err("--petsc-options applies to --solver slepc only".into())
         }
-        return Ok(choice.build()?);
-    }
-    #[cfg(feature = "slepc")]
-    {
-        use freeform::eigen::slepc::{SlepcOptions, SlepcSolver};
-        let mut options = SlepcOptions::parse(slepc)?;
-        if !petsc_options.is_empty() {
-            options.petsc_options = format!("{} {petsc_options}", options.petsc_options)
-                .trim()
-                .to_string();
+        SolverArg::Lobpcg => Ok(SolverConfig::lobpcg()),
+        SolverArg::Dense => Ok(SolverConfig::Dense),
+        #[cfg(not(feature = "slepc"))]
+        SolverArg::Slepc => {
+            let _ = slepc;
+            Err(crate::no_slepc())
         }
-        Ok(Box::new(SlepcSolver::new(options)))
-    }
-    #[cfg(not(feature = "slepc"))]
-    {
-        let _ = slepc;
-        Err(crate::NO_SLEPC.into())
+        #[cfg(feature = "slepc")]
+        SolverArg::Slepc => Ok(SolverConfig::slepc(slepc, petsc_options)?),
     }
 }
 
@@ -198,24 +174,18 @@ fn distributed_run(
     opts: &BasisOptions,
     progress: &dyn Progress,
 ) -> Result<Option<freeform::precompute::BasisRun>, Box<dyn std::error::Error>> {
-    use freeform::eigen::slepc::{world_rank, SlepcOptions};
-    if args.solver != SolverArg::Slepc {
+    use freeform::eigen::slepc::world_rank;
+    let SolverConfig::Slepc(slepc) = &opts.solver else {
         if args.distributed {
             return Err("--distributed needs --solver slepc".into());
         }
         return Ok(None);
-    }
+    };
     if !args.distributed && world_rank()?.1 == 1 {
         return Ok(None);
     }
-    let mut slepc = SlepcOptions::parse(&args.slepc)?;
-    if !args.petsc_options.is_empty() {
-        slepc.petsc_options = format!("{} {}", slepc.petsc_options, args.petsc_options)
-            .trim()
-            .to_string();
-    }
     let (run, _dist) =
-        freeform::precompute::distributed::build_basis_mpi(shape, opts, &slepc, progress)?;
+        freeform::precompute::distributed::build_basis_mpi(shape, opts, slepc, progress)?;
     Ok(Some(run))
 }
 
@@ -227,7 +197,7 @@ fn distributed_run(
     _progress: &dyn Progress,
 ) -> Result<Option<freeform::precompute::BasisRun>, Box<dyn std::error::Error>> {
     if args.distributed {
-        return Err(crate::NO_SLEPC.into());
+        return Err(crate::no_slepc());
     }
     Ok(None)
 }
@@ -235,11 +205,8 @@ fn distributed_run(
 /// `--from-matrices DIR`: solve given H and M, report, write the eigenvectors.
 fn from_matrices(dir: &std::path::Path, args: &ModesArgs) -> CliResult {
     use freeform::io::matrix_market::{read_matrices, write_dense_matrix_market};
-    let choice = match args.solver {
-        SolverArg::Dense => SolverChoice::Dense,
-        _ => SolverChoice::Lobpcg,
-    };
-    let solver = make_solver(args.solver, &args.slepc, &args.petsc_options, choice)?;
+    let config = solver_config(args.solver, &args.slepc, &args.petsc_options)?;
+    let solver = config.build()?;
     let clock = freeform::report::Stopwatch::start();
     let (h, m) = read_matrices(dir)?;
     let read_s = clock.elapsed();
@@ -251,7 +218,7 @@ fn from_matrices(dir: &std::path::Path, args: &ModesArgs) -> CliResult {
     let clock = freeform::report::Stopwatch::start();
     let solution = solver.solve(&h, &m, &request, &freeform::progress::Silent)?;
     let solve_s = clock.elapsed();
-    if !crate::is_root_rank(args.solver)? {
+    if !crate::is_root_rank(&config)? {
         return Ok(());
     }
     let out = args

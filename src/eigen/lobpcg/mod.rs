@@ -58,7 +58,8 @@ use faer::{Mat, Par};
 use iterate::{State, Stop};
 
 /// Which preconditioner LOBPCG applies to the residuals.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum PreconditionerKind {
     /// Sparse Cholesky of H + sigma M when its factor is small, otherwise
     /// [`PreconditionerKind::IncompleteCholesky`]. "Small": at most
@@ -78,8 +79,10 @@ pub enum PreconditionerKind {
     Identity,
 }
 
-/// LOBPCG settings. Every field has a documented default ([`LobpcgOptions::default`]).
-#[derive(Debug, Clone, PartialEq)]
+/// LOBPCG settings. Every field has a documented default ([`LobpcgOptions::default`]); in
+/// serialized form (scene files, basis metadata) a missing field takes its default.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct LobpcgOptions {
     /// Guard vectors: extra block columns beyond the nev - 1 wanted non-constant pairs.
     /// `None`: `max(8, ceil((nev - 1) / 4))`. Convergence of pair j goes like

@@ -335,7 +335,7 @@ fn solve4(l: &[[f64; 4]; 4], mut b: [f64; 4]) -> [f64; 4] {
 /// dimensionless with the local support scale a_ref (the mean covering radius):
 /// `partition_of_unity` = max |sum phi - 1|, `linear` = max |sum phi (p - X)| / a_ref,
 /// `gradient_sum` = max |sum grad phi| a_ref, `gradient_linear` = max |sum grad phi (p - X)^T - I|.
-#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ReproducingError {
     /// max |sum_k phi_k - 1|.
     pub partition_of_unity: f64,
