@@ -69,12 +69,16 @@ fn solve(c: &mut Criterion) {
         group.bench_function(BenchmarkId::new("lobpcg", &label), |bench| {
             bench.iter(|| {
                 Lobpcg::default()
-                    .solve(&h, &m, &req, &Silent)
+                    .solve_converged(&h, &m, &req, &Silent)
                     .expect("lobpcg")
             })
         });
         group.bench_function(BenchmarkId::new("dense", &label), |bench| {
-            bench.iter(|| DenseSolver.solve(&h, &m, &req, &Silent).expect("dense"))
+            bench.iter(|| {
+                DenseSolver
+                    .solve_converged(&h, &m, &req, &Silent)
+                    .expect("dense")
+            })
         });
     }
     let n = 22;
@@ -90,7 +94,7 @@ fn solve(c: &mut Criterion) {
         |bench| {
             bench.iter(|| {
                 Lobpcg::default()
-                    .solve(&h, &m, &req, &Silent)
+                    .solve_converged(&h, &m, &req, &Silent)
                     .expect("lobpcg")
             })
         },

@@ -129,7 +129,7 @@ fn eigen_for(
     .unwrap();
     let a = assemble(&sf, &ip.volumes, &mat.hessian_weights(), kernels.len()).unwrap();
     let s = DenseSolver
-        .solve(
+        .solve_converged(
             &a.hessian,
             &a.mass,
             &EigenRequest {
@@ -504,10 +504,10 @@ fn lobpcg_matches_the_dense_solver_on_rkpm_matrices() {
         max_iter: 500,
     };
     let d = DenseSolver
-        .solve(&a.hessian, &a.mass, &req, &Silent)
+        .solve_converged(&a.hessian, &a.mass, &req, &Silent)
         .unwrap();
     let l = Lobpcg::new(LobpcgOptions::default())
-        .solve(&a.hessian, &a.mass, &req, &Silent)
+        .solve_converged(&a.hessian, &a.mass, &req, &Silent)
         .unwrap();
     // Residual tol 1e-10 bounds the eigenvalue error by ~ tol^2 * ||H|| / gap: far below 1e-8.
     for j in 1..17 {
@@ -542,5 +542,59 @@ fn lobpcg_matches_the_dense_solver_on_rkpm_matrices() {
             "vector {i}: sin angle {}",
             (1.0 - kept).max(0.0).sqrt()
         );
+    }
+}
+
+/// Not converged is a status: `solve_with` gives the run built from the partial pairs with the
+/// status in its report and a warning; `solve` and `build_basis` make it the error (with the
+/// partial result), as before.
+#[test]
+fn a_solve_that_stops_short_is_a_status_in_solve_with_and_an_error_in_solve() {
+    use freeform::eigen::lobpcg::Lobpcg;
+    use freeform::eigen::{EigenError, EigenStatus};
+    let shape = Shape::parse("box:2,1,1", &ShapeOptions::default()).unwrap();
+    let opts = BasisOptions {
+        solver: SolverConfig::lobpcg(),
+        tol: 1e-13,
+        max_iter: 1,
+        ..small_opts(120, 6, 6000)
+    };
+    let problem = Problem::from_shape(&shape, &opts, &Silent).unwrap();
+    let run = problem
+        .clone()
+        .solve_with(&Lobpcg::default(), &Silent)
+        .unwrap();
+    let EigenStatus::NotConverged {
+        iterations,
+        converged,
+        nev,
+        max_residual,
+        ..
+    } = run.report.eigen.status
+    else {
+        panic!("1 iteration at tol 1e-13 converged: {:?}", run.report.eigen)
+    };
+    assert_eq!((iterations, nev), (1, 7));
+    assert!(converged < 7);
+    assert_eq!(max_residual, run.report.max_relative_residual);
+    assert_eq!(run.basis.modes(), 7);
+    assert!(
+        run.report
+            .warnings
+            .iter()
+            .any(|w| w.starts_with("the eigensolver did not converge")),
+        "{:?}",
+        run.report.warnings
+    );
+    let json = serde_json::to_value(&run.report).unwrap();
+    assert_eq!(json["eigen"]["status"]["not_converged"]["nev"], 7);
+    for result in [problem.solve(&Silent), build_basis(&shape, &opts, &Silent)] {
+        match result {
+            Err(freeform::Error::Eigen(EigenError::NotConverged { partial, nev, .. })) => {
+                assert_eq!(nev, 7);
+                assert_eq!(partial.values, run.basis.eigenvalues);
+            }
+            other => panic!("expected NotConverged, got {:?}", other.map(|r| r.report)),
+        }
     }
 }

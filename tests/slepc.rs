@@ -6,7 +6,7 @@
 use freeform::eigen::dense::DenseSolver;
 use freeform::eigen::slepc::{SlepcOptions, SlepcPreset, SlepcSolver};
 use freeform::eigen::testing::{q1_fem, q1_fem_eigenvalues};
-use freeform::eigen::{EigenError, EigenRequest, Eigensolver, SlepcLobpcgStop};
+use freeform::eigen::{EigenError, EigenRequest, EigenStatus, Eigensolver, SlepcLobpcgStop};
 use freeform::progress::Silent;
 
 /// Q1 Neumann problem, 9 x 8 x 7 nodes (K = 504), 8 pairs: distinct sizes keep the wanted
@@ -44,7 +44,9 @@ fn max_rel_diff(a: &[f64], b: &[f64]) -> f64 {
 fn every_preset_matches_the_analytic_spectrum_and_the_dense_solver() {
     let (h, m) = q1_fem(N, H);
     let exact = q1_fem_eigenvalues(N, H, 8);
-    let dense = DenseSolver.solve(&h, &m, &request(1e-10), &Silent).unwrap();
+    let dense = DenseSolver
+        .solve_converged(&h, &m, &request(1e-10), &Silent)
+        .unwrap();
     // The dense solver is exact to round-off (~1e-13 relative here), so it checks the
     // analytic formula as much as it checks SLEPc.
     assert!(max_rel_diff(&dense.values, &exact) < 1e-10);
@@ -57,7 +59,9 @@ fn every_preset_matches_the_analytic_spectrum_and_the_dense_solver() {
             preset,
             ..SlepcOptions::default()
         });
-        let sol = solver.solve(&h, &m, &request(1e-10), &Silent).unwrap();
+        let sol = solver
+            .solve_converged(&h, &m, &request(1e-10), &Silent)
+            .unwrap();
         // Residual tolerance 1e-10 (relative to ||H|| + |lambda| ||M||) bounds the eigenvalue
         // error by ~ residual^2 / gap ~ 1e-20 relative for shift-and-invert and by ~ residual
         // x ||H|| / lambda ~ 1e-10 x lambda_max / lambda_1 ~ 1e-8 for an iterative method
@@ -98,13 +102,13 @@ fn rkpm_matrices_agree_with_the_dense_solver() {
         tol: 1e-10,
         max_iter: 2000,
     };
-    let dense = DenseSolver.solve(h, m, &req, &Silent).unwrap();
+    let dense = DenseSolver.solve_converged(h, m, &req, &Silent).unwrap();
     for preset in [SlepcPreset::KsSinvert, SlepcPreset::LobpcgGamg] {
         let sol = SlepcSolver::new(SlepcOptions {
             preset,
             ..SlepcOptions::default()
         })
-        .solve(h, m, &req, &Silent)
+        .solve_converged(h, m, &req, &Silent)
         .unwrap_or_else(|e| panic!("{}: {e}", preset.name()));
         // The targets: 1e-8 relative for eigenvalues, 1e-6 rad for eigenspaces. With
         // residuals <= 1e-10 the angle bound is residual x ||H|| / gap ~ 1e-10 x 1e3 / 1e-1.
@@ -132,7 +136,9 @@ fn petsc_options_override_the_preset() {
         )
         .unwrap(),
     );
-    let sol = solver.solve(&h, &m, &request(1e-9), &Silent).unwrap();
+    let sol = solver
+        .solve_converged(&h, &m, &request(1e-9), &Silent)
+        .unwrap();
     let note = sol.info.notes.join("; ");
     assert!(
         note.contains("eps lobpcg") && note.contains("pc jacobi"),
@@ -142,7 +148,7 @@ fn petsc_options_override_the_preset() {
     assert!(max_rel_diff(&sol.values, &exact) < 1e-7);
     // The options were removed after the solve: the next default solve is Krylov-Schur again.
     let sol = SlepcSolver::default()
-        .solve(&h, &m, &request(1e-9), &Silent)
+        .solve_converged(&h, &m, &request(1e-9), &Silent)
         .unwrap();
     assert!(
         sol.info.notes[0].contains("eps krylovschur"),
@@ -177,30 +183,32 @@ fn non_convergence_returns_the_partial_result() {
         tol: 1e-12,
         max_iter: 2,
     };
-    match solver.solve(&h, &m, &req, &Silent) {
-        Err(
-            ref e @ EigenError::SlepcLobpcgNotConverged {
-                stop: SlepcLobpcgStop::IterationCap,
-                ref partial,
-                converged,
-                ..
-            },
-        ) => {
+    // Not converged is a status on the result, with the partial result in hand.
+    let partial = solver
+        .solve(&h, &m, &req, &Silent)
+        .unwrap_or_else(|e| panic!("expected SLEPc's LOBPCG iteration cap, got {e}"));
+    match partial.info.status {
+        EigenStatus::SlepcLobpcgNotConverged {
+            stop: SlepcLobpcgStop::IterationCap,
+            converged,
+            ..
+        } => {
             assert!(converged < 8);
             assert_eq!(partial.info.residuals.len(), partial.values.len());
-            let text = e.to_string();
-            assert!(
-                text.starts_with("SLEPc's LOBPCG stopped at its iteration cap (2 iterations)")
-                    && text.contains("raise --max-iter (2 now, default 1000)"),
-                "{text}"
-            );
         }
-        Err(other) => panic!("expected SLEPc's LOBPCG iteration cap, got {other}"),
-        Ok(sol) => panic!(
+        EigenStatus::Converged => panic!(
             "2 iterations cannot converge 8 pairs to 1e-12: {:?}",
-            sol.info
+            partial.info
         ),
+        ref other => panic!("expected SLEPc's LOBPCG iteration cap, got {other:?}"),
     }
+    // Its error, where a converged result is required, says so and advises raising the cap.
+    let text = partial.into_converged().unwrap_err().to_string();
+    assert!(
+        text.starts_with("SLEPc's LOBPCG stopped at its iteration cap (2 iterations)")
+            && text.contains("raise --max-iter (2 now, default 1000)"),
+        "{text}"
+    );
 }
 
 #[test]
@@ -278,9 +286,13 @@ fn lobpcg_breakdown_is_a_typed_error_with_advice() {
         Ok(sol) => panic!("SLEPc's LOBPCG no longer breaks down here: {:?}", sol.info),
     }
     // PETSc is usable afterwards, and both advised solvers solve the same problem.
-    let dense = DenseSolver.solve(h, m, &req, &Silent).unwrap();
-    let ks = SlepcSolver::default().solve(h, m, &req, &Silent).unwrap();
-    let native = Lobpcg::default().solve(h, m, &req, &Silent).unwrap();
+    let dense = DenseSolver.solve_converged(h, m, &req, &Silent).unwrap();
+    let ks = SlepcSolver::default()
+        .solve_converged(h, m, &req, &Silent)
+        .unwrap();
+    let native = Lobpcg::default()
+        .solve_converged(h, m, &req, &Silent)
+        .unwrap();
     for (name, sol) in [("ks-sinvert", &ks), ("native lobpcg", &native)] {
         let diff = max_eigenvalue_rel_diff(&sol.values, &dense.values);
         assert!(diff < 1e-8, "{name} vs dense: {diff:e}");
@@ -359,7 +371,7 @@ fn advised_solvers_agree_with_dense(
 ) {
     use freeform::eigen::compare::max_eigenvalue_rel_diff;
     use freeform::eigen::lobpcg::Lobpcg;
-    let dense = DenseSolver.solve(h, m, req, &Silent).unwrap();
+    let dense = DenseSolver.solve_converged(h, m, req, &Silent).unwrap();
     let mut solvers: Vec<(String, Box<dyn Eigensolver>, usize)> = vec![
         (
             "ks-sinvert".into(),
@@ -385,7 +397,7 @@ fn advised_solvers_agree_with_dense(
     for (name, solver, nev) in solvers {
         let req = EigenRequest { nev, ..req.clone() };
         let sol = solver
-            .solve(h, m, &req, &Silent)
+            .solve_converged(h, m, &req, &Silent)
             .unwrap_or_else(|e| panic!("{name}: {e}"));
         let diff = max_eigenvalue_rel_diff(&sol.values, &dense.values[..nev]);
         assert!(diff < 1e-8, "{name} vs dense: {diff:e}");
@@ -406,25 +418,25 @@ fn slepc_lobpcg_false_convergence_names_the_pair_and_the_ways_out() {
         tol: 1e-8,
         max_iter: 1000,
     };
-    let dense = DenseSolver.solve(&h, &m, &req, &Silent).unwrap();
+    let dense = DenseSolver.solve_converged(&h, &m, &req, &Silent).unwrap();
     let lobpcg = SlepcSolver::new(SlepcOptions::parse("lobpcg-gamg").unwrap());
-    let err = match lobpcg.solve(&h, &m, &req, &Silent) {
-        Err(e @ EigenError::SlepcLobpcgNotConverged { .. }) => e,
-        Err(other) => panic!("expected SlepcLobpcgNotConverged, got {other}"),
-        Ok(sol) => panic!("SLEPc's LOBPCG no longer fails here: {:?}", sol.info),
-    };
-    let text = err.to_string();
-    let EigenError::SlepcLobpcgNotConverged {
+    let partial = lobpcg
+        .solve(&h, &m, &req, &Silent)
+        .unwrap_or_else(|e| panic!("expected SlepcLobpcgNotConverged, got {e}"));
+    let EigenStatus::SlepcLobpcgNotConverged {
         stop,
         reported,
         converged,
         block_size,
-        partial,
         ..
-    } = err
+    } = partial.info.status
     else {
-        unreachable!()
+        panic!(
+            "SLEPc's LOBPCG no longer fails here: {:?}",
+            partial.info.status
+        )
     };
+    let text = partial.clone().into_converged().unwrap_err().to_string();
     let SlepcLobpcgStop::ClaimedConverged {
         pair,
         lambda,
@@ -478,18 +490,18 @@ fn slepc_lobpcg_iteration_cap_is_named_with_the_ways_out() {
         max_iter: 1000,
     };
     let lobpcg = SlepcSolver::new(SlepcOptions::parse("lobpcg-gamg").unwrap());
-    match lobpcg.solve(&h, &m, &req, &Silent) {
-        Err(
-            ref e @ EigenError::SlepcLobpcgNotConverged {
-                stop: SlepcLobpcgStop::IterationCap,
-                iterations,
-                converged,
-                block_size,
-                ref partial,
-                ..
-            },
-        ) => {
-            let text = e.to_string();
+    let partial = lobpcg
+        .solve(&h, &m, &req, &Silent)
+        .unwrap_or_else(|e| panic!("expected the iteration cap, got {e}"));
+    match partial.info.status {
+        EigenStatus::SlepcLobpcgNotConverged {
+            stop: SlepcLobpcgStop::IterationCap,
+            iterations,
+            converged,
+            block_size,
+            ..
+        } => {
+            let text = partial.clone().into_converged().unwrap_err().to_string();
             assert_eq!((converged, block_size), (16, Some(16)), "{text}");
             assert!(iterations >= 1000, "{text}");
             assert_eq!(partial.values.len(), 16);
@@ -504,8 +516,10 @@ fn slepc_lobpcg_iteration_cap_is_named_with_the_ways_out() {
                 "{text}"
             );
         }
-        Err(other) => panic!("expected the iteration cap, got {other}"),
-        Ok(sol) => panic!("SLEPc's LOBPCG no longer stalls here: {:?}", sol.info),
+        EigenStatus::Converged => {
+            panic!("SLEPc's LOBPCG no longer stalls here: {:?}", partial.info)
+        }
+        ref other => panic!("expected the iteration cap, got {other:?}"),
     }
     advised_solvers_agree_with_dense(&h, &m, &req, &["lobpcg-gamg:-eps_lobpcg_blocksize 19"], 16);
 }
@@ -522,15 +536,16 @@ fn slepc_lobpcg_stop_on_its_own_breakdown_is_named_with_the_ways_out() {
         max_iter: 1000,
     };
     let lobpcg = SlepcSolver::new(SlepcOptions::parse("lobpcg-gamg").unwrap());
-    match lobpcg.solve(&h, &m, &req, &Silent) {
-        Err(
-            ref e @ EigenError::SlepcLobpcgNotConverged {
-                stop: SlepcLobpcgStop::Stopped { reason: -2 },
-                converged,
-                ..
-            },
-        ) => {
-            let text = e.to_string();
+    let partial = lobpcg
+        .solve(&h, &m, &req, &Silent)
+        .unwrap_or_else(|e| panic!("expected SLEPc's breakdown stop, got {e}"));
+    match partial.info.status {
+        EigenStatus::SlepcLobpcgNotConverged {
+            stop: SlepcLobpcgStop::Stopped { reason: -2 },
+            converged,
+            ..
+        } => {
+            let text = partial.clone().into_converged().unwrap_err().to_string();
             assert_eq!(converged, 28, "{text}");
             assert!(
                 text.contains("with 28/31 pairs converged (tol 1.0e-8): it reports a breakdown")
@@ -540,8 +555,10 @@ fn slepc_lobpcg_stop_on_its_own_breakdown_is_named_with_the_ways_out() {
                 "{text}"
             );
         }
-        Err(other) => panic!("expected SLEPc's breakdown stop, got {other}"),
-        Ok(sol) => panic!("SLEPc's LOBPCG no longer stops here: {:?}", sol.info),
+        EigenStatus::Converged => {
+            panic!("SLEPc's LOBPCG no longer stops here: {:?}", partial.info)
+        }
+        ref other => panic!("expected SLEPc's breakdown stop, got {other:?}"),
     }
     advised_solvers_agree_with_dense(&h, &m, &req, &[], 27);
 }

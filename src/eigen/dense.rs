@@ -182,7 +182,9 @@ mod tests {
         let n = [6, 6, 6];
         let h = testing::grid_laplacian(n, 1.0);
         let m = testing::identity(216);
-        let sol = DenseSolver.solve(&h, &m, &request(40), &Silent).unwrap();
+        let sol = DenseSolver
+            .solve_converged(&h, &m, &request(40), &Silent)
+            .unwrap();
         let exact = testing::grid_laplacian_eigenvalues(n, 40);
         for (a, b) in sol.values.iter().zip(&exact) {
             // Backward-stable dense eigensolver: absolute error ~ eps ||C|| ~ 1e-15 * 12.
@@ -203,7 +205,9 @@ mod tests {
         // reduction. Box 5 x 4 x 6 nodes, h = 0.2.
         let n = [5, 4, 6];
         let (h, m) = testing::q1_fem(n, 0.2);
-        let sol = DenseSolver.solve(&h, &m, &request(30), &Silent).unwrap();
+        let sol = DenseSolver
+            .solve_converged(&h, &m, &request(30), &Silent)
+            .unwrap();
         let exact = testing::q1_fem_eigenvalues(n, 0.2, 30);
         for (a, b) in sol.values.iter().zip(&exact) {
             // Relative 1e-11 of the largest eigenvalue ~ 1e3: round-off of the reduction

@@ -8,7 +8,8 @@
 //!
 //! Every solver returns eigenpairs in ascending order, the constant mode first, with
 //! M-orthonormal vectors (c^T M c = I), and diagnostics recomputed independently of the
-//! solver's own bookkeeping ([`check_solution`]).
+//! solver's own bookkeeping ([`check_solution`]). Whether the solve converged is a status on
+//! the result ([`EigenInfo::status`]), not an error (see [`EigenError`]).
 
 pub mod compare;
 pub mod dense;
@@ -70,6 +71,73 @@ pub struct EigenInfo {
     pub orthonormality_error: f64,
     /// Free-form notes (preconditioner used, shift, fallbacks taken).
     pub notes: Vec<String>,
+    /// Converged, or how the solver stopped short (with the figures of the error
+    /// [`EigenSolution::into_converged`] makes of it). Left out of the JSON when converged.
+    #[serde(skip_serializing_if = "EigenStatus::is_converged")]
+    pub status: EigenStatus,
+}
+
+/// How a solve ended, asked of its result as PETSc/SLEPc ask `EPSGetConvergedReason`: every
+/// requested pair met the tolerance, or the solver stopped short with the pairs it has. A solve
+/// that has no usable pairs fails with an [`EigenError`] instead.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EigenStatus {
+    /// Every requested pair met the tolerance.
+    #[default]
+    Converged,
+    /// The iteration stopped before all pairs met the tolerance (iteration cap, stagnation,
+    /// or an external solver's stop); [`EigenError::NotConverged`] as a status.
+    NotConverged {
+        /// Iterations performed.
+        iterations: usize,
+        /// Pairs that met the tolerance.
+        converged: usize,
+        /// Pairs requested.
+        nev: usize,
+        /// Tolerance.
+        tol: f64,
+        /// Largest residual at exit (+inf when pairs are missing: their residual is unknown).
+        max_residual: f64,
+    },
+    /// SLEPc's LOBPCG ended without `nev` pairs that pass freeform's residual check;
+    /// [`EigenError::SlepcLobpcgNotConverged`] as a status.
+    SlepcLobpcgNotConverged {
+        /// How SLEPc's run ended.
+        stop: SlepcLobpcgStop,
+        /// SLEPc's iteration count.
+        iterations: usize,
+        /// Pairs SLEPc reported converged (`EPSGetConverged`; may exceed `nev`).
+        reported: usize,
+        /// Pairs that pass freeform's residual check.
+        converged: usize,
+        /// Pairs requested (m + 1).
+        nev: usize,
+        /// Tolerance requested.
+        tol: f64,
+        /// Iteration cap requested.
+        max_iter: usize,
+        /// Problem size K.
+        k: usize,
+        /// LOBPCG block size in use, if SLEPc could report it.
+        block_size: Option<usize>,
+    },
+}
+
+impl EigenStatus {
+    /// Whether every requested pair met the tolerance.
+    pub fn is_converged(&self) -> bool {
+        matches!(self, EigenStatus::Converged)
+    }
+
+    /// `(pairs that met the tolerance, pairs requested)` when not converged.
+    pub fn converged_pairs(&self) -> Option<(usize, usize)> {
+        match *self {
+            EigenStatus::Converged => None,
+            EigenStatus::NotConverged { converged, nev, .. }
+            | EigenStatus::SlepcLobpcgNotConverged { converged, nev, .. } => Some((converged, nev)),
+        }
+    }
 }
 
 /// Eigenpairs, ascending.
@@ -79,11 +147,77 @@ pub struct EigenSolution {
     pub values: Vec<f64>,
     /// Eigenvectors, K x nev, M-orthonormal; column j pairs with `values[j]`.
     pub vectors: Mat<f64>,
-    /// Diagnostics.
+    /// Diagnostics, with the convergence status ([`EigenInfo::status`]).
     pub info: EigenInfo,
 }
 
+impl EigenSolution {
+    /// Whether every requested pair met the tolerance ([`EigenInfo::status`]).
+    pub fn converged(&self) -> bool {
+        self.info.status.is_converged()
+    }
+
+    /// This solution when it converged; otherwise the error its status stands for
+    /// ([`EigenError::NotConverged`] or [`EigenError::SlepcLobpcgNotConverged`], with the
+    /// status's figures and this solution as `partial`). For callers that need a converged
+    /// result.
+    ///
+    /// # Errors
+    /// As above, when [`EigenSolution::converged`] is false.
+    pub fn into_converged(self) -> Result<EigenSolution, EigenError> {
+        match self.info.status.clone() {
+            EigenStatus::Converged => Ok(self),
+            EigenStatus::NotConverged {
+                iterations,
+                converged,
+                nev,
+                tol,
+                max_residual,
+            } => Err(EigenError::NotConverged {
+                iterations,
+                converged,
+                nev,
+                tol,
+                max_residual,
+                partial: Box::new(self),
+            }),
+            EigenStatus::SlepcLobpcgNotConverged {
+                stop,
+                iterations,
+                reported,
+                converged,
+                nev,
+                tol,
+                max_iter,
+                k,
+                block_size,
+            } => Err(EigenError::SlepcLobpcgNotConverged {
+                stop,
+                iterations,
+                reported,
+                converged,
+                nev,
+                tol,
+                max_iter,
+                k,
+                block_size,
+                partial: Box::new(self),
+            }),
+        }
+    }
+}
+
 /// Eigensolver failures.
+///
+/// The rule (as in PETSc/SLEPc, where "converged?" is a reason asked of the solver): **not
+/// converged is a status, failed is an error.** A solver that stops before every pair meets
+/// the tolerance (iteration cap, stagnation, SLEPc's own stop) returns `Ok` with the pairs it
+/// has, their recomputed residuals and [`EigenInfo::status`] saying how it stopped. An error
+/// means there is no usable result: a bad request or input, an indefinite matrix, a breakdown,
+/// a library failure. The two not-converged variants below carry the partial result; they are
+/// made from a status by [`EigenSolution::into_converged`] where a converged result is required
+/// ([`Eigensolver::solve_converged`], `precompute::Problem::solve`, `build_basis`), so those
+/// calls fail as before with the same message.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum EigenError {
@@ -112,6 +246,7 @@ pub enum EigenError {
         detail: String,
     },
     /// The iteration stopped before all pairs met the tolerance; the partial result is kept.
+    /// Made from [`EigenStatus::NotConverged`] by [`EigenSolution::into_converged`].
     #[error(
         "eigensolver did not converge in {iterations} iterations: {converged}/{nev} pairs below \
          tol {tol:.1e} (max relative residual {max_residual:.2e}); raise --tol or the iteration cap"
@@ -167,7 +302,8 @@ pub enum EigenError {
     /// converged that are not, or stopped at its iteration cap or on a breakdown it detected.
     /// At the default iteration cap a larger tol or cap did not help (measured, docs/slepc.md);
     /// the message names what does. The partial result is kept. Other solvers' non-convergence is
-    /// [`EigenError::NotConverged`].
+    /// [`EigenError::NotConverged`]. Made from [`EigenStatus::SlepcLobpcgNotConverged`] by
+    /// [`EigenSolution::into_converged`].
     #[error(
         "{}. Use the default SLEPc configuration --slepc ks-sinvert (Krylov-Schur, \
          shift-and-invert), or freeform's native LOBPCG (--solver lobpcg, the default); to keep \
@@ -237,7 +373,8 @@ fn lobpcg_breakdown_advice(k: usize, nev: usize, block_size: Option<usize>) -> S
 pub const SLEPC_RESIDUAL_SLACK: f64 = 10.0;
 
 /// How SLEPc's LOBPCG ended when [`EigenError::SlepcLobpcgNotConverged`] is returned.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum SlepcLobpcgStop {
     /// SLEPc reported at least `nev` pairs converged, but freeform's recomputed residual of
     /// some returned pairs is above [`SLEPC_RESIDUAL_SLACK`] x tol.
@@ -362,6 +499,12 @@ pub trait Eigensolver {
     /// Short name used in reports ("lobpcg", "dense").
     fn name(&self) -> &'static str;
     /// Solve H x = lambda M x for the `request.nev` smallest pairs. H, M: K x K symmetric.
+    /// A solve that stops before every pair meets the tolerance returns `Ok` with
+    /// [`EigenInfo::status`] saying so (and possibly fewer than `nev` pairs, for an external
+    /// solver); see [`EigenError`] for the rule.
+    ///
+    /// # Errors
+    /// Failures without a usable result ([`EigenError`]).
     fn solve(
         &self,
         h: &SparseMatrix,
@@ -369,6 +512,22 @@ pub trait Eigensolver {
         request: &EigenRequest,
         progress: &dyn Progress,
     ) -> Result<EigenSolution, EigenError>;
+
+    /// [`Eigensolver::solve`], then [`EigenSolution::into_converged`]: a converged solution
+    /// or an error (the not-converged ones carry the partial result).
+    ///
+    /// # Errors
+    /// As [`Eigensolver::solve`], plus [`EigenError::NotConverged`] /
+    /// [`EigenError::SlepcLobpcgNotConverged`] for a solve that stopped short.
+    fn solve_converged(
+        &self,
+        h: &SparseMatrix,
+        m: &SparseMatrix,
+        request: &EigenRequest,
+        progress: &dyn Progress,
+    ) -> Result<EigenSolution, EigenError> {
+        self.solve(h, m, request, progress)?.into_converged()
+    }
 }
 
 /// Parameters for faer's dense self-adjoint eigendecomposition that force the tridiagonal QR

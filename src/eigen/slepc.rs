@@ -24,12 +24,13 @@
 //! `sygvd` then fails in its Rayleigh-Ritz step and the solve ends with
 //! [`EigenError::SlepcLobpcgBreakdown`], whose message names the alternatives (docs/slepc.md).
 //! When it reports pairs converged that our residual check rejects, or stops at its iteration
-//! cap or on a breakdown it detects itself, [`accept`] returns
-//! [`EigenError::SlepcLobpcgNotConverged`], which says which and names the same alternatives.
+//! cap or on a breakdown it detects itself, the solution comes back with the status
+//! [`EigenStatus::SlepcLobpcgNotConverged`] ([`convergence_status`]), whose error
+//! ([`EigenError::SlepcLobpcgNotConverged`]) says which and names the same alternatives.
 
 use super::{
     check_solution, validate_problem, EigenError, EigenInfo, EigenRequest, EigenSolution,
-    Eigensolver, SlepcLobpcgStop,
+    EigenStatus, Eigensolver, SlepcLobpcgStop,
 };
 use crate::progress::Progress;
 use crate::sparse::SparseMatrix;
@@ -212,13 +213,14 @@ pub struct RowsSolution {
     /// Eigenvectors, K x values.len(), on every rank.
     pub vectors: Mat<f64>,
     /// How SLEPc's run ended (type, iterations, converged count, reason, block size), for
-    /// [`accept`].
+    /// [`convergence_status`].
     pub status: SolveStatus,
     /// Configuration actually used (types, target, options).
     pub notes: Vec<String>,
 }
 
-/// How `EPSSolve` ended, beside the pairs: what [`accept`] needs to word a failure.
+/// How `EPSSolve` ended, beside the pairs: what [`convergence_status`] needs to word a
+/// failure.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct SolveStatus {
     /// EPS type in use ("krylovschur", "lobpcg", ...).
@@ -298,7 +300,7 @@ fn option_names(options: &str) -> Vec<&str> {
 /// it with its own block; blocks must tile 0..k in rank order). H, M: K x K symmetric
 /// (H Pa m, M m^3). Eigenvectors are gathered onto every rank. Convergence is not judged
 /// here: recompute the residuals and pass the pairs with [`RowsSolution::status`] to
-/// [`accept`].
+/// [`convergence_status`].
 ///
 /// # Errors
 /// [`EigenError::SlepcLobpcgBreakdown`] when SLEPc's LOBPCG breaks down in its Rayleigh-Ritz
@@ -455,29 +457,29 @@ fn configure<'s>(
 /// messages can use it without the `slepc` feature).
 pub const RESIDUAL_SLACK: f64 = super::SLEPC_RESIDUAL_SLACK;
 
-/// Accept SLEPc's pairs (`solution`, with freeform's recomputed residuals in `solution.info`)
-/// when `request.nev` of them came back and each residual is at most [`RESIDUAL_SLACK`] x tol.
-///
-/// # Errors
-/// With SLEPc's LOBPCG, [`EigenError::SlepcLobpcgNotConverged`] naming what happened: SLEPc
-/// reported `nev` pairs converged but some are not (the worst one is named), it stopped at
-/// its iteration cap, or it stopped for another reason (`status.reason`). With any other EPS
-/// type, [`EigenError::NotConverged`]. Both carry `solution` as the partial result.
-pub fn accept(
+/// Judge SLEPc's pairs (`solution`, with freeform's recomputed residuals in `solution.info`):
+/// converged when `request.nev` of them came back and each residual is at most
+/// [`RESIDUAL_SLACK`] x tol. Otherwise, with SLEPc's LOBPCG,
+/// [`EigenStatus::SlepcLobpcgNotConverged`] naming what happened (SLEPc reported `nev` pairs
+/// converged but some are not, the worst one named; it stopped at its iteration cap; or it
+/// stopped for another reason, `status.reason`); with any other EPS type,
+/// [`EigenStatus::NotConverged`]. [`EigenSolution::into_converged`] turns either into its
+/// error.
+pub fn convergence_status(
     k: usize,
     request: &EigenRequest,
     status: &SolveStatus,
-    solution: EigenSolution,
-) -> Result<EigenSolution, EigenError> {
+    solution: &EigenSolution,
+) -> EigenStatus {
     let limit = RESIDUAL_SLACK * request.tol;
     let residuals = &solution.info.residuals;
     let good = residuals.iter().filter(|&&r| r <= limit).count();
     let complete = solution.values.len() >= request.nev;
     if complete && good >= request.nev {
-        return Ok(solution);
+        return EigenStatus::Converged;
     }
     if status.eps_type != "lobpcg" {
-        return Err(EigenError::NotConverged {
+        return EigenStatus::NotConverged {
             iterations: status.iterations,
             converged: good,
             nev: request.nev,
@@ -488,8 +490,7 @@ pub fn accept(
             } else {
                 f64::INFINITY
             },
-            partial: Box::new(solution),
-        });
+        };
     }
     let stop =
         if complete {
@@ -517,7 +518,7 @@ pub fn accept(
                 reason: status.reason,
             }
         };
-    Err(EigenError::SlepcLobpcgNotConverged {
+    EigenStatus::SlepcLobpcgNotConverged {
         stop,
         iterations: status.iterations,
         reported: status.converged,
@@ -527,8 +528,7 @@ pub fn accept(
         max_iter: request.max_iter,
         k,
         block_size: status.block_size,
-        partial: Box::new(solution),
-    })
+    }
 }
 
 impl Eigensolver for SlepcSolver {
@@ -565,12 +565,13 @@ impl Eigensolver for SlepcSolver {
             ..EigenInfo::default()
         };
         check_solution(h, m, &rs.values, &rs.vectors, &mut info);
-        let solution = EigenSolution {
+        let mut solution = EigenSolution {
             values: rs.values,
             vectors: rs.vectors,
             info,
         };
-        accept(k, request, &rs.status, solution)
+        solution.info.status = convergence_status(k, request, &rs.status, &solution);
+        Ok(solution)
     }
 }
 
@@ -746,6 +747,18 @@ mod tests {
         }
     }
 
+    /// The solution with its status, made an error where it did not converge (what the
+    /// solver's caller gets from `solve_converged`).
+    fn accept(
+        k: usize,
+        request: &EigenRequest,
+        status: &SolveStatus,
+        mut solution: EigenSolution,
+    ) -> Result<EigenSolution, EigenError> {
+        solution.info.status = convergence_status(k, request, status, &solution);
+        solution.into_converged()
+    }
+
     #[test]
     fn accept_names_each_lobpcg_outcome_and_its_ways_out() {
         let req = EigenRequest {
@@ -803,6 +816,20 @@ mod tests {
              \"-eps_lobpcg_blocksize 4\"), or ask for fewer modes"
         );
         assert!(!text.contains("raise --tol"), "{text}");
+        // The same outcome as a status on the solution, with the same figures.
+        let sol = returned(120, &[1e-9, 3e-3, 5e-2, 1e-9]);
+        match convergence_status(120, &req, &lobpcg_status(5, 1, 2), &sol) {
+            EigenStatus::SlepcLobpcgNotConverged {
+                stop: SlepcLobpcgStop::ClaimedConverged { pair: 2, .. },
+                reported: 5,
+                converged: 2,
+                nev: 4,
+                k: 120,
+                block_size: Some(2),
+                ..
+            } => {}
+            other => panic!("expected SlepcLobpcgNotConverged, got {other:?}"),
+        }
 
         // Iteration cap with pairs missing: the missing ones cannot be judged.
         let capped = accept(

@@ -174,16 +174,13 @@ fn run_one(
         _ => 0.0,
     };
     let (solution, error) = match outcome {
-        Ok(s) => (Some(s), None),
-        Err(
-            EigenError::NotConverged { partial, .. }
-            | EigenError::SlepcLobpcgNotConverged { partial, .. },
-        ) => {
+        Ok(s) if s.converged() => (Some(s), None),
+        Ok(s) => {
             let msg = format!(
                 "not converged (max relative residual {:.2e})",
-                partial.info.max_relative_residual
+                s.info.max_relative_residual
             );
-            (Some(*partial), Some(msg))
+            (Some(s), Some(msg))
         }
         Err(e) => (None, Some(e.to_string())),
     };

@@ -28,8 +28,8 @@ use super::{
     place_kernels, sample_with_material, BasisOptions, BasisRun, CoverageReport, ModesReport,
 };
 use crate::eigen::slepc::{
-    accept, allreduce_max, allreduce_sum, block_range, solve_rows, world_rank, RowBlock,
-    SlepcOptions,
+    allreduce_max, allreduce_sum, block_range, convergence_status, solve_rows, world_rank,
+    RowBlock, SlepcOptions,
 };
 use crate::eigen::{relative_residual, EigenError, EigenInfo, EigenRequest, EigenSolution};
 use crate::geometry::Shape;
@@ -215,17 +215,15 @@ pub fn build_basis_mpi(
         points_per_rank: (0..size).map(|r| counts[3 * r + 1] as usize).collect(),
     };
 
-    // Every rank holds the same reduced residuals, so all take the same decision.
-    let solution = accept(
-        k,
-        &request,
-        &rs.status,
-        EigenSolution {
-            values: rs.values,
-            vectors: rs.vectors,
-            info,
-        },
-    )?;
+    // Every rank holds the same reduced residuals, so all take the same decision; as
+    // `build_basis`, a solve that did not converge is an error here.
+    let mut solution = EigenSolution {
+        values: rs.values,
+        vectors: rs.vectors,
+        info,
+    };
+    solution.info.status = convergence_status(k, &request, &rs.status, &solution);
+    let solution = solution.into_converged()?;
     let mut report = ModesReport {
         kernels: k,
         points: n,

@@ -289,14 +289,30 @@ impl Problem {
     /// # Errors
     /// [`crate::eigen::EigenError::SlepcUnavailable`] for SLEPc in a build without it; the
     /// solver's own errors.
+    /// A solve that does not converge is an error here
+    /// ([`crate::eigen::EigenError::NotConverged`] with the partial result), as in
+    /// [`build_basis`].
     pub fn solve(self, progress: &dyn Progress) -> Result<BasisRun> {
         let solver = self.options.solver.build()?;
-        self.solve_with(solver.as_ref(), progress)
+        self.solve_inner(solver.as_ref(), progress, true)
     }
 
     /// Solve with `solver` and build the basis and its report (the report names the solver
-    /// that ran).
+    /// that ran). A solve that stops before convergence still gives the run, built from the
+    /// pairs the solver has (possibly fewer than m + 1 from an external solver): its
+    /// `report.eigen.status` says how it stopped and `report.warnings` says it did not
+    /// converge. [`Problem::solve`] makes that an error instead.
     pub fn solve_with(self, solver: &dyn Eigensolver, progress: &dyn Progress) -> Result<BasisRun> {
+        self.solve_inner(solver, progress, false)
+    }
+
+    /// The eigensolve and the basis; `require_converged`: a not-converged status is an error.
+    fn solve_inner(
+        self,
+        solver: &dyn Eigensolver,
+        progress: &dyn Progress,
+        require_converged: bool,
+    ) -> Result<BasisRun> {
         let request = self.request();
         let Problem {
             options: opts,
@@ -310,7 +326,10 @@ impl Problem {
             warnings,
         } = self;
         let clock = Stopwatch::start();
-        let solution = solver.solve(&assembled.hessian, &assembled.mass, &request, progress)?;
+        let mut solution = solver.solve(&assembled.hessian, &assembled.mass, &request, progress)?;
+        if require_converged {
+            solution = solution.into_converged()?;
+        }
         timings.eigensolve = clock.elapsed();
         timings.total += timings.eigensolve;
         let mut report = ModesReport {

@@ -87,8 +87,8 @@ pub const REPRODUCING_WARNING: f64 = 1e-8;
 pub const ORTHONORMALITY_WARNING: f64 = 1e-8;
 
 /// Fill `report.monitors` and add a warning for each monitor outside its healthy range:
-/// a moment matrix close to singular, reproducing identities violated, eigen-residuals
-/// above the tolerance asked for, M-orthonormality lost.
+/// a moment matrix close to singular, reproducing identities violated, an eigensolve that did
+/// not converge, eigen-residuals above the tolerance asked for, M-orthonormality lost.
 pub fn check_quality(report: &mut ModesReport) {
     report.monitors = basis_monitors(&report.coverage, report.reproducing_error, &report.eigen);
     let w = &mut report.warnings;
@@ -105,6 +105,13 @@ pub fn check_quality(report: &mut ModesReport) {
         w.push(format!(
             "reproducing error {:.2e} is above {REPRODUCING_WARNING:.0e}: the moment matrices are poorly conditioned",
             report.reproducing_error
+        ));
+    }
+    if let Some((converged, nev)) = report.eigen.status.converged_pairs() {
+        w.push(format!(
+            "the eigensolver did not converge: {converged}/{nev} pairs below the tolerance \
+             {:.1e}; the modes are its partial result",
+            report.tol
         ));
     }
     if report.max_relative_residual > report.tol {

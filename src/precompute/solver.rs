@@ -103,12 +103,15 @@ impl SolverConfig {
     }
 
     /// Whether the string form ([`std::fmt::Display`]) describes this configuration
-    /// completely (default LOBPCG settings, no SLEPc shift).
+    /// completely: default LOBPCG settings; SLEPc options that parse back from their spec (no
+    /// shift, options without surrounding blanks).
     fn has_string_form(&self) -> bool {
         match self {
             SolverConfig::Lobpcg(options) => *options == LobpcgOptions::default(),
             SolverConfig::Dense => true,
-            SolverConfig::Slepc(options) => options.shift.is_none(),
+            SolverConfig::Slepc(options) => {
+                SlepcOptions::parse(&options.spec()).ok().as_ref() == Some(options)
+            }
         }
     }
 }
@@ -314,6 +317,17 @@ mod tests {
         assert_eq!(
             serde_json::from_value::<SolverConfig>(json).unwrap(),
             shifted
+        );
+        // Options set by hand with stray blanks: the table keeps them exactly.
+        let blanks = SolverConfig::Slepc(SlepcOptions {
+            petsc_options: " -eps_ncv 20 ".into(),
+            ..SlepcOptions::default()
+        });
+        let json = serde_json::to_value(&blanks).unwrap();
+        assert_eq!(json["slepc"]["petsc_options"], " -eps_ncv 20 ");
+        assert_eq!(
+            serde_json::from_value::<SolverConfig>(json).unwrap(),
+            blanks
         );
         // A partial table takes the defaults for the rest, as in a scene file.
         let partial: SolverConfig = serde_json::from_str(r#"{"lobpcg": {"seed": 7}}"#).unwrap();

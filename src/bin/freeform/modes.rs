@@ -216,7 +216,7 @@ fn from_matrices(dir: &std::path::Path, args: &ModesArgs) -> CliResult {
         max_iter: args.basis.max_iter,
     };
     let clock = freeform::report::Stopwatch::start();
-    let solution = solver.solve(&h, &m, &request, &freeform::progress::Silent)?;
+    let solution = solver.solve_converged(&h, &m, &request, &freeform::progress::Silent)?;
     let solve_s = clock.elapsed();
     if !crate::is_root_rank(&config)? {
         return Ok(());

@@ -50,7 +50,7 @@ mod workspace;
 
 use super::{
     check_solution, constant_mode, validate_problem, EigenError, EigenInfo, EigenRequest,
-    EigenSolution, Eigensolver,
+    EigenSolution, EigenStatus, Eigensolver,
 };
 use crate::progress::Progress;
 use crate::sparse::{self, SparseMatrix};
@@ -344,23 +344,20 @@ impl Eigensolver for Lobpcg {
             ));
         }
         let converged = info.residuals.iter().filter(|&&r| r <= request.tol).count();
-        let solution = EigenSolution {
-            values,
-            vectors,
-            info,
-        };
-        if matches!(stop, Stop::Converged) && converged == nev {
-            Ok(solution)
-        } else {
-            Err(EigenError::NotConverged {
-                iterations: solution.info.iterations,
+        if !(matches!(stop, Stop::Converged) && converged == nev) {
+            info.status = EigenStatus::NotConverged {
+                iterations: info.iterations,
                 converged,
                 nev,
                 tol: request.tol,
-                max_residual: solution.info.max_relative_residual,
-                partial: Box::new(solution),
-            })
+                max_residual: info.max_relative_residual,
+            };
         }
+        Ok(EigenSolution {
+            values,
+            vectors,
+            info,
+        })
     }
 }
 

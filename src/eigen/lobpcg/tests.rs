@@ -113,10 +113,10 @@ fn lobpcg_matches_dense_with_random_diagonal_mass() {
     let nev = 17;
     let tol = 1e-10;
     let lob = Lobpcg::default()
-        .solve(&h, &m, &request(nev, tol), &Silent)
+        .solve_converged(&h, &m, &request(nev, tol), &Silent)
         .unwrap();
     let dense = DenseSolver
-        .solve(&h, &m, &request(nev + 8, tol), &Silent)
+        .solve_converged(&h, &m, &request(nev + 8, tol), &Silent)
         .unwrap();
     // Residual 1e-10 * ||H|| (~30) and gaps >= ~1e-2 give eigenvalue errors ~ (3e-9)^2 / 1e-2
     // ~ 1e-15: 1e-8 relative is loose. Angles ~ residual * ||H|| / gap ~ 3e-7 worst case.
@@ -144,7 +144,7 @@ fn lobpcg_q1_fem_matches_analytic_and_dense() {
     let nev = 21;
     let tol = 1e-10;
     let lob = Lobpcg::default()
-        .solve(&h, &m, &request(nev, tol), &Silent)
+        .solve_converged(&h, &m, &request(nev, tol), &Silent)
         .unwrap();
     assert_solution_quality(&lob, tol);
     let exact = testing::q1_fem_eigenvalues(n, hsp, nev);
@@ -158,7 +158,7 @@ fn lobpcg_q1_fem_matches_analytic_and_dense() {
         );
     }
     let dense = DenseSolver
-        .solve(&h, &m, &request(nev + 8, tol), &Silent)
+        .solve_converged(&h, &m, &request(nev + 8, tol), &Silent)
         .unwrap();
     compare_with_dense(&m, &lob, &dense, 1e-8, 1e-6);
 }
@@ -175,7 +175,7 @@ fn lobpcg_cube_multiplicities_are_complete() {
     let m = testing::identity(343);
     let exact = testing::grid_laplacian_eigenvalues(n, 40);
     let dense = DenseSolver
-        .solve(&h, &m, &request(40, 1e-10), &Silent)
+        .solve_converged(&h, &m, &request(40, 1e-10), &Silent)
         .unwrap();
     let groups = clusters(&exact, 1e-9);
     let sizes: Vec<usize> = groups.iter().map(|g| g.len()).collect();
@@ -183,7 +183,7 @@ fn lobpcg_cube_multiplicities_are_complete() {
     for nev in [5, 6, 8, 12, 17] {
         let tol = 1e-10;
         let lob = Lobpcg::default()
-            .solve(&h, &m, &request(nev, tol), &Silent)
+            .solve_converged(&h, &m, &request(nev, tol), &Silent)
             .unwrap();
         assert_solution_quality(&lob, tol);
         for j in 0..nev {
@@ -222,8 +222,12 @@ fn lobpcg_is_deterministic() {
     let h = testing::grid_laplacian(n, 1.8);
     let m = testing::kernel_mass(n, 1.8, 0.05, 0.5, 3);
     let req = request(9, 1e-9);
-    let a = Lobpcg::default().solve(&h, &m, &req, &Silent).unwrap();
-    let b = Lobpcg::default().solve(&h, &m, &req, &Silent).unwrap();
+    let a = Lobpcg::default()
+        .solve_converged(&h, &m, &req, &Silent)
+        .unwrap();
+    let b = Lobpcg::default()
+        .solve_converged(&h, &m, &req, &Silent)
+        .unwrap();
     // Bit-identical: compare the f64 bit patterns.
     let bits = |s: &EigenSolution| -> Vec<u64> {
         s.values
@@ -243,7 +247,7 @@ fn lobpcg_is_deterministic() {
         seed: 99,
         ..LobpcgOptions::default()
     })
-    .solve(&h, &m, &req, &Silent)
+    .solve_converged(&h, &m, &req, &Silent)
     .unwrap();
     for (x, y) in a.values.iter().zip(&other.values) {
         assert!((x - y).abs() <= 1e-9 * y.abs());
@@ -264,15 +268,17 @@ fn lobpcg_not_converged_keeps_partial_result() {
         preconditioner: PreconditionerKind::Jacobi,
         ..LobpcgOptions::default()
     };
-    match Lobpcg::new(opts).solve(&h, &m, &req, &Silent) {
-        Err(EigenError::NotConverged {
+    // Not converged is a status on the result, with the result in hand.
+    let partial = Lobpcg::new(opts).solve(&h, &m, &req, &Silent).unwrap();
+    assert!(!partial.converged());
+    match partial.info.status {
+        EigenStatus::NotConverged {
             iterations,
             converged,
             nev,
-            partial,
             max_residual,
             ..
-        }) => {
+        } => {
             assert_eq!(iterations, 2);
             assert_eq!(nev, 10);
             assert!(converged < 10);
@@ -288,8 +294,42 @@ fn lobpcg_not_converged_keeps_partial_result() {
             assert_eq!(partial.values[0], 0.0);
             assert!(partial.info.residuals[0] < 1e-14);
         }
+        ref other => panic!("expected NotConverged, got {other:?}"),
+    }
+    // Where a converged result is required, the status becomes the error, with the same
+    // figures and the result as `partial`.
+    let values = partial.values.clone();
+    match partial.into_converged() {
+        Err(
+            ref e @ EigenError::NotConverged {
+                iterations,
+                converged,
+                nev,
+                ref partial,
+                ..
+            },
+        ) => {
+            assert_eq!((iterations, nev), (2, 10));
+            assert!(converged < 10);
+            assert_eq!(partial.values, values);
+            assert!(
+                e.to_string().starts_with(&format!(
+                    "eigensolver did not converge in 2 iterations: {converged}/10 pairs below \
+                     tol 1.0e-12 (max relative residual "
+                )),
+                "{e}"
+            );
+        }
         other => panic!("expected NotConverged, got {other:?}"),
     }
+    assert!(matches!(
+        Lobpcg::new(LobpcgOptions {
+            preconditioner: PreconditionerKind::Jacobi,
+            ..LobpcgOptions::default()
+        })
+        .solve_converged(&h, &m, &req, &Silent),
+        Err(EigenError::NotConverged { .. })
+    ));
 }
 
 #[test]
@@ -376,7 +416,7 @@ fn lobpcg_rejects_invalid_input() {
 fn lobpcg_nev_one_is_the_constant_mode() {
     let (h, m) = testing::q1_fem([4, 4, 4], 0.5);
     let sol = Lobpcg::default()
-        .solve(&h, &m, &request(1, 1e-8), &Silent)
+        .solve_converged(&h, &m, &request(1, 1e-8), &Silent)
         .unwrap();
     assert_eq!(sol.values, vec![0.0]);
     assert!(sol.info.max_relative_residual < 1e-14);
@@ -406,7 +446,9 @@ fn lobpcg_every_preconditioner_converges() {
             preconditioner: kind,
             ..LobpcgOptions::default()
         };
-        let sol = Lobpcg::new(opts).solve(&h, &m, &req, &Silent).unwrap();
+        let sol = Lobpcg::new(opts)
+            .solve_converged(&h, &m, &req, &Silent)
+            .unwrap();
         assert_solution_quality(&sol, 1e-9);
         iterations.push(sol.info.iterations);
         match &reference {
@@ -439,12 +481,12 @@ fn lobpcg_restarts_and_recomputes_still_converge() {
         ..LobpcgOptions::default()
     };
     let lob = Lobpcg::new(opts)
-        .solve(&h, &m, &request(9, tol), &Silent)
+        .solve_converged(&h, &m, &request(9, tol), &Silent)
         .unwrap();
     assert_solution_quality(&lob, tol);
     assert!(lob.info.restarts > 0 && lob.info.restarts <= lob.info.iterations);
     let reference = Lobpcg::default()
-        .solve(&h, &m, &request(9, tol), &Silent)
+        .solve_converged(&h, &m, &request(9, tol), &Silent)
         .unwrap();
     for (a, b) in lob.values.iter().zip(&reference.values) {
         // Both to residual 1e-10: eigenvalues agree far below 1e-9 relative.
@@ -462,7 +504,7 @@ fn lobpcg_largest_request_fills_the_space() {
     let m = testing::identity(27);
     let tol = 1e-10;
     let lob = Lobpcg::default()
-        .solve(&h, &m, &request(25, tol), &Silent)
+        .solve_converged(&h, &m, &request(25, tol), &Silent)
         .unwrap();
     assert_solution_quality(&lob, tol);
     let exact = testing::grid_laplacian_eigenvalues(n, 25);
@@ -485,7 +527,7 @@ fn auto_switches_from_ic0_to_cholesky_when_slow() {
         ..LobpcgOptions::default()
     };
     let sol = Lobpcg::new(opts)
-        .solve(&h, &m, &request(9, tol), &Silent)
+        .solve_converged(&h, &m, &request(9, tol), &Silent)
         .unwrap();
     assert_solution_quality(&sol, tol);
     assert!(
@@ -510,7 +552,7 @@ fn auto_switches_from_ic0_to_cholesky_when_slow() {
         .iter()
         .any(|n| n.starts_with("preconditioner: sparse Cholesky")));
     let reference = DenseSolver
-        .solve(&h, &m, &request(12, tol), &Silent)
+        .solve_converged(&h, &m, &request(12, tol), &Silent)
         .unwrap();
     compare_with_dense(&m, &sol, &reference, 1e-8, 1e-6);
 }
@@ -527,7 +569,7 @@ fn lobpcg_incomplete_cholesky_matches_dense() {
         ..LobpcgOptions::default()
     };
     let lob = Lobpcg::new(opts)
-        .solve(&h, &m, &request(13, tol), &Silent)
+        .solve_converged(&h, &m, &request(13, tol), &Silent)
         .unwrap();
     assert_solution_quality(&lob, tol);
     assert!(
@@ -536,7 +578,7 @@ fn lobpcg_incomplete_cholesky_matches_dense() {
         lob.info.notes
     );
     let dense = DenseSolver
-        .solve(&h, &m, &request(21, tol), &Silent)
+        .solve_converged(&h, &m, &request(21, tol), &Silent)
         .unwrap();
     // Same tolerances and reasoning as the Cholesky comparison above.
     compare_with_dense(&m, &lob, &dense, 1e-8, 1e-6);
@@ -560,7 +602,7 @@ fn lobpcg_same_bits_for_any_thread_count() {
             .unwrap();
         pool.install(|| {
             Lobpcg::new(opts.clone())
-                .solve(&h, &m, &request(9, 1e-9), &Silent)
+                .solve_converged(&h, &m, &request(9, 1e-9), &Silent)
                 .unwrap()
         })
     };
@@ -699,14 +741,10 @@ fn measure_lobpcg() {
     let t = std::time::Instant::now();
     let result = Lobpcg::new(opts).solve(&h, &m, &req, &Silent);
     let secs = t.elapsed().as_secs_f64();
-    let sol = match result {
-        Ok(s) => s,
-        Err(EigenError::NotConverged { partial, .. }) => {
-            eprintln!("NOT CONVERGED");
-            *partial
-        }
-        Err(e) => panic!("{e}"),
-    };
+    let sol = result.unwrap_or_else(|e| panic!("{e}"));
+    if !sol.converged() {
+        eprintln!("NOT CONVERGED");
+    }
     eprintln!(
         "time {secs:.2} s, iterations {}, restarts {}, matvecs {}, max residual {:.2e}, orthonormality {:.2e}",
         sol.info.iterations, sol.info.restarts, sol.info.matvecs, sol.info.max_relative_residual, sol.info.orthonormality_error
