@@ -552,7 +552,7 @@ fn lobpcg_matches_the_dense_solver_on_rkpm_matrices() {
 fn a_solve_that_stops_short_is_a_status_in_solve_with_and_an_error_in_solve() {
     use freeform::eigen::lobpcg::Lobpcg;
     use freeform::eigen::{EigenError, EigenStatus};
-    let shape = Shape::parse("box:2,1,1", &ShapeOptions::default()).unwrap();
+    let shape = read_shape("box:2,1,1", &ShapeOptions::default()).unwrap();
     let opts = BasisOptions {
         solver: SolverConfig::lobpcg(),
         tol: 1e-13,
