@@ -67,7 +67,7 @@ pub struct SweepSpec {
     pub kernels: Vec<usize>,
     /// Integration grids (None: the pipeline default, 50 K points clamped). Default [None].
     pub resolutions: Vec<Option<Resolution>>,
-    /// Cubature counts. Default [5000] (the beam command's).
+    /// Cubature counts. Default `[5000]` (the beam command's).
     pub cubature: Vec<usize>,
     /// Hessian strategies. Default [L-BFGS].
     pub hessian: Vec<HessianStrategy>,

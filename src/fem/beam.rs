@@ -67,7 +67,7 @@ pub struct FemBeamConfig {
     pub steps: usize,
     /// Held nodes: x <= held_length, metres. Default 0.5 (bend), 0.25 (twist).
     pub held_length: f64,
-    /// Twist: nodes with x >= size[0] - twist_length are turned, metres. Default 0.25.
+    /// Twist: nodes with `x >= size[0] - twist_length` are turned, metres. Default 0.25.
     pub twist_length: f64,
     /// Twist: total angle reached at the last step, degrees. Default 720.
     pub twist_degrees: f64,

@@ -19,7 +19,7 @@ pub struct RunSettings {
     pub base_dir: PathBuf,
     /// Output directory for frames (None: simulate and summarise only).
     pub out: Option<PathBuf>,
-    /// Stop with [`Error::Strict`] at the first warning (a poorly conditioned basis, a
+    /// Stop with [`crate::Error::Strict`] at the first warning (a poorly conditioned basis, a
     /// step that did not converge, a failed line search, a Cholesky fallback) instead of
     /// reporting it in the summary. Frames already written stay; the `.pvd` collection is
     /// only written by a complete run.

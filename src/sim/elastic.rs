@@ -50,7 +50,7 @@ impl Layout {
     pub fn dofs(&self) -> usize {
         12 * self.handles
     }
-    /// Position of Z_j[r][a] (a = 3 is the translation column) in z.
+    /// Position of `Z_j[r][a]` (a = 3 is the translation column) in z.
     pub fn index(&self, r: usize, j: usize, a: usize) -> usize {
         r * self.row_len() + 4 * j + a
     }
