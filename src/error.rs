@@ -7,7 +7,7 @@
 //! is [`EigenError`], which keeps the eigensolver's partial result
 //! ([`crate::eigen::EigenSolution`]) and so is defined in [`crate::eigen`]: `error` imports
 //! `eigen`, and `eigen` (with the modules it imports) must never use [`Error`]
-//! (`tests/architecture.rs` checks that the module graph has no circles).
+//! (`tests/integration/architecture.rs` checks that the module graph has no circles).
 
 use std::path::PathBuf;
 

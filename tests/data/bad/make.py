@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
-"""Writes the bad-input corpus that tests/bad_inputs.rs drives through the CLI and the library.
+"""Writes the bad-input corpus that tests/integration/bad_inputs.rs drives through the CLI and the library.
 
 Run from this directory: `python3 make.py`. Every file is small and deterministic; the
-expected error of each one is in the table at the top of tests/bad_inputs.rs.
+expected error of each one is in the table at the top of tests/integration/bad_inputs.rs.
 """
 import os
 import random

@@ -2,9 +2,11 @@
 #![allow(dead_code)]
 
 use freeform::geometry::Aabb;
+use freeform::material::Material;
 use freeform::precompute::centers::farthest_point_sampling;
 use freeform::precompute::rkpm::{support_radii, KernelType, Kernels, SupportOptions};
 use freeform::precompute::sampling::{grid_points, IntegrationPoints};
+use freeform::scene::{CacheSettings, ObjectSpec};
 use freeform::Point3;
 
 /// Grid points filling the box [0, size] at spacing h.
@@ -48,7 +50,7 @@ pub fn freeform(args: &[&str]) -> std::process::Output {
         .expect("run freeform")
 }
 
-/// The bar of tests/sim.rs and tests/extremes.rs held at its left end (x <= 0.1 m).
+/// The bar of tests/integration/sim.rs and extremes.rs held at its left end (x <= 0.1 m).
 pub fn held_left() -> freeform::sim::Boundary {
     freeform::sim::Boundary {
         region: freeform::material::Region::HalfSpace {
@@ -57,5 +59,26 @@ pub fn held_left() -> freeform::sim::Boundary {
         },
         motion: freeform::sim::motion::Motion::Fixed,
         stiffness: None,
+    }
+}
+
+/// A small, fast object: a 1 x 0.2 x 0.2 bar with few kernels.
+pub fn small_bar(name: &str) -> ObjectSpec {
+    ObjectSpec::new(name, "box:1,0.2,0.2")
+        .kernels(60)
+        .modes(6)
+        .points(3000)
+        .material(Material {
+            youngs: 1e5,
+            poisson: 0.4,
+            density: 1000.0,
+        })
+}
+
+/// Scene cache settings with the cache off.
+pub fn no_cache() -> CacheSettings {
+    CacheSettings {
+        enabled: false,
+        ..CacheSettings::default()
     }
 }

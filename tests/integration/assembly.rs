@@ -3,7 +3,7 @@
 
 #![allow(clippy::needless_range_loop)] // index loops mirror the formulas
 
-mod common;
+use crate::common;
 use common::{box_points, kernels_for};
 use freeform::elasticity::energy_density;
 use freeform::material::{Material, MaterialField, MaterialOverride, Region};

@@ -1,7 +1,7 @@
 //! `--strict` and the monitors: warnings become errors (exit code 1, no output passed off as
 //! complete), and every report carries the same `monitors` keys.
 
-mod common;
+use crate::common;
 use common::freeform;
 use std::path::Path;
 
@@ -10,7 +10,7 @@ fn text(b: &[u8]) -> String {
 }
 
 /// A 1 x 1 x 0.01 m plate with 400 kernels: the kernels across the thickness are nearly
-/// coplanar, the smallest moment-matrix rcond is ~1e-5 (tests/extremes.rs), below the
+/// coplanar, the smallest moment-matrix rcond is ~1e-5 (tests/integration/extremes.rs), below the
 /// 1e-4 warning level but above the 1e-6 acceptance threshold.
 const PLATE: [&str; 8] = [
     "modes",

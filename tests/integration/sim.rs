@@ -1,7 +1,7 @@
 //! Reduced simulation: derivatives against finite differences, exact identities (rigid
 //! motions, free fall), penalties, convergence in m, robustness and determinism.
 
-mod common;
+use crate::common;
 
 use common::{held_left, Rng};
 use freeform::geometry::ShapeOptions;

@@ -1,7 +1,7 @@
 //! The `freeform` binary: the JSON report, and bad input giving a clear message, a non-zero
 //! exit code, no panic and no output file.
 
-mod common;
+use crate::common;
 use common::freeform;
 use std::path::Path;
 

@@ -227,7 +227,7 @@ proptest! {
         // follows the case's own conditioning: C eps / rcond, with rcond the smallest
         // accepted one (>= 1e-6; `min_rcond` also counts rejected points). Over 3000 random
         // cases the largest gradient error x rcond / eps was 183 (1.1e-9 at worst in CI,
-        // pinned in properties.proptest-regressions); C = 2000 leaves a 10x margin.
+        // pinned in tests/proptest-regressions/properties.txt); C = 2000 leaves a 10x margin.
         let err = reproducing_error(&kernels, &points, &sf);
         prop_assert!(
             err.partition_of_unity.max(err.linear) <= 1e-9,

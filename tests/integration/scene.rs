@@ -1,6 +1,7 @@
 //! Scenes: the TOML format (round trip, line-numbered errors, the example files), the basis
 //! cache, "model only what is declared", outputs, and a drop on a floor.
 
+use crate::common::{no_cache, small_bar};
 use freeform::material::{Material, Region};
 use freeform::progress::Silent;
 use freeform::scene::{
@@ -10,26 +11,6 @@ use freeform::sim::motion::Motion;
 use freeform::sim::terms::ColliderShape;
 use freeform::sim::{Collider, Placement};
 use std::path::Path;
-
-/// A small, fast object: a 1 x 0.2 x 0.2 bar with few kernels.
-fn small_bar(name: &str) -> ObjectSpec {
-    ObjectSpec::new(name, "box:1,0.2,0.2")
-        .kernels(60)
-        .modes(6)
-        .points(3000)
-        .material(Material {
-            youngs: 1e5,
-            poisson: 0.4,
-            density: 1000.0,
-        })
-}
-
-fn no_cache() -> CacheSettings {
-    CacheSettings {
-        enabled: false,
-        ..CacheSettings::default()
-    }
-}
 
 #[test]
 fn scene_round_trips_through_toml() {

@@ -2,7 +2,7 @@
 //! input giving a clear error (non-zero exit, no panic, no outputs). Tiny settings: a linear
 //! FEM reference at 1 cube per metre and 20 frames.
 
-mod common;
+use crate::common;
 use common::freeform;
 use std::path::Path;
 use std::process::Output;

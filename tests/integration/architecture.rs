@@ -19,7 +19,7 @@
 //! A second test checks that the leaves (errors, 3 x 3 algebra, the energy density, materials,
 //! reports, progress, sparse kernels) import only each other, with one documented exception.
 //!
-//! `cargo test --test architecture -- --nocapture` prints the graph as a list of edges.
+//! `cargo test --test integration -- architecture:: --nocapture` prints the graph as a list of edges.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::fs;

@@ -5,7 +5,7 @@
 
 #![allow(clippy::needless_range_loop)] // index loops mirror the formulas
 
-mod common;
+use crate::common;
 use common::{box_points, kernels_for};
 use freeform::eigen::dense::DenseSolver;
 use freeform::eigen::{EigenRequest, Eigensolver};

@@ -461,7 +461,7 @@ fn accuracy_parameter_trades_error() {
 }
 
 /// Throughput of the inside test; run with
-/// `cargo test --release --test geometry -- --ignored --nocapture winding_throughput`.
+/// `cargo test --release --test integration -- --ignored --nocapture geometry::winding_throughput`.
 #[test]
 #[ignore = "timing: run explicitly"]
 fn winding_throughput_icosphere_20k() {

@@ -8,11 +8,11 @@
 
 #![allow(clippy::needless_range_loop)] // index loops mirror the formulas
 
-mod common;
+use crate::common;
 /// The CLI's rendering of library messages: coverage errors name the support factor by its
 /// library name, and say `--support` where the CLI prints them.
 #[allow(dead_code)]
-#[path = "../src/bin/freeform/messages.rs"]
+#[path = "../../src/bin/freeform/messages.rs"]
 mod messages;
 use common::{held_left, Rng};
 use freeform::eigen::compare::{max_eigenvalue_rel_diff, max_subspace_angle};

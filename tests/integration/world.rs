@@ -2,7 +2,8 @@
 //! example scenes, and what it changes between steps (gravity, a boundary's motion, an
 //! object's placement, a collider's pose) does what it says; errors name the object.
 
-use freeform::material::{Material, Region};
+use crate::common::{no_cache, small_bar};
+use freeform::material::Region;
 use freeform::progress::Silent;
 use freeform::scene::{
     run, CacheSettings, FrameObserver, FrameWriter, ObjectSpec, RunSettings, Scene, SceneBuilder,
@@ -116,26 +117,6 @@ fn live_world_writes_the_same_frames_as_the_batch_run_on_the_example_scenes() {
         }
         assert_eq!(world.warnings(), summary.warnings.as_slice(), "{file}");
         assert!((world.time() - scene.simulation.dt * scene.simulation.steps as f64).abs() < 1e-12);
-    }
-}
-
-/// A small, fast bar: 1 x 0.2 x 0.2 m with few kernels.
-fn small_bar(name: &str) -> ObjectSpec {
-    ObjectSpec::new(name, "box:1,0.2,0.2")
-        .kernels(60)
-        .modes(6)
-        .points(3000)
-        .material(Material {
-            youngs: 1e5,
-            poisson: 0.4,
-            density: 1000.0,
-        })
-}
-
-fn no_cache() -> CacheSettings {
-    CacheSettings {
-        enabled: false,
-        ..CacheSettings::default()
     }
 }
 
