@@ -209,8 +209,8 @@ pub enum GeometryError {
     /// The mesh is not closed.
     #[error(
         "{path}: mesh is not watertight ({boundary_edges} boundary edges, {nonmanifold_edges} \
-         non-manifold edges); repair it, or allow open meshes (ShapeOptions::allow_open_mesh) to \
-         decide inside by winding number"
+         non-manifold edges); repair it, or pass ShapeOptions::allow_open_mesh to decide inside by \
+         winding number"
     )]
     NotWatertight {
         /// File (`<in-memory mesh>` for meshes built with
@@ -225,8 +225,8 @@ pub enum GeometryError {
     /// consistent inside and outside.
     #[error(
         "{path}: mesh orientation is inconsistent ({misoriented_edges} edges are traversed in the \
-         same direction by both of their triangles); fix the face winding, or allow open meshes \
-         (ShapeOptions::allow_open_mesh) to use the winding number anyway"
+         same direction by both of their triangles); fix the face winding, or pass \
+         ShapeOptions::allow_open_mesh to use the winding number anyway"
     )]
     Misoriented {
         /// File (`<in-memory mesh>` for meshes built with

@@ -226,8 +226,8 @@ pub enum EigenError {
     InvalidRequest(String),
     /// The matrix is too large for this solver (dense solver on big K).
     #[error(
-        "the {solver} solver refuses K = {k} (limit {limit}); use the LOBPCG solver \
-         (eigen::lobpcg::Lobpcg)"
+        "the {solver} solver refuses K = {k} (limit {limit}); use \
+         eigen::lobpcg::Lobpcg"
     )]
     TooLarge {
         /// Solver name.

@@ -125,8 +125,8 @@ pub fn build_basis_mpi(
             opts.support.factor,
             format!(
                 "{} point(s) on other MPI ranks are not covered by enough kernels; the \
-                 distributed run does not repair coverage: raise the support factor \
-                 (BasisOptions::support.factor) or run without MPI",
+                 distributed run does not repair coverage: raise \
+                 BasisOptions::support.factor or run without MPI",
                 failed[0]
             ),
         ));

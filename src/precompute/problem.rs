@@ -47,7 +47,9 @@ pub fn build_basis(
     opts: &BasisOptions,
     progress: &dyn Progress,
 ) -> Result<BasisRun> {
-    Problem::from_shape(shape, opts, progress)?.solve(progress)
+    // A solver this build cannot run (SLEPc without the feature) fails before sampling.
+    let solver = opts.solver.build()?;
+    Problem::from_shape(shape, opts, progress)?.solve_inner(solver.as_ref(), progress, true)
 }
 
 /// The assembled generalized eigenproblem H_w c = lambda M c of one object, with everything
@@ -255,7 +257,7 @@ impl Problem {
         &self.kernels
     }
 
-    /// Integration points and volumes, in the caller's order.
+    /// Integration points (N x 3, metres) and volumes (N, m^3), in the caller's order.
     pub fn points(&self) -> &IntegrationPoints {
         &self.points
     }

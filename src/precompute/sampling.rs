@@ -243,8 +243,8 @@ fn median_nn_distance(points: &[Point3]) -> Result<f64> {
     Ok(d[d.len() / 2])
 }
 
-/// Integration points for a shape: a grid inside solids, the (optionally downsampled) points
-/// of a point cloud with voxel-occupancy volumes.
+/// Integration points for a shape (N x 3, metres, with volumes, m^3): a grid inside solids, the
+/// (optionally downsampled) points of a point cloud with voxel-occupancy volumes.
 pub fn sample_shape(
     shape: &Shape,
     resolution: Resolution,
@@ -257,8 +257,8 @@ pub fn sample_shape(
                 Resolution::Count(n) if n < all.len() => downsample(all, n),
                 Resolution::Count(_) => all.to_vec(),
                 Resolution::Spacing(h) => {
-                    let why = "a point cloud's points are its integration points; give a point \
-                               count (Resolution::Count) to downsample";
+                    let why = "a point cloud's points are its integration points; use \
+                               Resolution::Count N to downsample";
                     return Err(Error::param("spacing", h, why));
                 }
             };
@@ -300,7 +300,8 @@ fn downsample(points: &[Point3], n: usize) -> Vec<Point3> {
     keep.into_iter().map(|i| points[i]).collect()
 }
 
-/// The first stage of every precomputation: the integration points of `shape` at
+/// The first stage of every precomputation: the integration points (N x 3, metres, with
+/// volumes, m^3) of `shape` at
 /// `opts.resolution` (default [`default_points`] of `opts.kernels`) and the material at each
 /// (`opts.material` with `opts.overrides` applied in order). The pipeline, the MPI path and
 /// the scene's basis cache all call this, so they sample a shape the same way.

@@ -284,6 +284,27 @@ mod tests {
         );
     }
 
+    /// Every LOBPCG setting survives a scene file (TOML has no null: "never escalate" is 0).
+    #[test]
+    fn lobpcg_settings_round_trip_through_toml() {
+        #[derive(serde::Serialize, serde::Deserialize)]
+        struct Basis {
+            eigensolver: SolverConfig,
+        }
+        for escalate_after in [None, Some(1), Some(60), Some(500)] {
+            let config = SolverConfig::Lobpcg(crate::eigen::lobpcg::LobpcgOptions {
+                escalate_after,
+                ..Default::default()
+            });
+            let text = toml::to_string(&Basis {
+                eigensolver: config.clone(),
+            })
+            .unwrap();
+            let back: Basis = toml::from_str(&text).unwrap();
+            assert_eq!(back.eigensolver, config, "{text}");
+        }
+    }
+
     /// The cache keys of existing scenes hash `"solver": "lobpcg"` / `"dense"`.
     #[test]
     fn lobpcg_and_dense_serialize_as_before() {

@@ -384,13 +384,17 @@ impl World {
     /// warnings and the monitors), not an error; the state stays finite.
     ///
     /// # Errors
-    /// [`Error::Strict`] in strict mode at the first warning (objects after the one that
-    /// raised it are not stepped).
+    /// [`Error::Strict`] in strict mode at the first warning this step raises, with every
+    /// warning so far. The objects up to the one that raised it have taken the step, the
+    /// others and [`World::time`] have not: a strict run is over at that point.
     pub fn step(&mut self) -> Result<Vec<StepReport>> {
         let mut reports = Vec::with_capacity(self.objects.len());
+        let before = self.warnings.len();
         for object in &mut self.objects {
             reports.push(object.step(&mut self.warnings));
-            check_strict(self.strict, &self.warnings)?;
+            if self.warnings.len() > before {
+                check_strict(self.strict, &self.warnings)?;
+            }
         }
         self.time += self.dt;
         self.steps += 1;

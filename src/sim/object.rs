@@ -517,7 +517,9 @@ impl ReducedSim {
 
     /// Put the object back into its rest shape at `placement`, with the placement's initial
     /// velocities, as at setup: the deformation, the velocity and the solver's history are
-    /// dropped; time and step count go on. Boundary motions act on the new placement.
+    /// dropped; time and step count go on. Boundary motions act on the new placement from
+    /// then on, at the current time: a held region whose motion is not at rest now (a moving
+    /// or keyframed target) is pulled to that target in the next steps.
     pub fn reset_placement(&mut self, placement: &Placement) -> Result<()> {
         let rigid = placement_transform(placement)?;
         let old = (self.z.clone(), self.zdot.clone());

@@ -287,7 +287,7 @@ impl ColliderShape {
         }
     }
 
-    /// The obstacle moved by the rigid transform `pose` (x -> R x + t): a plane's point and
+    /// The obstacle moved by the rigid transform `pose` (x -> R x + t, t in metres): a plane's point and
     /// normal move with it; an axis-aligned box can only be translated (a pose that rotates
     /// it is an error, since the result would not be axis-aligned).
     pub fn transformed(&self, pose: &Rigid) -> crate::Result<ColliderShape> {

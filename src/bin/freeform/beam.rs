@@ -1,7 +1,7 @@
 //! `freeform beam bend|twist`: the reduced model against the cached FEM reference on the
 //! standard beam (design.md section 3).
 
-use crate::messages::{localize, Front};
+use crate::messages::{localize_all, Front};
 use crate::{emit, set_threads, CliResult};
 use clap::{Args, ValueEnum};
 use freeform::benchmark::{compare_beam, ReducedBeamOptions};
@@ -147,7 +147,8 @@ pub fn run(args: BeamArgs) -> CliResult {
         frames: None,
         hold_stiffness: args.hold_stiffness,
     };
-    let r = compare_beam(&fem, &opts, Some(&args.fem.cache), progress().as_ref())?;
+    let mut r = compare_beam(&fem, &opts, Some(&args.fem.cache), progress().as_ref())?;
+    localize_all(&mut r.warnings, Front::Flags);
     if args.json {
         emit(&(serde_json::to_string_pretty(&r)? + "\n"))?;
     } else {
@@ -169,7 +170,7 @@ pub fn run(args: BeamArgs) -> CliResult {
             if r.fem_cached { ", cached" } else { "" }
         ))?;
         for w in &r.warnings {
-            emit(&format!("  warning: {}\n", localize(w, Front::Flags)))?;
+            emit(&format!("  warning: {w}\n"))?;
         }
     }
     freeform::error::check_strict(args.strict, &r.warnings)?;

@@ -1,6 +1,6 @@
 //! `freeform modes`: compute skinning eigenmodes and write a basis file.
 
-use crate::messages::{localize, Front};
+use crate::messages::{localize_all, Front};
 use crate::problem::BasisArgs;
 use crate::{emit, set_threads, CliResult};
 use clap::{Args, ValueEnum};
@@ -85,10 +85,12 @@ pub fn run(args: ModesArgs) -> CliResult {
     } else {
         &Silent
     };
-    let run = match distributed_run(&args, &shape, &opts, progress)? {
+    let mut run = match distributed_run(&args, &shape, &opts, progress)? {
         Some(run) => run,
         None => Problem::from_shape(&shape, &opts, progress)?.solve(progress)?,
     };
+    // Every printed and JSON warning names the command line's flags.
+    localize_all(&mut run.report.warnings, Front::Flags);
     // Under mpirun every rank computed the same basis; only rank 0 writes and prints.
     if !crate::is_root_rank(&opts.solver)? {
         return Ok(());
@@ -96,7 +98,7 @@ pub fn run(args: ModesArgs) -> CliResult {
     let metadata = BasisMetadata::for_modes(&shape_arg, &opts, &run.report);
     if args.strict && !run.report.warnings.is_empty() {
         for w in &run.report.warnings {
-            eprintln!("warning: {}", localize(w, Front::Flags));
+            eprintln!("warning: {w}");
         }
     }
     freeform::error::check_strict(args.strict, &run.report.warnings)?;
@@ -132,11 +134,7 @@ fn summary(r: &freeform::precompute::ModesReport, shape: &str, out: &std::path::
         ),
         format!("  peak memory {:.1} MB", r.peak_memory_bytes as f64 / 1e6),
     ];
-    lines.extend(
-        r.warnings
-            .iter()
-            .map(|w| format!("  warning: {}", localize(w, Front::Flags))),
-    );
+    lines.extend(r.warnings.iter().map(|w| format!("  warning: {w}")));
     lines.push(format!("  basis written to {}", out.display()));
     lines.join("\n") + "\n"
 }

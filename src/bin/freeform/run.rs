@@ -1,6 +1,6 @@
 //! `freeform run`: simulate a scene file and write frames for ParaView.
 
-use crate::messages::{localize, Front};
+use crate::messages::{localize_all, Front};
 use crate::{emit, set_threads, CliResult};
 use clap::Args;
 use freeform::progress::{Progress, Silent, TerminalProgress};
@@ -52,7 +52,9 @@ pub fn run(args: RunArgs) -> CliResult {
     } else {
         &Silent
     };
-    let summary = run_scene(&scene, &settings, progress)?;
+    let mut summary = run_scene(&scene, &settings, progress)?;
+    // Printed and JSON warnings name the scene keys a scene file sets.
+    localize_all(&mut summary.warnings, Front::Scene);
     if args.json {
         let mut v = serde_json::to_value(&summary)?;
         v["scene"] = serde_json::Value::String(args.scene.display().to_string());
@@ -108,7 +110,7 @@ fn text_summary(s: &RunSummary, args: &RunArgs) -> String {
     lines.extend(
         s.warnings[..shown]
             .iter()
-            .map(|w| format!("  warning: {}", localize(w, Front::Scene))),
+            .map(|w| format!("  warning: {w}")),
     );
     if s.warnings.len() > shown {
         lines.push(format!(

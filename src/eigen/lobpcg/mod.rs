@@ -79,6 +79,20 @@ pub enum PreconditionerKind {
     Identity,
 }
 
+/// `Option<usize>` serialized as a number with 0 for `None` (TOML has no null).
+mod zero_is_never {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(v: &Option<usize>, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_u64(v.unwrap_or(0) as u64)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Option<usize>, D::Error> {
+        let n = usize::deserialize(d)?;
+        Ok((n > 0).then_some(n))
+    }
+}
+
 /// LOBPCG settings. Every field has a documented default ([`LobpcgOptions::default`]); in
 /// serialized form (scene files, basis metadata) a missing field takes its default.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -112,7 +126,10 @@ pub struct LobpcgOptions {
     /// `max_factor_entries` entries (ignoring `max_fill_ratio`). Default `Some(60)`: IC(0)
     /// converges in 16-26 iterations on well-conditioned problems but degrades when M is
     /// ill-conditioned (RKPM beam, K = 2,000, support factor 4, cond(M) = 7.8e6: IC(0) 255
-    /// iterations, 34 s; exact Cholesky 15 iterations, 1.8 s). `None` never switches.
+    /// iterations, 34 s; exact Cholesky 15 iterations, 1.8 s). `None` never switches; in
+    /// serialized form (scene files, metadata) `None` is written and read as 0, since TOML has
+    /// no null and a missing key means the default.
+    #[serde(with = "zero_is_never")]
     pub escalate_after: Option<usize>,
     /// Recompute H X, M X, H P, M P explicitly every this many iterations (the implicit
     /// updates accumulate round-off). Default 10.
