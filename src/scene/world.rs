@@ -381,7 +381,8 @@ impl World {
 
     /// Advance every object by one time step (backward Euler); returns each object's step
     /// report, in object order. A step that does not converge is reported (in the report, the
-    /// warnings and the monitors), not an error; the state stays finite.
+    /// warnings and the monitors), not an error; the state stays finite. Each object's summary
+    /// keeps one row per step (about 100 bytes), as the batch run's report does.
     ///
     /// # Errors
     /// [`Error::Strict`] in strict mode at the first warning this step raises, with every
@@ -458,6 +459,7 @@ impl World {
         // Every object validates the same value: the first refuses it or all take it.
         for o in &mut self.objects {
             o.sim.set_gravity(gravity)?;
+            o.summary.terms = o.sim.terms();
         }
         Ok(())
     }

@@ -149,6 +149,11 @@ fn gravity_switched_on_between_steps_starts_a_free_fall() {
         .sim()
         .terms()
         .contains(&"gravity".to_string()));
+    // The summary lists the terms built now.
+    assert_eq!(
+        world.object(0).summary().terms,
+        world.object(0).sim().terms()
+    );
     let steps = 10;
     for _ in 0..steps {
         world.step().unwrap();
