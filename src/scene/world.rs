@@ -328,8 +328,6 @@ pub struct World {
     /// The scene's colliders as defined (rest poses), for [`World::set_collider_pose`].
     colliders: Vec<ColliderShape>,
     dt: f64,
-    time: f64,
-    steps: usize,
     strict: bool,
     warnings: Vec<String>,
 }
@@ -338,8 +336,8 @@ impl std::fmt::Debug for World {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("World")
             .field("objects", &self.objects)
-            .field("time", &self.time)
-            .field("steps", &self.steps)
+            .field("time", &self.time())
+            .field("steps", &self.steps())
             .finish_non_exhaustive()
     }
 }
@@ -372,8 +370,6 @@ impl World {
             objects,
             colliders: scene.colliders.iter().map(|c| c.shape).collect(),
             dt: scene.simulation.dt,
-            time: 0.0,
-            steps: 0,
             strict: settings.strict,
             warnings,
         })
@@ -397,14 +393,13 @@ impl World {
                 check_strict(self.strict, &self.warnings)?;
             }
         }
-        self.time += self.dt;
-        self.steps += 1;
         Ok(reports)
     }
 
-    /// Simulated time, seconds.
+    /// Simulated time, seconds: the last object's, so a step counts once every object took it
+    /// (a scene has at least one object).
     pub fn time(&self) -> f64 {
-        self.time
+        self.objects.last().map_or(0.0, |o| o.sim.time)
     }
 
     /// Time step, seconds.
@@ -412,9 +407,9 @@ impl World {
         self.dt
     }
 
-    /// Steps taken.
+    /// Steps taken (by every object; see [`World::time`]).
     pub fn steps(&self) -> usize {
-        self.steps
+        self.objects.last().map_or(0, |o| o.sim.steps)
     }
 
     /// The objects, in scene order.
@@ -499,8 +494,8 @@ impl World {
                 ),
             )
         })?;
+        // Every object validates the same shape: the first refuses it or all take it.
         let moved = rest.transformed(pose)?;
-        moved.validate()?;
         for o in &mut self.objects {
             o.sim.set_collider_shape(index, moved)?;
         }
