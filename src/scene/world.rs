@@ -473,6 +473,31 @@ impl World {
             .set_boundary_motion(boundary, motion)
     }
 
+    /// Hold boundary `boundary` of object `object` at the rigid pose x = R X + t of its placed
+    /// rest positions X from the next step on (a [`Motion::Pose`]): the target a caller moves
+    /// between steps, as a gripper or a scripted hand would.
+    pub fn set_boundary_pose(
+        &mut self,
+        object: usize,
+        boundary: usize,
+        pose: &Rigid,
+    ) -> Result<()> {
+        self.set_boundary_motion(
+            object,
+            boundary,
+            Motion::Pose {
+                rotation: pose.rotation,
+                translation: pose.translation,
+            },
+        )
+    }
+
+    /// Set object `object`'s state (reduced coordinates and velocity; see
+    /// [`ReducedSim::set_state`]), e.g. one read earlier from `object(i).sim().z`.
+    pub fn set_state(&mut self, object: usize, z: &[f64], zdot: &[f64]) -> Result<()> {
+        self.checked(object)?.sim.set_state(z, zdot)
+    }
+
     /// Put object `object` back into its rest shape at `placement`, with the placement's
     /// velocities (see [`ReducedSim::reset_placement`]).
     pub fn set_placement(&mut self, object: usize, placement: &Placement) -> Result<()> {
@@ -494,6 +519,7 @@ impl World {
                 ),
             )
         })?;
+        pose.validate()?;
         // Every object validates the same shape: the first refuses it or all take it.
         let moved = rest.transformed(pose)?;
         for o in &mut self.objects {

@@ -59,6 +59,14 @@ pub enum Motion {
         /// Keyframes in increasing time.
         frames: Vec<Keyframe>,
     },
+    /// Held at one rigid pose x = rotation X + translation (X: the placed rest position),
+    /// whatever the time: a target set between steps by a caller (the live API, Python, C).
+    Pose {
+        /// Proper rotation, row-major (orthonormal, det +1).
+        rotation: Mat3,
+        /// Translation, metres.
+        translation: [f64; 3],
+    },
 }
 
 /// A rigid transform x -> rotation x + translation.
@@ -83,6 +91,43 @@ impl Rigid {
         std::array::from_fn(|i| {
             r[i][0] * x[0] + r[i][1] * x[1] + r[i][2] * x[2] + self.translation[i]
         })
+    }
+
+    /// Check that the values are finite and the rotation is proper (R^T R = I and det R = +1
+    /// to 1e-9: rounding of a matrix built in double precision, far below any scaling or
+    /// reflection a caller could mean).
+    pub fn validate(&self) -> Result<()> {
+        let r = &self.rotation;
+        let bad = |why: &str| {
+            Err(Error::param(
+                "pose",
+                format!("rotation {r:?}, translation {:?}", self.translation),
+                why.to_string(),
+            ))
+        };
+        if !r
+            .iter()
+            .flatten()
+            .chain(&self.translation)
+            .all(|v| v.is_finite())
+        {
+            return bad("the rotation and translation must be finite");
+        }
+        let mut off = 0.0f64;
+        for i in 0..3 {
+            for j in 0..3 {
+                let dot: f64 = (0..3).map(|k| r[k][i] * r[k][j]).sum();
+                off = off.max((dot - if i == j { 1.0 } else { 0.0 }).abs());
+            }
+        }
+        if off > 1e-9 || crate::linalg3::det3(r) <= 0.0 {
+            return bad(&format!(
+                "the rotation must be a proper rotation matrix (orthonormal, det +1; \
+                 largest error of R^T R - I: {off:.1e}, det {:.6})",
+                crate::linalg3::det3(r)
+            ));
+        }
+        Ok(())
     }
 
     /// Rotation `r` about `pivot` followed by translation `t`.
@@ -239,6 +284,14 @@ impl Motion {
                 }
                 Ok(())
             }
+            Motion::Pose {
+                rotation,
+                translation,
+            } => Rigid {
+                rotation: *rotation,
+                translation: *translation,
+            }
+            .validate(),
         }
     }
 
@@ -281,6 +334,13 @@ impl Motion {
                 };
                 Rigid::about(pivot, quaternion_matrix(&rot), tr)
             }
+            Motion::Pose {
+                rotation,
+                translation,
+            } => Rigid {
+                rotation: *rotation,
+                translation: *translation,
+            },
         }
     }
 }
@@ -288,6 +348,25 @@ impl Motion {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn pose_accepts_proper_rotations_only() {
+        let r = rotation_matrix(&[0.0, 0.6, 0.8], 1.234);
+        let pose = |rotation: Mat3| Motion::Pose {
+            rotation,
+            translation: [1.0, 2.0, 3.0],
+        };
+        pose(r).validate().unwrap();
+        assert_eq!(pose(r).at(7.0).apply(&[0.0; 3]), [1.0, 2.0, 3.0]);
+        let scaled = r.map(|row| row.map(|v| 1.01 * v));
+        let reflected = [r[0], r[1], r[2].map(|v| -v)];
+        let mut nan = r;
+        nan[1][1] = f64::NAN;
+        for bad in [scaled, reflected, nan] {
+            let msg = pose(bad).validate().unwrap_err().to_string();
+            assert!(msg.contains("rotation"), "{msg}");
+        }
+    }
 
     #[test]
     fn rotate_turns_about_the_axis() {

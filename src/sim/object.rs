@@ -539,6 +539,34 @@ impl ReducedSim {
         Ok(())
     }
 
+    /// Set the state: reduced coordinates `z` and velocity `zdot` (each 12 (m + 1), the
+    /// lengths of [`ReducedSim::z`]), e.g. one saved earlier. The solver's history is dropped;
+    /// time and step count go on. All or nothing: wrong lengths or non-finite values are
+    /// refused and leave the state as it was.
+    pub fn set_state(&mut self, z: &[f64], zdot: &[f64]) -> Result<()> {
+        let n = self.z.len();
+        for (name, v) in [("z", z), ("zdot", zdot)] {
+            if v.len() != n {
+                return Err(Error::param(
+                    name,
+                    v.len(),
+                    format!(
+                        "the state has {n} values (12 (m + 1) for m + 1 = {} modes)",
+                        n / 12
+                    ),
+                ));
+            }
+            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+                return Err(Error::param(name, v[i], format!("value {i} is not finite")));
+            }
+        }
+        self.z.copy_from_slice(z);
+        self.zdot.copy_from_slice(zdot);
+        self.zdot_prev.copy_from_slice(zdot);
+        self.history = Default::default();
+        Ok(())
+    }
+
     /// Elastic energy (J) of the current state.
     pub fn elastic_energy(&self) -> f64 {
         self.elastic.energy(&self.z).0
