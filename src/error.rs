@@ -130,6 +130,12 @@ pub enum Error {
         /// hostile archive may understate it).
         declared: u64,
     },
+    /// The caller's [`crate::progress::Progress::cancelled`] asked the work to stop.
+    #[error("cancelled by the caller during {stage}")]
+    Cancelled {
+        /// The stage that was running (e.g. "shape functions", "eigen (lobpcg)").
+        stage: String,
+    },
     /// `--strict` (or `strict: true` in the settings) was asked for and a monitor raised a
     /// warning: poor conditioning, a non-converged solve, a failed line search.
     #[error("strict mode: {} warning(s), the first: {}", warnings.len(), warnings.first().map(String::as_str).unwrap_or("-"))]
@@ -152,6 +158,17 @@ impl Error {
             reason: reason.into(),
         }
     }
+}
+
+/// `Err(Error::Cancelled)` when `progress` asks to stop; `stage` names the work that was
+/// running.
+pub fn check_cancelled(progress: &dyn crate::progress::Progress, stage: &str) -> Result<()> {
+    if progress.cancelled() {
+        return Err(Error::Cancelled {
+            stage: stage.to_string(),
+        });
+    }
+    Ok(())
 }
 
 /// `Err(Error::Strict)` when `strict` is set and `warnings` is not empty.

@@ -14,6 +14,13 @@ pub trait Progress: Sync {
     fn message(&self, _msg: &str) {}
     /// The current stage is finished.
     fn finish(&self) {}
+    /// Whether the caller asks the work to stop (a Ctrl-C in Python, a GUI's cancel button).
+    /// Long stages ask between units of work (between precompute stages, every eigensolver
+    /// iteration, every simulation step of a batch run) and then return
+    /// [`crate::Error::Cancelled`]; nothing half-done is returned.
+    fn cancelled(&self) -> bool {
+        false
+    }
 }
 
 /// Discards every event.

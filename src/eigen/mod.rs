@@ -224,6 +224,12 @@ pub enum EigenError {
     /// The request does not fit the problem (e.g. nev >= K - 1).
     #[error("eigen request invalid: {0}")]
     InvalidRequest(String),
+    /// The caller's [`crate::progress::Progress::cancelled`] asked the iteration to stop.
+    #[error("eigensolver cancelled by the caller after {iterations} iterations")]
+    Cancelled {
+        /// Iterations performed.
+        iterations: usize,
+    },
     /// The matrix is too large for this solver (dense solver on big K).
     #[error(
         "the {solver} solver refuses K = {k} (limit {limit}); use \

@@ -9,7 +9,8 @@ use super::quality::{check_quality, CoverageReport, ModesReport};
 use super::rkpm::{self, support_radii, Kernels, ReproducingError, ShapeFunctions, ShapeStats};
 use super::sampling::{sample_with_material, IntegrationPoints};
 use super::skinning::Basis;
-use crate::eigen::{EigenRequest, Eigensolver};
+use crate::eigen::{EigenError, EigenRequest, Eigensolver};
+use crate::error::check_cancelled;
 use crate::geometry::Shape;
 use crate::material::MaterialField;
 use crate::progress::Progress;
@@ -115,6 +116,7 @@ impl Problem {
         progress.begin("sampling", None);
         let (points, material) = sample_with_material(shape, opts)?;
         progress.finish();
+        check_cancelled(progress, "sampling")?;
         let sampling = clock.elapsed();
         let mut problem = Self::from_points(points, material, opts, progress)?;
         problem.timings.sampling = sampling;
@@ -167,6 +169,7 @@ impl Problem {
         progress.begin("centers", Some(opts.kernels as u64));
         let mut kernels = place_kernels(&points.points, opts)?;
         progress.finish();
+        check_cancelled(progress, "centers")?;
         timings.centers = clock.lap();
 
         // Shape functions and assembly run on the points in Morton order: the points of one
@@ -197,6 +200,7 @@ impl Problem {
                 other => other,
             })?;
         progress.finish();
+        check_cancelled(progress, "shape functions")?;
         timings.neighbors = neighbor_time;
         timings.shape_functions = clock.lap() - neighbor_time;
         let reproducing = rkpm::reproducing_error(&kernels, &sorted, &sf);
@@ -214,6 +218,7 @@ impl Problem {
         let sf_bytes = sf.memory_bytes();
         drop((sf, sorted, volumes, weights, all_weights));
         progress.finish();
+        check_cancelled(progress, "assembly")?;
         timings.assembly = clock.lap();
 
         timings.total = total_clock.elapsed();
@@ -328,7 +333,15 @@ impl Problem {
             warnings,
         } = self;
         let clock = Stopwatch::start();
-        let mut solution = solver.solve(&assembled.hessian, &assembled.mass, &request, progress)?;
+        check_cancelled(progress, "eigensolve")?;
+        let mut solution = solver
+            .solve(&assembled.hessian, &assembled.mass, &request, progress)
+            .map_err(|e| match e {
+                EigenError::Cancelled { iterations } => Error::Cancelled {
+                    stage: format!("eigensolve ({iterations} iterations)"),
+                },
+                other => other.into(),
+            })?;
         if require_converged {
             solution = solution.into_converged()?;
         }

@@ -161,6 +161,7 @@ pub fn run(scene: &Scene, settings: &RunSettings, progress: &dyn Progress) -> Re
     let steps = scene.simulation.steps;
     progress.begin("simulate", Some(steps as u64));
     for step in 1..=steps {
+        crate::error::check_cancelled(progress, "simulate")?;
         world.step()?;
         if let Some(w) = writer.as_mut() {
             if step % scene.output.every == 0 || step == steps {

@@ -598,3 +598,45 @@ fn a_solve_that_stops_short_is_a_status_in_solve_with_and_an_error_in_solve() {
         }
     }
 }
+
+/// Asks to stop once `after` calls to `cancelled` have been answered "no".
+struct CancelAfter {
+    after: usize,
+    asked: std::sync::atomic::AtomicUsize,
+}
+
+impl freeform::progress::Progress for CancelAfter {
+    fn cancelled(&self) -> bool {
+        self.asked
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+            >= self.after
+    }
+}
+
+#[test]
+fn a_cancelled_build_stops_with_the_stage_it_was_in() {
+    let shape = read_shape("box:2,1,1", &ShapeOptions::default()).unwrap();
+    let opts = BasisOptions {
+        solver: SolverConfig::Lobpcg(Default::default()),
+        ..small_opts(150, 6, 3000)
+    };
+    // Checks come after sampling, centers, shape functions and assembly (4), before the
+    // eigensolve (1), then before every eigensolver iteration: stopping at the 1st, 3rd and
+    // 7th check lands in those stages (the 7th after one iteration).
+    for (after, stage) in [
+        (0, "sampling"),
+        (2, "shape functions"),
+        (6, "eigensolve (1 iterations)"),
+    ] {
+        let progress = CancelAfter {
+            after,
+            asked: 0.into(),
+        };
+        let err = build_basis(&shape, &opts, &progress).unwrap_err();
+        match &err {
+            freeform::Error::Cancelled { stage: s } => assert_eq!(s, stage),
+            other => panic!("expected Cancelled, got {other}"),
+        }
+        assert!(err.to_string().contains("cancelled by the caller"), "{err}");
+    }
+}

@@ -36,6 +36,8 @@ pub(super) enum Stop {
     MaxIter,
     /// No new search direction could be added and the pairs are not converged.
     Stagnated,
+    /// The caller's progress receiver asked to stop.
+    Cancelled,
     /// M is not positive definite on the search space (x^T M x <= 0 found).
     Indefinite(String),
     /// A breakdown (small eigensolver failure, non-finite values).
@@ -353,6 +355,9 @@ impl<'a> State<'a> {
             }
             if self.counters.iterations >= max_iter {
                 return Stop::MaxIter;
+            }
+            if progress.cancelled() {
+                return Stop::Cancelled;
             }
             self.counters.iterations += 1;
             let it = self.counters.iterations;

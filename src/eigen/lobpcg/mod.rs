@@ -324,6 +324,11 @@ impl Eigensolver for Lobpcg {
             Stop::Breakdown(detail) => {
                 return Err(EigenError::NonFinite(format!("LOBPCG breakdown: {detail}")))
             }
+            Stop::Cancelled => {
+                return Err(EigenError::Cancelled {
+                    iterations: counters.iterations,
+                })
+            }
             _ => {}
         }
         // H must be PSD: a clearly negative Ritz value (beyond the residual tolerance) proves
