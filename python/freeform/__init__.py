@@ -1,0 +1,36 @@
+"""freeform: mesh-free, reduced-order simulation of elastic objects from RKPM skinning
+eigenmodes, from Python.
+
+- ``Basis.from_shape("box:2,1,1", kernels=1000, modes=16)`` or
+  ``Basis.from_points(points, youngs, poisson, density, volumes=None)``: the eigenmodes;
+  ``basis.weights(points)`` evaluates them anywhere in the object.
+- ``Scene.from_file("scene.toml")`` / ``Scene.from_dict({...})`` and ``World(scene)``: the
+  live simulation (``world.step()``, ``world.positions(i)``, targets and poses between
+  steps).
+
+Units are SI (metres, Pa, kg/m^3, s). Arrays in: any real dtype and layout (converted once
+to float64); arrays out: new float64 NumPy arrays. Guide: docs/python.md.
+"""
+
+from ._errors import (
+    CoverageError,
+    FreeformError,
+    FreeformIOError,
+    InvalidInputError,
+    NotConvergedError,
+    StrictModeError,
+)
+from ._native import Basis, Scene, World, __version__
+
+__all__ = [
+    "Basis",
+    "Scene",
+    "World",
+    "FreeformError",
+    "InvalidInputError",
+    "CoverageError",
+    "NotConvergedError",
+    "StrictModeError",
+    "FreeformIOError",
+    "__version__",
+]

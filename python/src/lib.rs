@@ -1,0 +1,20 @@
+//! Python bindings of freeform: `freeform._native`, re-exported by the `freeform` package
+//! (python/freeform/__init__.py). Guide: docs/python.md.
+
+mod basis;
+mod convert;
+mod errors;
+mod progress;
+mod world;
+
+use pyo3::prelude::*;
+
+/// The compiled part of the `freeform` package.
+#[pymodule]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<basis::PyBasis>()?;
+    m.add_class::<world::PyScene>()?;
+    m.add_class::<world::PyWorld>()?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

@@ -1,0 +1,489 @@
+//! `freeform.Scene` and `freeform.World`: scenes from TOML or dicts, stepped live.
+
+use crate::basis::{run_released, PyBasis};
+use crate::convert::{matrix3, points_array, report, vec3, vector};
+use crate::errors::{invalid, to_py};
+use freeform::io::basis::BasisMetadata;
+use freeform::scene::StepRow;
+use freeform::scene::{RunSettings, Scene, World};
+use freeform::sim::motion::{Motion, Rigid};
+use freeform::sim::{Placement, StepReport};
+use numpy::{IntoPyArray, PyArray2, PyArrayMethods, PyReadwriteArray2};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+use serde::de::DeserializeOwned;
+use std::path::PathBuf;
+
+/// A Python value (dict, list, str, numbers) as a serde type, through JSON.
+fn from_python<T: DeserializeOwned>(
+    py: Python<'_>,
+    value: &Bound<'_, PyAny>,
+    what: &str,
+) -> PyResult<T> {
+    let text: String = py
+        .import("json")?
+        .call_method1("dumps", (value,))
+        .map_err(|e| invalid(py, format!("{what}: not representable as JSON ({e})")))?
+        .extract()?;
+    serde_json::from_str(&text).map_err(|e| invalid(py, format!("{what}: {e}")))
+}
+
+/// A scene: objects, materials, boundaries, colliders, time stepping (docs/scenes.md).
+#[pyclass(module = "freeform", name = "Scene")]
+#[derive(Clone)]
+pub struct PyScene {
+    scene: Scene,
+    /// Where relative shape paths and the basis cache resolve.
+    base_dir: PathBuf,
+}
+
+#[pymethods]
+impl PyScene {
+    /// Read a scene file (TOML); relative paths in it resolve against its directory.
+    #[staticmethod]
+    fn from_file(py: Python<'_>, path: PathBuf) -> PyResult<PyScene> {
+        let scene = Scene::load(&path).map_err(|e| to_py(py, &e))?;
+        Ok(PyScene {
+            scene,
+            base_dir: path.parent().map(PathBuf::from).unwrap_or_default(),
+        })
+    }
+
+    /// A scene from TOML text; relative paths resolve against ``base_dir`` (default: the
+    /// current directory).
+    #[staticmethod]
+    #[pyo3(signature = (text, base_dir = None))]
+    fn from_toml(py: Python<'_>, text: &str, base_dir: Option<PathBuf>) -> PyResult<PyScene> {
+        let scene = Scene::from_toml(text).map_err(|e| to_py(py, &e))?;
+        Ok(PyScene {
+            scene,
+            base_dir: base_dir.unwrap_or_default(),
+        })
+    }
+
+    /// A scene from a dict with the scene file's structure (``{"simulation": {...},
+    /// "object": [{...}], ...}``), validated like a file.
+    #[staticmethod]
+    #[pyo3(signature = (scene, base_dir = None))]
+    fn from_dict(
+        py: Python<'_>,
+        scene: &Bound<'_, PyAny>,
+        base_dir: Option<PathBuf>,
+    ) -> PyResult<PyScene> {
+        let scene: Scene = from_python(py, scene, "scene")?;
+        scene.validate().map_err(|e| to_py(py, &e))?;
+        Ok(PyScene {
+            scene,
+            base_dir: base_dir.unwrap_or_default(),
+        })
+    }
+
+    /// The scene as TOML text (reads back with ``from_toml``).
+    fn to_toml(&self, py: Python<'_>) -> PyResult<String> {
+        self.scene.to_toml().map_err(|e| to_py(py, &e))
+    }
+
+    /// The scene as a dict (the scene file's structure, every default filled in).
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        report(py, &self.scene)
+    }
+
+    /// Object names, in order.
+    #[getter]
+    fn object_names(&self) -> Vec<String> {
+        self.scene.objects.iter().map(|o| o.name.clone()).collect()
+    }
+
+    /// Time step, s.
+    #[getter]
+    fn dt(&self) -> f64 {
+        self.scene.simulation.dt
+    }
+
+    /// Steps of a batch run (``freeform run``).
+    #[getter]
+    fn steps(&self) -> usize {
+        self.scene.simulation.steps
+    }
+
+    /// Directory that relative paths and the basis cache resolve against.
+    #[getter]
+    fn base_dir(&self) -> PathBuf {
+        self.base_dir.clone()
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Scene(objects={:?}, dt={}, steps={})",
+            self.object_names(),
+            self.dt(),
+            self.steps()
+        )
+    }
+}
+
+/// A scene being simulated: step it, read and change it between steps.
+#[pyclass(module = "freeform", name = "World")]
+pub struct PyWorld {
+    world: World,
+}
+
+/// An object given by index or name.
+fn object_index(py: Python<'_>, world: &World, object: &Bound<'_, PyAny>) -> PyResult<usize> {
+    let count = world.objects().len();
+    if let Ok(name) = object.extract::<String>() {
+        return world.object_index(&name).ok_or_else(|| {
+            let names: Vec<&str> = world.objects().iter().map(|o| o.name()).collect();
+            invalid(
+                py,
+                format!("no object named '{name}'; the objects are {names:?}"),
+            )
+        });
+    }
+    let index: i64 = object
+        .extract()
+        .map_err(|_| invalid(py, "object: give its index (int) or its name (str)"))?;
+    usize::try_from(index)
+        .ok()
+        .filter(|&i| i < count)
+        .ok_or_else(|| {
+            invalid(
+                py,
+                format!("object {index}: the scene has {count} objects (indices from 0)"),
+            )
+        })
+}
+
+fn step_dict<'py>(py: Python<'py>, name: &str, r: &StepReport) -> PyResult<Bound<'py, PyDict>> {
+    let row = StepRow::from(r);
+    let d = PyDict::new(py);
+    d.set_item("object", name)?;
+    d.set_item("step", row.step)?;
+    d.set_item("time", r.time)?;
+    d.set_item("wall_ms", row.wall_ms)?;
+    d.set_item("converged", row.converged)?;
+    d.set_item("iterations", row.iterations)?;
+    d.set_item("evaluations", row.evaluations)?;
+    d.set_item("residual", row.residual)?;
+    d.set_item("energy", row.energy)?;
+    d.set_item("line_search_cutbacks", row.line_search_cutbacks)?;
+    d.set_item("line_search_failed", row.line_search_failed)?;
+    d.set_item("min_det", row.min_det)?;
+    d.set_item("inverted", row.inverted)?;
+    d.set_item("contacts", row.contacts)?;
+    Ok(d)
+}
+
+fn rigid(
+    py: Python<'_>,
+    rotation: Option<&Bound<'_, PyAny>>,
+    translation: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Rigid> {
+    Ok(Rigid {
+        rotation: matrix3(py, rotation, "rotation")?,
+        translation: match translation {
+            Some(t) if !t.is_none() => vec3(py, t, "translation")?,
+            _ => [0.0; 3],
+        },
+    })
+}
+
+#[pymethods]
+impl PyWorld {
+    /// Set the scene up: every object's basis (from the cache or computed; releases the GIL,
+    /// Ctrl-C interrupts), reduced model and render points. ``strict=True`` makes warnings
+    /// errors (StrictModeError); ``cache=False`` computes every basis afresh.
+    #[new]
+    #[pyo3(signature = (scene, *, strict = false, progress = false, cache = None))]
+    fn new(
+        py: Python<'_>,
+        scene: &PyScene,
+        strict: bool,
+        progress: bool,
+        cache: Option<bool>,
+    ) -> PyResult<PyWorld> {
+        let mut s = scene.scene.clone();
+        if let Some(enabled) = cache {
+            s.cache.enabled = enabled;
+        }
+        let settings = RunSettings {
+            base_dir: scene.base_dir.clone(),
+            out: None,
+            strict,
+        };
+        let world = run_released(py, progress, |p| World::new(&s, &settings, p))?;
+        Ok(PyWorld { world })
+    }
+
+    /// Advance every object by ``count`` steps (backward Euler; GIL released); returns the
+    /// last step's reports, one dict per object. A step that does not converge is reported
+    /// (``converged`` False, a warning), not raised, unless the world is strict.
+    #[pyo3(signature = (count = 1))]
+    fn step<'py>(&mut self, py: Python<'py>, count: usize) -> PyResult<Bound<'py, PyList>> {
+        let world = &mut self.world;
+        let reports = run_released(py, false, |progress| {
+            let mut last = Vec::new();
+            for _ in 0..count {
+                freeform::error::check_cancelled(progress, "step")?;
+                last = world.step()?;
+            }
+            Ok(last)
+        })?;
+        let list = PyList::empty(py);
+        for (object, r) in self.world.objects().iter().zip(&reports) {
+            list.append(step_dict(py, object.name(), r)?)?;
+        }
+        Ok(list)
+    }
+
+    /// Simulated time, s.
+    #[getter]
+    fn time(&self) -> f64 {
+        self.world.time()
+    }
+
+    /// Time step, s.
+    #[getter]
+    fn dt(&self) -> f64 {
+        self.world.dt()
+    }
+
+    /// Steps taken.
+    #[getter]
+    fn steps(&self) -> usize {
+        self.world.steps()
+    }
+
+    /// Object names, in order.
+    #[getter]
+    fn object_names(&self) -> Vec<String> {
+        self.world
+            .objects()
+            .iter()
+            .map(|o| o.name().to_string())
+            .collect()
+    }
+
+    /// Warnings so far (setup, non-converged steps, inversions).
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        self.world.warnings().to_vec()
+    }
+
+    /// Deformed render points of an object (index or name): mesh vertices, point-cloud
+    /// points, or integration points of a primitive; (N, 3), metres. With ``out`` (a
+    /// writable float64 (N, 3) C-contiguous array) they are written there and ``out`` is
+    /// returned: no allocation in a stepping loop.
+    #[pyo3(signature = (object, out = None))]
+    fn positions<'py>(
+        &self,
+        py: Python<'py>,
+        object: &Bound<'py, PyAny>,
+        out: Option<&Bound<'py, PyArray2<f64>>>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let i = object_index(py, &self.world, object)?;
+        let x = self.world.object(i).render_positions();
+        let Some(out) = out else {
+            return Ok(points_array(py, &x));
+        };
+        let mut rw: PyReadwriteArray2<'_, f64> = out
+            .try_readwrite()
+            .map_err(|e| invalid(py, format!("out: not writable ({e})")))?;
+        let mut view = rw.as_array_mut();
+        if view.shape() != [x.len(), 3] {
+            return Err(invalid(
+                py,
+                format!(
+                    "out: expected shape ({}, 3), got {:?}",
+                    x.len(),
+                    view.shape()
+                ),
+            ));
+        }
+        for (mut row, p) in view.rows_mut().into_iter().zip(&x) {
+            row[0] = p[0];
+            row[1] = p[1];
+            row[2] = p[2];
+        }
+        drop(rw);
+        Ok(out.clone())
+    }
+
+    /// Rest positions of the render points, (N, 3), metres.
+    fn rest_positions<'py>(
+        &self,
+        py: Python<'py>,
+        object: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let i = object_index(py, &self.world, object)?;
+        Ok(points_array(py, self.world.object(i).render_rest()))
+    }
+
+    /// Deformed integration points, (N, 3), metres.
+    fn integration_positions<'py>(
+        &self,
+        py: Python<'py>,
+        object: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let i = object_index(py, &self.world, object)?;
+        let x = self
+            .world
+            .object(i)
+            .integration_positions()
+            .map_err(|e| to_py(py, &e))?;
+        Ok(points_array(py, &x))
+    }
+
+    /// Mesh triangles (T, 3) as indices into the render points, or None for points.
+    fn triangles<'py>(
+        &self,
+        py: Python<'py>,
+        object: &Bound<'py, PyAny>,
+    ) -> PyResult<Option<Bound<'py, PyArray2<u32>>>> {
+        let i = object_index(py, &self.world, object)?;
+        Ok(self.world.object(i).triangles().map(|t| {
+            let n = t.len();
+            let flat: Vec<u32> = t.iter().flatten().copied().collect();
+            numpy::ndarray::Array2::from_shape_vec((n, 3), flat)
+                .expect("3 indices per triangle")
+                .into_pyarray(py)
+        }))
+    }
+
+    /// The reduced state (z, zdot): two arrays of 12 (m + 1) values (affine handles
+    /// A_j (row-major) and b_j per mode, and their velocities).
+    fn state<'py>(
+        &self,
+        py: Python<'py>,
+        object: &Bound<'py, PyAny>,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+        let i = object_index(py, &self.world, object)?;
+        let sim = self.world.object(i).sim();
+        Ok((
+            sim.z.clone().into_pyarray(py).into_any(),
+            sim.zdot.clone().into_pyarray(py).into_any(),
+        ))
+    }
+
+    /// Set the reduced state (as returned by ``state``); all or nothing.
+    fn set_state(
+        &mut self,
+        py: Python<'_>,
+        object: &Bound<'_, PyAny>,
+        z: &Bound<'_, PyAny>,
+        zdot: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
+        let i = object_index(py, &self.world, object)?;
+        let n = self.world.object(i).sim().z.len();
+        let z = vector(py, z, n, "z")?;
+        let zdot = vector(py, zdot, n, "zdot")?;
+        self.world
+            .set_state(i, &z, &zdot)
+            .map_err(|e| to_py(py, &e))
+    }
+
+    /// Gravity for every object from the next step on, m/s^2 (None: off).
+    fn set_gravity(&mut self, py: Python<'_>, gravity: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
+        let g = match gravity {
+            Some(g) if !g.is_none() => Some(vec3(py, g, "gravity")?),
+            _ => None,
+        };
+        self.world.set_gravity(g).map_err(|e| to_py(py, &e))
+    }
+
+    /// Hold boundary ``boundary`` of an object at the rigid pose x = R X + t of its placed
+    /// rest positions X from the next step on (rotation 3 x 3 proper, None: identity;
+    /// translation in metres).
+    #[pyo3(signature = (object, boundary, rotation = None, translation = None))]
+    fn set_boundary_pose(
+        &mut self,
+        py: Python<'_>,
+        object: &Bound<'_, PyAny>,
+        boundary: usize,
+        rotation: Option<&Bound<'_, PyAny>>,
+        translation: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        let i = object_index(py, &self.world, object)?;
+        let pose = rigid(py, rotation, translation)?;
+        self.world
+            .set_boundary_pose(i, boundary, &pose)
+            .map_err(|e| to_py(py, &e))
+    }
+
+    /// A new motion for a boundary, as in a scene file: ``"fixed"``,
+    /// ``{"translate": {"velocity": [...]}}``, ``{"rotate": {...}}``,
+    /// ``{"keyframes": {...}}`` or ``{"pose": {...}}``; evaluated at the simulation time.
+    fn set_boundary_motion(
+        &mut self,
+        py: Python<'_>,
+        object: &Bound<'_, PyAny>,
+        boundary: usize,
+        motion: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
+        let i = object_index(py, &self.world, object)?;
+        let motion: Motion = from_python(py, motion, "motion")?;
+        self.world
+            .set_boundary_motion(i, boundary, motion)
+            .map_err(|e| to_py(py, &e))
+    }
+
+    /// The kinematic pose of collider ``collider`` (its scene definition moved by
+    /// x -> R x + t; absolute). Planes take any pose, boxes translations only.
+    #[pyo3(signature = (collider, rotation = None, translation = None))]
+    fn set_collider_pose(
+        &mut self,
+        py: Python<'_>,
+        collider: usize,
+        rotation: Option<&Bound<'_, PyAny>>,
+        translation: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        let pose = rigid(py, rotation, translation)?;
+        self.world
+            .set_collider_pose(collider, &pose)
+            .map_err(|e| to_py(py, &e))
+    }
+
+    /// Put an object back into its rest shape at a placement, as in a scene file:
+    /// ``{"translation": [...], "rotation": {"axis": [...], "degrees": d}, "velocity": [...],
+    /// "angular_velocity": [...]}`` (missing keys: zero).
+    fn set_placement(
+        &mut self,
+        py: Python<'_>,
+        object: &Bound<'_, PyAny>,
+        placement: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
+        let i = object_index(py, &self.world, object)?;
+        let placement: Placement = from_python(py, placement, "placement")?;
+        self.world
+            .set_placement(i, &placement)
+            .map_err(|e| to_py(py, &e))
+    }
+
+    /// An object's basis (a copy).
+    fn basis(&self, py: Python<'_>, object: &Bound<'_, PyAny>) -> PyResult<PyBasis> {
+        let i = object_index(py, &self.world, object)?;
+        let o = self.world.object(i);
+        Ok(PyBasis {
+            basis: o.basis().clone(),
+            metadata: BasisMetadata {
+                shape: Some(o.spec().shape.clone()),
+                ..BasisMetadata::default()
+            },
+            report: None,
+        })
+    }
+
+    /// Every object's summary (per-step rows, means, monitors) as dicts.
+    fn summaries<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        report(py, &self.world.summaries())
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "World(objects={:?}, time={}, steps={})",
+            self.object_names(),
+            self.time(),
+            self.steps()
+        )
+    }
+}
