@@ -1,0 +1,188 @@
+"""The live simulation from Python against the command line's batch run, and the calls
+between steps."""
+
+import re
+import subprocess
+import time
+
+import numpy as np
+import pytest
+
+import freeform as ff
+
+# A sphere dropped on a floor and a bar held at one end under gravity: small enough to run
+# in a second, with contact, a boundary and two objects.
+SCENE = """
+[simulation]
+dt = 0.01
+steps = 20
+gravity = [0.0, -9.81, 0.0]
+
+[solver]
+cubature = 300
+
+[output]
+every = 5
+formats = ["vtk"]
+
+[cache]
+enabled = false
+
+[[object]]
+name = "ball"
+shape = "sphere:0.3"
+material = { youngs = 2e5, poisson = 0.4, density = 1000.0 }
+basis = { kernels = 80, modes = 6 }
+placement = { translation = [2.0, 0.35, 0.0], velocity = [0.5, 0.0, 0.0] }
+
+[[object]]
+name = "bar"
+shape = "box:1,0.2,0.2"
+basis = { kernels = 80, modes = 6 }
+
+[[object.boundary]]
+region = { half_space = { point = [0.1, 0, 0], normal = [-1, 0, 0] } }
+
+[[collider]]
+shape = { plane = { point = [0.0, 0.0, 0.0], normal = [0.0, 1.0, 0.0] } }
+"""
+
+
+def read_vtp_points(path):
+    """Points of a freeform .vtp frame (raw appended Float64 data, UInt64 block headers)."""
+    data = path.read_bytes()
+    head, _, appended = data.partition(b'<AppendedData encoding="raw">\n_')
+    n = int(re.search(rb'NumberOfPoints="(\d+)"', head).group(1))
+    points = re.search(rb"<Points>\s*<DataArray[^>]*offset=\"(\d+)\"", head)
+    offset = int(points.group(1))
+    size = int(np.frombuffer(appended[offset:offset + 8], dtype="<u8")[0])
+    assert size == n * 24
+    return np.frombuffer(appended[offset + 8:offset + 8 + size], dtype="<f8").reshape(n, 3)
+
+
+@pytest.fixture()
+def scene_file(tmp_path):
+    path = tmp_path / "scene.toml"
+    path.write_text(SCENE)
+    return path
+
+
+def test_a_scene_stepped_from_python_equals_the_cli_run_frame_for_frame(freeform_bin, scene_file, tmp_path):
+    out = tmp_path / "frames"
+    subprocess.run([freeform_bin, "run", str(scene_file), "--out", str(out)],
+                   check=True, capture_output=True)
+    world = ff.World(ff.Scene.from_file(scene_file))
+    assert world.object_names == ["ball", "bar"]
+    compared = 0
+    for step in range(0, 21):
+        if step > 0:
+            reports = world.step()
+            assert [r["object"] for r in reports] == ["ball", "bar"]
+            assert all(r["converged"] and r["step"] == step for r in reports)
+        if step % 5:
+            continue
+        for name in world.object_names:
+            frame = read_vtp_points(out / name / f"{name}_{step:06}.vtp")
+            # The same library code on the same input, and the library is deterministic
+            # bit for bit (tests/integration/pipeline.rs): the frames are equal exactly.
+            np.testing.assert_array_equal(world.positions(name), frame)
+            compared += 1
+    assert compared == 10
+    assert abs(world.time - 0.2) < 1e-12
+
+
+def scene(**changes):
+    s = ff.Scene.from_toml(SCENE)
+    d = s.to_dict()
+    for key, value in changes.items():
+        d["simulation"][key] = value
+    return ff.Scene.from_dict(d)
+
+
+def test_state_gravity_and_poses_between_steps():
+    world = ff.World(scene())
+    world.step(3)
+    assert world.steps == 3 and abs(world.time - 0.03) < 1e-12
+    z, zdot = world.state("ball")
+    x = world.positions("ball")
+    world.step(2)
+    assert not np.array_equal(world.positions("ball"), x)
+    world.set_state("ball", z, zdot)
+    # x = sum_j W_j (A_j X + b_j): a function of z alone, so equal bit for bit.
+    np.testing.assert_array_equal(world.positions("ball"), x)
+
+    # Gravity off and the ball at rest in the air: it stays where it is.
+    world.set_gravity(None)
+    world.set_placement("ball", {"translation": [2.0, 1.0, 0.0]})
+    before = world.positions("ball").mean(axis=0)
+    world.step(5)
+    np.testing.assert_allclose(world.positions("ball").mean(axis=0), before, atol=1e-9)
+
+    # The bar's held end follows a pose target: lifted by 2 cm.
+    rest = world.rest_positions("bar")
+    world.set_boundary_pose("bar", 0, translation=[0.0, 0.02, 0.0])
+    world.step(30)
+    held = rest[:, 0] < 0.1
+    lift = (world.positions("bar") - rest)[held, 1]
+    # The penalty hold follows to ~1% of the motion (tests/integration/world.rs).
+    np.testing.assert_allclose(lift, 0.02, atol=0.02 * 0.03)
+
+
+def test_positions_into_a_preallocated_array():
+    world = ff.World(scene())
+    out = np.empty((len(world.rest_positions(0)), 3))
+    assert world.positions(0, out=out) is not None
+    np.testing.assert_array_equal(out, world.positions(0))
+    with pytest.raises(ff.InvalidInputError, match="expected shape"):
+        world.positions(0, out=np.empty((3, 3)))
+
+
+def test_bad_calls_between_steps_raise_clear_errors():
+    world = ff.World(scene())
+    z, zdot = world.state(0)
+    with pytest.raises(ff.InvalidInputError, match="no object named 'cup'"):
+        world.positions("cup")
+    with pytest.raises(ff.InvalidInputError, match="the scene has 2 objects"):
+        world.positions(5)
+    with pytest.raises(ff.InvalidInputError, match="expected 84 values"):
+        world.set_state(0, z[:10], zdot)
+    bad = z.copy()
+    bad[3] = np.nan
+    with pytest.raises(ff.InvalidInputError, match="not finite"):
+        world.set_state(0, bad, zdot)
+    with pytest.raises(ff.InvalidInputError, match="proper rotation"):
+        world.set_boundary_pose("bar", 0, rotation=2 * np.eye(3))
+    with pytest.raises(ff.InvalidInputError, match="boundary"):
+        world.set_boundary_pose("bar", 4)
+    with pytest.raises(ff.InvalidInputError, match="motion"):
+        world.set_boundary_motion("bar", 0, {"wiggle": {}})
+    with pytest.raises(ff.InvalidInputError, match="gravity"):
+        world.set_gravity([0.0, np.inf, 0.0])
+    with pytest.raises(ff.InvalidInputError, match="collider"):
+        world.set_collider_pose(3, translation=[0, 1, 0])
+    # Nothing above changed the state.
+    np.testing.assert_array_equal(world.state(0)[0], z)
+
+
+def test_bad_scenes_raise_clear_errors(tmp_path):
+    with pytest.raises(ff.FreeformIOError, match="nope.toml"):
+        ff.Scene.from_file(tmp_path / "nope.toml")
+    with pytest.raises(ff.InvalidInputError, match="dt"):
+        scene(dt=-1.0)
+    with pytest.raises(ff.InvalidInputError, match="line"):
+        ff.Scene.from_toml("[simulation\ndt = 1")
+    bad = SCENE.replace('shape = "sphere:0.3"', 'shape = "missing.obj"')
+    with pytest.raises(ff.FreeformIOError, match="ball"):
+        ff.World(ff.Scene.from_toml(bad, base_dir=str(tmp_path)))
+
+
+def test_reports_and_summaries_are_dicts():
+    world = ff.World(scene())
+    reports = world.step()
+    assert set(reports[0]) >= {"object", "step", "time", "converged", "iterations", "residual",
+                               "energy", "min_det", "contacts", "wall_ms"}
+    summaries = world.summaries()
+    assert [s["name"] for s in summaries] == ["ball", "bar"]
+    assert summaries[0]["steps"][0]["step"] == 1
+    basis = world.basis("bar")
+    assert basis.kernels == 80 and basis.modes == 6
