@@ -1,12 +1,15 @@
 //! `freeform.Scene` and `freeform.World`: scenes from TOML or dicts, stepped live.
 
 use crate::basis::{run_released, PyBasis};
-use crate::convert::{matrix3, points_array, report, vec3, vector};
+use crate::convert::{matrix3, per_point, points_array, report, vec3, vector};
 use crate::errors::{invalid, to_py};
 use freeform::io::basis::BasisMetadata;
+use freeform::material::{Material, MaterialField};
+use freeform::precompute::sampling::{cloud_volumes, CloudVolumeOptions, IntegrationPoints};
 use freeform::scene::StepRow;
-use freeform::scene::{RunSettings, Scene, World};
+use freeform::scene::{ObjectSpec, PreparedObject, RunSettings, Scene, World};
 use freeform::sim::motion::{Motion, Rigid};
+use freeform::sim::Boundary;
 use freeform::sim::{Placement, StepReport};
 use numpy::{IntoPyArray, PyArray2, PyArrayMethods, PyReadwriteArray2};
 use pyo3::prelude::*;
@@ -35,6 +38,8 @@ pub struct PyScene {
     scene: Scene,
     /// Where relative shape paths and the basis cache resolve.
     base_dir: PathBuf,
+    /// Objects added from arrays (`add_object`), after the scene's own.
+    prepared: Vec<PreparedObject>,
 }
 
 #[pymethods]
@@ -46,6 +51,7 @@ impl PyScene {
         Ok(PyScene {
             scene,
             base_dir: path.parent().map(PathBuf::from).unwrap_or_default(),
+            prepared: Vec::new(),
         })
     }
 
@@ -58,11 +64,13 @@ impl PyScene {
         Ok(PyScene {
             scene,
             base_dir: base_dir.unwrap_or_default(),
+            prepared: Vec::new(),
         })
     }
 
     /// A scene from a dict with the scene file's structure (``{"simulation": {...},
-    /// "object": [{...}], ...}``), validated like a file.
+    /// "object": [{...}], "collider": [...], ...}``), validated like a file, except that it
+    /// may have no objects: add them from arrays with ``add_object``.
     #[staticmethod]
     #[pyo3(signature = (scene, base_dir = None))]
     fn from_dict(
@@ -71,11 +79,83 @@ impl PyScene {
         base_dir: Option<PathBuf>,
     ) -> PyResult<PyScene> {
         let scene: Scene = from_python(py, scene, "scene")?;
-        scene.validate().map_err(|e| to_py(py, &e))?;
+        scene.validate_settings().map_err(|e| to_py(py, &e))?;
         Ok(PyScene {
             scene,
             base_dir: base_dir.unwrap_or_default(),
+            prepared: Vec::new(),
         })
+    }
+
+    /// Add an object made from arrays: its basis (``Basis.from_points`` on these points),
+    /// integration points (N, 3) in metres, per-point (or one) Young's modulus (Pa),
+    /// Poisson ratio and density (kg/m^3), volumes (N,) in m^3 (None: estimated from the
+    /// cloud), and optionally its boundaries (a list of ``{"region": ..., "motion": ...}``
+    /// as in a scene file), placement (a dict) and cubature point count. It is drawn at its
+    /// integration points. Not part of ``to_toml`` / ``to_dict``.
+    #[pyo3(signature = (name, basis, points, youngs, poisson = None, density = None, volumes = None, *, boundaries = None, placement = None, cubature = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn add_object(
+        &mut self,
+        py: Python<'_>,
+        name: &str,
+        basis: &PyBasis,
+        points: &Bound<'_, PyAny>,
+        youngs: &Bound<'_, PyAny>,
+        poisson: Option<&Bound<'_, PyAny>>,
+        density: Option<&Bound<'_, PyAny>>,
+        volumes: Option<&Bound<'_, PyAny>>,
+        boundaries: Option<&Bound<'_, PyAny>>,
+        placement: Option<&Bound<'_, PyAny>>,
+        cubature: Option<usize>,
+    ) -> PyResult<()> {
+        let pts = crate::convert::points(py, points, "points")?;
+        let n = pts.len();
+        let d = Material::default();
+        let or_default = |v: Option<&Bound<'_, PyAny>>, value: f64, what: &str| match v {
+            Some(v) if !v.is_none() => per_point(py, v, n, what),
+            _ => Ok(vec![value; n]),
+        };
+        let youngs = per_point(py, youngs, n, "youngs")?;
+        let poisson = or_default(poisson, d.poisson, "poisson")?;
+        let density = or_default(density, d.density, "density")?;
+        let material =
+            MaterialField::from_arrays(youngs, poisson, density).map_err(|e| to_py(py, &e))?;
+        let volumes = match volumes {
+            Some(v) if !v.is_none() => per_point(py, v, n, "volumes")?,
+            _ => {
+                cloud_volumes(&pts, &CloudVolumeOptions::default())
+                    .map_err(|e| to_py(py, &e))?
+                    .0
+            }
+        };
+        let mut spec = ObjectSpec::new(name, "numpy points")
+            .kernels(basis.basis.kernels.len())
+            .modes(basis.basis.modes().saturating_sub(1));
+        if let Some(b) = boundaries.filter(|b| !b.is_none()) {
+            spec.boundaries = from_python::<Vec<Boundary>>(py, b, "boundaries")?;
+        }
+        if let Some(p) = placement.filter(|p| !p.is_none()) {
+            spec.placement = from_python::<Placement>(py, p, "placement")?;
+        }
+        spec.cubature = cubature;
+        // Names, boundaries and placement are checked with the scene's other objects now,
+        // so the mistake is reported here rather than when the world is made.
+        let mut all = self.scene.clone();
+        all.objects
+            .extend(self.prepared.iter().map(|p| p.spec.clone()));
+        all.objects.push(spec.clone());
+        all.validate().map_err(|e| to_py(py, &e))?;
+        self.prepared.push(PreparedObject {
+            spec,
+            basis: basis.basis.clone(),
+            points: IntegrationPoints {
+                points: pts,
+                volumes,
+            },
+            material,
+        });
+        Ok(())
     }
 
     /// The scene as TOML text (reads back with ``from_toml``).
@@ -88,10 +168,15 @@ impl PyScene {
         report(py, &self.scene)
     }
 
-    /// Object names, in order.
+    /// Object names, in order (the scene's, then those added with ``add_object``).
     #[getter]
     fn object_names(&self) -> Vec<String> {
-        self.scene.objects.iter().map(|o| o.name.clone()).collect()
+        self.scene
+            .objects
+            .iter()
+            .chain(self.prepared.iter().map(|p| &p.spec))
+            .map(|o| o.name.clone())
+            .collect()
     }
 
     /// Time step, s.
@@ -211,7 +296,10 @@ impl PyWorld {
             out: None,
             strict,
         };
-        let world = run_released(py, progress, |p| World::new(&s, &settings, p))?;
+        let prepared = scene.prepared.clone();
+        let world = run_released(py, progress, |p| {
+            World::with_objects(&s, &settings, prepared, p)
+        })?;
         Ok(PyWorld { world })
     }
 

@@ -39,7 +39,7 @@ pub use spec::{
     BasisSettings, CacheSettings, Format, ObjectSpec, OutputSettings, Scene, Simulation,
     SolverSettings,
 };
-pub use world::{SceneObject, World};
+pub use world::{PreparedObject, SceneObject, World};
 
 use crate::material::{Material, MaterialOverride, Region};
 use crate::sim::motion::Motion;

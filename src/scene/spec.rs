@@ -304,8 +304,20 @@ impl Scene {
         })
     }
 
-    /// Check every value that parsing cannot (ranges, names, consistency).
+    /// Check every value that parsing cannot (ranges, names, consistency), and that the scene
+    /// has at least one object.
     pub fn validate(&self) -> Result<()> {
+        if self.objects.is_empty() {
+            return Err(scene_err(
+                "the scene has no [[object]]: add at least one object".into(),
+            ));
+        }
+        self.validate_settings()
+    }
+
+    /// [`Scene::validate`] without requiring an object: for a scene whose objects are added
+    /// in code ([`super::World::with_objects`]).
+    pub fn validate_settings(&self) -> Result<()> {
         let s = &self.simulation;
         if !(s.dt > 0.0 && s.dt.is_finite()) {
             return Err(scene_err(format!(
@@ -336,11 +348,6 @@ impl Scene {
         }
         if self.output.every == 0 {
             return Err(scene_err("output.every must be at least 1".into()));
-        }
-        if self.objects.is_empty() {
-            return Err(scene_err(
-                "the scene has no [[object]]: add at least one object".into(),
-            ));
         }
         let mut names = std::collections::HashSet::new();
         for o in &self.objects {

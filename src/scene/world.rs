@@ -5,10 +5,11 @@ use super::setup::{object_basis, resolve_shape, ObjectBasis, ResolvedShape};
 use super::spec::{ObjectSpec, Scene};
 use crate::error::check_strict;
 use crate::geometry::{Shape, ShapeOptions};
+use crate::material::MaterialField;
 use crate::precompute::sampling::IntegrationPoints;
 use crate::precompute::skinning::{Basis, SkinningWeights};
 use crate::progress::Progress;
-use crate::report::Stopwatch;
+use crate::report::{Monitors, Stopwatch};
 use crate::sim::motion::{Motion, Rigid};
 use crate::sim::terms::ColliderShape;
 use crate::sim::{Placement, ReducedSim, SimOptions, StepReport};
@@ -24,6 +25,34 @@ struct RenderPoints {
     weights: SkinningWeights,
     /// Mesh triangles (indices into the render points), for mesh shapes.
     triangles: Option<Vec<[u32; 3]>>,
+}
+
+/// What an object's setup computed or was given: basis, integration points, materials, and
+/// where they came from.
+struct Parts {
+    basis: Basis,
+    points: IntegrationPoints,
+    material: MaterialField,
+    cached: bool,
+    basis_file: Option<std::path::PathBuf>,
+    monitors: Monitors,
+    precompute_s: f64,
+}
+
+/// An object whose basis, integration points and materials the caller computed (e.g. from
+/// NumPy arrays, with a per-point Young's modulus), for [`World::with_objects`]. It is drawn
+/// at its integration points; `spec.shape` only names it in reports (`spec.basis` and
+/// `spec.material` are not used: the basis and materials are these).
+#[derive(Debug, Clone)]
+pub struct PreparedObject {
+    /// Name, boundaries, placement and cubature of the object.
+    pub spec: ObjectSpec,
+    /// Its skinning basis.
+    pub basis: Basis,
+    /// Integration points (N x 3, metres) and volumes (N, m^3).
+    pub points: IntegrationPoints,
+    /// Per-point material (N entries).
+    pub material: MaterialField,
 }
 
 /// One object of a [`World`]: its reduced model, its rest points and their skinning
@@ -91,8 +120,42 @@ impl SceneObject {
             file: basis_file,
             monitors,
         } = object_basis(spec, &resolved, scene, settings, progress, warnings).map_err(ctx)?;
-        let shape = resolved.shape;
-        let precompute_s = clock.elapsed();
+        let parts = Parts {
+            basis,
+            points,
+            material,
+            cached,
+            basis_file,
+            monitors,
+            precompute_s: clock.elapsed(),
+        };
+        SceneObject::from_parts(index, spec, scene, Some(&resolved.shape), parts, progress)
+    }
+
+    /// The reduced model and render points of an object whose basis, integration points and
+    /// materials are known; `shape` None: drawn at its integration points.
+    fn from_parts(
+        index: usize,
+        spec: &ObjectSpec,
+        scene: &Scene,
+        shape: Option<&Shape>,
+        parts: Parts,
+        progress: &dyn Progress,
+    ) -> Result<SceneObject> {
+        let ctx = |e: Error| Error::Object {
+            index,
+            name: spec.name.clone(),
+            source: Box::new(e),
+        };
+        let Parts {
+            basis,
+            points,
+            material,
+            cached,
+            basis_file,
+            monitors,
+            precompute_s,
+        } = parts;
         let clock = Stopwatch::start();
         progress.begin(&format!("setup {}", spec.name), None);
         let opts = SimOptions {
@@ -109,9 +172,10 @@ impl SceneObject {
         let ip_weights = basis.weights(&points.points).map_err(ctx)?;
         let sim = ReducedSim::with_weights(&basis, &points, &material, &ip_weights, &opts)
             .map_err(ctx)?;
-        let (rest, triangles) = match &shape {
-            Shape::Mesh(m) => (Some(m.vertices().to_vec()), Some(m.triangles().to_vec())),
-            other => (other.render_points().map(<[Point3]>::to_vec), None),
+        let (rest, triangles) = match shape {
+            Some(Shape::Mesh(m)) => (Some(m.vertices().to_vec()), Some(m.triangles().to_vec())),
+            Some(other) => (other.render_points().map(<[Point3]>::to_vec), None),
+            None => (None, None),
         };
         let render_weights = match &rest {
             Some(r) => basis.weights(r).map_err(|e| {
@@ -285,6 +349,44 @@ impl SceneObject {
     }
 }
 
+/// Materials and volumes of a prepared object match its points; volumes positive.
+fn check_prepared(p: &PreparedObject) -> Result<()> {
+    let n = p.points.len();
+    if n == 0 {
+        return Err(Error::param(
+            "points",
+            0,
+            "the object has no integration points",
+        ));
+    }
+    for (what, got) in [
+        ("volumes", p.points.volumes.len()),
+        ("material values", p.material.len()),
+    ] {
+        if got != n {
+            return Err(Error::LengthMismatch {
+                what,
+                expected: n,
+                got,
+            });
+        }
+    }
+    crate::error::check_finite_points("integration points", &p.points.points)?;
+    if let Some(i) = p
+        .points
+        .volumes
+        .iter()
+        .position(|v| !(v.is_finite() && *v > 0.0))
+    {
+        return Err(Error::param(
+            "volumes",
+            format!("{} at point {i}", p.points.volumes[i]),
+            "every integration volume must be positive and finite",
+        ));
+    }
+    Ok(())
+}
+
 /// A scene being simulated, one step at a time: every object's reduced model, the shared
 /// colliders, the time and the warnings so far. [`crate::scene::run`] is a loop over it.
 ///
@@ -352,10 +454,30 @@ impl World {
     /// [`Error::Object`] (the object's index and name around the stage's own error) for a
     /// shape, basis or setup failure; [`Error::Strict`] for a warning in strict mode.
     pub fn new(scene: &Scene, settings: &RunSettings, progress: &dyn Progress) -> Result<World> {
-        scene.validate()?;
+        World::with_objects(scene, settings, Vec::new(), progress)
+    }
+
+    /// [`World::new`] with more objects after the scene's own: objects whose basis, points
+    /// and materials the caller made (a scene with none of its own is fine then). All objects
+    /// are checked together (unique names, boundaries) as a scene file's are; each prepared
+    /// object's basis must cover its integration points.
+    ///
+    /// # Errors
+    /// As [`World::new`]; a prepared object whose materials or volumes do not match its
+    /// points is an [`Error::Object`] naming it.
+    pub fn with_objects(
+        scene: &Scene,
+        settings: &RunSettings,
+        prepared: Vec<PreparedObject>,
+        progress: &dyn Progress,
+    ) -> Result<World> {
+        let mut all = scene.clone();
+        all.objects.extend(prepared.iter().map(|p| p.spec.clone()));
+        all.validate()?;
         let mut warnings = Vec::new();
         let mut objects = Vec::new();
         for (index, spec) in scene.objects.iter().enumerate() {
+            crate::error::check_cancelled(progress, "scene setup")?;
             objects.push(SceneObject::new(
                 index,
                 spec,
@@ -363,6 +485,27 @@ impl World {
                 settings,
                 progress,
                 &mut warnings,
+            )?);
+        }
+        for (offset, p) in prepared.into_iter().enumerate() {
+            let index = scene.objects.len() + offset;
+            let ctx = |e: Error| Error::Object {
+                index,
+                name: p.spec.name.clone(),
+                source: Box::new(e),
+            };
+            check_prepared(&p).map_err(ctx)?;
+            let parts = Parts {
+                basis: p.basis,
+                points: p.points,
+                material: p.material,
+                cached: false,
+                basis_file: None,
+                monitors: Monitors::default(),
+                precompute_s: 0.0,
+            };
+            objects.push(SceneObject::from_parts(
+                index, &p.spec, scene, None, parts, progress,
             )?);
         }
         check_strict(settings.strict, &warnings)?;
