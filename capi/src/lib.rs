@@ -1,6 +1,7 @@
 //! The C API of freeform: build a skinning basis from arrays, read eigenvalues and
-//! coefficients, evaluate weights and gradients, free. Header: `ffi/include/freeform.h`;
-//! guide: `docs/c-api.md`.
+//! coefficients, evaluate weights and gradients, free; and the live simulation of a scene
+//! file ([`world`]: open, step, read positions and state, move boundary targets and
+//! colliders, free). Header: `ffi/include/freeform.h`; guide: `docs/c-api.md`.
 //!
 //! Conventions: every function returns an `int` status (0 = `FF_OK`, see [`Status`]); on
 //! failure [`ff_last_error`] returns the message (per thread, valid until the next failing
@@ -20,6 +21,9 @@ use freeform::progress::Silent;
 use std::cell::RefCell;
 use std::ffi::{c_char, c_int, CString};
 
+pub mod world;
+pub use world::*;
+
 /// Status codes (the `FF_*` constants of the header).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -38,6 +42,11 @@ pub enum Status {
     BufferTooSmall = 5,
     /// Internal error (a panic was caught); please report it.
     Panic = 6,
+    /// A file could not be read (a scene file, or a shape file it names).
+    Io = 7,
+    /// Strict mode: a warning (a step that did not converge, an inversion, a Newton Hessian
+    /// fallback, a poorly conditioned basis) stopped the simulation.
+    Strict = 8,
 }
 
 thread_local! {
@@ -55,7 +64,7 @@ fn fail(status: Status, msg: &str) -> c_int {
 }
 
 /// Run `f`, turning a panic into `FF_ERR_PANIC` with its message.
-fn guard(f: impl FnOnce() -> Result<(), (Status, String)>) -> c_int {
+pub(crate) fn guard(f: impl FnOnce() -> Result<(), (Status, String)>) -> c_int {
     match std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)) {
         Ok(Ok(())) => Status::Ok as c_int,
         Ok(Err((s, m))) => fail(s, &m),
@@ -70,10 +79,16 @@ fn guard(f: impl FnOnce() -> Result<(), (Status, String)>) -> c_int {
     }
 }
 
-fn status_of(e: &freeform::Error) -> Status {
+/// The status of a library error: an object's setup error is classified by its cause.
+pub(crate) fn status_of(e: &freeform::Error) -> Status {
+    use freeform::geometry::GeometryError;
+    use freeform::Error;
     match e {
-        freeform::Error::Coverage { .. } => Status::Coverage,
-        freeform::Error::Eigen(_) => Status::Eigensolver,
+        Error::Coverage { .. } => Status::Coverage,
+        Error::Eigen(_) => Status::Eigensolver,
+        Error::Io { .. } | Error::Geometry(GeometryError::Io { .. }) => Status::Io,
+        Error::Strict { .. } => Status::Strict,
+        Error::Object { source, .. } => status_of(source),
         _ => Status::InvalidArgument,
     }
 }
@@ -136,7 +151,11 @@ pub struct FfBasis {
 }
 
 /// A slice from a C array, checking NULL (an empty array may be NULL).
-unsafe fn slice<'a>(p: *const f64, len: usize, what: &str) -> Result<&'a [f64], (Status, String)> {
+pub(crate) unsafe fn slice<'a>(
+    p: *const f64,
+    len: usize,
+    what: &str,
+) -> Result<&'a [f64], (Status, String)> {
     if len == 0 {
         return Ok(&[]);
     }
@@ -256,7 +275,7 @@ pub unsafe extern "C" fn ff_basis_modes(basis: *const FfBasis) -> usize {
     unsafe { basis_ref(basis) }.map_or(0, |b| b.modes())
 }
 
-fn out_slice<'a>(
+pub(crate) fn out_slice<'a>(
     p: *mut f64,
     len: usize,
     need: usize,

@@ -1,10 +1,13 @@
 /*
- * freeform C API: skinning eigenmodes from RKPM kernels (mesh-free reduced-order elasticity).
+ * freeform C API: skinning eigenmodes from RKPM kernels (mesh-free reduced-order elasticity),
+ * and the live simulation of a scene file (open, step, read positions, move targets, free).
  *
  * Library: libfreeform_capi.so / libfreeform_capi.a, built by
  *     cargo build --release -p freeform-capi
  * Link:    cc app.c -Iffi/include -Ltarget/release -lfreeform_capi -lm
- * Guide:   docs/c-api.md. Example: examples/basis.c.
+ * Guide:   docs/c-api.md.
+ * Examples: examples/basis.c (a basis from arrays: eigenvalues, weights, gradients);
+ *           examples/step.c (steps examples/step.toml, moving a held end and a floor).
  *
  * Conventions
  *   - Every function returning int returns FF_OK (0) or an FF_ERR_* code; then
@@ -12,8 +15,14 @@
  *   - Arrays are row-major doubles; lengths are element counts (size_t). Output arrays come
  *     with their capacity; a too small one gives FF_ERR_BUFFER_TOO_SMALL.
  *   - Units: positions in metres, volumes in m^3, Young's modulus in Pa, density in kg/m^3;
- *     eigenvalues in Pa/m^2.
- *   - Functions are thread-safe on distinct bases; a basis may be read from several threads.
+ *     eigenvalues in Pa/m^2; time in seconds; gravity in m/s^2.
+ *   - Indices are 0-based; an index out of range gives FF_ERR_INVALID_ARGUMENT with a message
+ *     naming the index and the count.
+ *   - Functions are thread-safe on distinct bases and worlds; a basis may be read from several
+ *     threads. A world may be read (const ff_world *) from several threads at once, but
+ *     stepping or changing it (ff_world *) needs it to yourself.
+ *   - The library computes with all cores (rayon); set RAYON_NUM_THREADS to limit them
+ *     (results are bit-identical for the same thread count).
  */
 #ifndef FREEFORM_H
 #define FREEFORM_H
@@ -31,7 +40,10 @@ enum {
     FF_ERR_COVERAGE = 3,          /* points not covered by enough kernels */
     FF_ERR_EIGENSOLVER = 4,       /* the eigensolver failed or did not converge */
     FF_ERR_BUFFER_TOO_SMALL = 5,  /* an output array is too small */
-    FF_ERR_PANIC = 6              /* internal error (caught); please report it */
+    FF_ERR_PANIC = 6,             /* internal error (caught); please report it */
+    FF_ERR_IO = 7,                /* a file could not be read (scene file, shape file) */
+    FF_ERR_STRICT = 8             /* strict mode: a warning (non-converged step, inversion,
+                                     Newton Hessian fallback, poor basis) stopped the world */
 };
 
 /* Options of ff_basis_build; fill with ff_options_default, then change fields. */
@@ -84,6 +96,120 @@ int ff_basis_centers(const ff_basis *basis, double *out, size_t len);
  * covered by the kernels (inside or near the sampled object), else FF_ERR_COVERAGE. */
 int ff_basis_weights(const ff_basis *basis, const double *queries, size_t nq, double *weights,
                      size_t weights_len, double *gradients, size_t gradients_len);
+
+/* ---------------------------------------------------------------------------------------- */
+/* Live simulation: a scene file (TOML, docs/scenes.md) stepped from C.                      */
+/* Objects, boundaries and colliders are indexed from 0 in the order of the scene file's      */
+/* [[object]], [[object.boundary]] and [[collider]] tables.                                   */
+
+/* An opaque scene being simulated. */
+typedef struct ff_world ff_world;
+
+/* The last step of one object (see ff_world_step_report). */
+typedef struct ff_step_report {
+    size_t step;                 /* step number, 1-based */
+    size_t iterations;           /* solver iterations */
+    size_t evaluations;          /* energy/gradient evaluations */
+    int converged;               /* 1 if the solver tolerance was met, 0 if not */
+    int line_search_failed;      /* 1 if the line search could not decrease the energy */
+    double residual;             /* final convergence measure (compare with solver.tol) */
+    double energy;               /* incremental potential at the end of the step, J */
+    double wall_ms;              /* wall time of the step, ms */
+    double min_det;              /* smallest det F over the cubature points */
+    size_t inverted;             /* cubature points with det F <= 0 */
+    size_t contacts;             /* cubature points penetrating a collider */
+    size_t line_search_cutbacks; /* line-search step halvings, summed over iterations */
+} ff_step_report;
+
+/* Open the scene file scene_path and set up every object (basis from the scene's cache or
+ * computed, reduced model, render points), as `freeform run` does: relative paths in the
+ * scene resolve against the scene file's directory; no frames are written, nothing is
+ * printed. strict != 0 turns warnings (setup and every step) into FF_ERR_STRICT. On success
+ * *out owns the world (release it with ff_world_free); on failure *out is NULL: FF_ERR_IO for
+ * an unreadable scene or shape file, FF_ERR_INVALID_ARGUMENT for a malformed scene (the
+ * message gives the line), FF_ERR_COVERAGE or FF_ERR_EIGENSOLVER for a basis that cannot be
+ * built (the message names the object). */
+int ff_world_open(const char *scene_path, int strict, ff_world **out);
+
+/* Release a world (NULL is ignored); strings it handed out die with it. */
+void ff_world_free(ff_world *world);
+
+/* Advance every object by one time step (backward Euler, the scene's dt). A step that does
+ * not converge is not an error: ff_world_step_report says so and a warning is added. In
+ * strict mode the first warning gives FF_ERR_STRICT and the world stops for good (later steps
+ * give FF_ERR_STRICT; reading stays possible); likewise after FF_ERR_PANIC in a step. */
+int ff_world_step(ff_world *world);
+
+/* The last step of object `object` into *out (FF_ERR_INVALID_ARGUMENT before the first). */
+int ff_world_step_report(const ff_world *world, size_t object, ff_step_report *out);
+
+/* Steps of object `object` that did not converge so far (0 for NULL or a bad index). */
+size_t ff_world_nonconverged_steps(const ff_world *world, size_t object);
+
+/* Simulated time and time step, s; steps taken. 0 for NULL. */
+double ff_world_time(const ff_world *world);
+double ff_world_dt(const ff_world *world);
+size_t ff_world_steps(const ff_world *world);
+
+/* Counts: objects, colliders of the scene, boundaries of object `object`. 0 for NULL or a bad
+ * index. */
+size_t ff_world_object_count(const ff_world *world);
+size_t ff_world_collider_count(const ff_world *world);
+size_t ff_world_boundary_count(const ff_world *world, size_t object);
+
+/* The index of the object named `name` into *out (FF_ERR_INVALID_ARGUMENT, listing the names,
+ * if there is none). */
+int ff_world_object_index(const ff_world *world, const char *name, size_t *out);
+
+/* The name of object `object` (NULL for NULL or a bad index); valid until ff_world_free. */
+const char *ff_world_object_name(const ff_world *world, size_t object);
+
+/* Number N of render points of object `object` (0 for NULL or a bad index): a mesh's
+ * vertices, a point cloud's points, or a primitive's (box:, sphere:) integration points. */
+size_t ff_world_point_count(const ff_world *world, size_t object);
+
+/* Deformed render points, N x 3 row-major (out[3 i + d], metres; what `freeform run` writes as
+ * frames), into out[len >= 3 N]. */
+int ff_world_positions(const ff_world *world, size_t object, double *out, size_t len);
+
+/* Rest positions of the render points (before the placement), N x 3, into out[len >= 3 N]. */
+int ff_world_rest_positions(const ff_world *world, size_t object, double *out, size_t len);
+
+/* Hold boundary `boundary` of object `object` at the rigid pose x = R X + t of its placed rest
+ * positions X, from the next step on (whatever the time: a target moved between steps).
+ * rotation: R, 9 doubles row-major, a proper rotation (orthonormal, det +1, to 1e-9; else
+ * FF_ERR_INVALID_ARGUMENT), NULL for the identity; translation: t, 3 doubles, metres. */
+int ff_world_set_boundary_pose(ff_world *world, size_t object, size_t boundary,
+                               const double *rotation, const double *translation);
+
+/* Move collider `collider` to the pose x -> R x + t of its definition in the scene, for every
+ * object from the next step on (absolute, not accumulated: a kinematic obstacle). Planes take
+ * any pose, axis-aligned boxes translations only. rotation and translation as above. */
+int ff_world_set_collider_pose(ff_world *world, size_t collider, const double *rotation,
+                               const double *translation);
+
+/* Gravity for every object from the next step on: gravity[3], m/s^2; NULL turns it off. */
+int ff_world_set_gravity(ff_world *world, const double *gravity);
+
+/* Length of object `object`'s state vectors z and zdot: 12 (m + 1) for m + 1 modes (0 for NULL
+ * or a bad index). z holds the 3 x 4 affine handles Z_j of x(X) = X + sum_j W_j(X) Z_j [X; 1]:
+ * z[4 (m + 1) r + 4 j + a] = Z_j[r][a] (row r < 3, column a < 4); zdot = dz/dt (per s). */
+size_t ff_world_state_len(const ff_world *world, size_t object);
+
+/* Copy the state into z[len] and zdot[len] (len >= ff_world_state_len). */
+int ff_world_get_state(const ff_world *world, size_t object, double *z, double *zdot,
+                       size_t len);
+
+/* Set the state from z[len] and zdot[len] (len == ff_world_state_len, finite values), e.g. one
+ * saved with ff_world_get_state; the solver's history is dropped, time goes on. All or
+ * nothing: a refused state leaves the object as it was. */
+int ff_world_set_state(ff_world *world, size_t object, const double *z, const double *zdot,
+                       size_t len);
+
+/* Warnings so far (setup, steps that did not converge, inversions, Hessian fallbacks): their
+ * number, and warning i (NULL for NULL or a bad index; valid until ff_world_free). */
+size_t ff_world_warning_count(const ff_world *world);
+const char *ff_world_warning(const ff_world *world, size_t index);
 
 #ifdef __cplusplus
 }
