@@ -21,8 +21,6 @@ pub struct FfWorld {
     names: Vec<CString>,
     /// The world's warnings as C strings; they only grow, so pointers handed out stay valid.
     warnings: Vec<CString>,
-    /// Colliders of the scene.
-    colliders: usize,
     /// Why stepping stopped for good, with the status later steps return: a strict-mode
     /// warning, or an internal error during a step (the objects may be at different times).
     stopped: Option<(Status, String)>,
@@ -172,9 +170,8 @@ pub unsafe extern "C" fn ff_world_open(
         let scene = Scene::load(&path).map_err(lib_err)?;
         // As `freeform run`: relative shape and cache paths are the scene file's.
         let settings = RunSettings {
-            base_dir: path.parent().map(|p| p.to_path_buf()).unwrap_or_default(),
-            out: None,
             strict: strict != 0,
+            ..RunSettings::for_scene_file(&path)
         };
         let world = World::new(&scene, &settings, &Silent).map_err(lib_err)?;
         let names = world
@@ -186,7 +183,6 @@ pub unsafe extern "C" fn ff_world_open(
             world,
             names,
             warnings: Vec::new(),
-            colliders: scene.colliders.len(),
             stopped: None,
         });
         w.sync_warnings();
@@ -331,7 +327,7 @@ pub unsafe extern "C" fn ff_world_object_count(world: *const FfWorld) -> usize {
 /// Number of colliders of the scene (0 for NULL).
 #[no_mangle]
 pub unsafe extern "C" fn ff_world_collider_count(world: *const FfWorld) -> usize {
-    unsafe { peek(world) }.map_or(0, |w| w.colliders)
+    unsafe { peek(world) }.map_or(0, |w| w.world.collider_count())
 }
 
 /// Number of boundaries of object `object` (0 for NULL or a bad index).

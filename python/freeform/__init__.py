@@ -1,6 +1,7 @@
 """freeform: mesh-free, reduced-order simulation of elastic objects from RKPM skinning
 eigenmodes, from Python.
 
+- ``sample("mesh.obj", points=20000)``: points inside a shape and their volumes.
 - ``Basis.from_shape("box:2,1,1", kernels=1000, modes=16)`` or
   ``Basis.from_points(points, youngs, poisson, density, volumes=None)``: the eigenmodes;
   ``basis.weights(points)`` evaluates them anywhere in the object.
@@ -20,12 +21,13 @@ from ._errors import (
     NotConvergedError,
     StrictModeError,
 )
-from ._native import Basis, Scene, World, __version__
+from ._native import Basis, Scene, World, __version__, sample
 
 __all__ = [
     "Basis",
     "Scene",
     "World",
+    "sample",
     "FreeformError",
     "InvalidInputError",
     "CoverageError",

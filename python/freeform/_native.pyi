@@ -13,6 +13,15 @@ Float2 = npt.NDArray[np.float64]
 ObjectRef = Union[int, str]
 Path = Union[str, PathLike]
 
+def sample(
+    shape: str,
+    *,
+    points: Optional[int] = None,
+    spacing: Optional[float] = None,
+    allow_open_mesh: bool = False,
+) -> tuple[Float2, npt.NDArray[np.float64]]:
+    """Points inside a shape (N, 3), metres, and their volumes (N,), m^3."""
+
 class Basis:
     """Skinning eigenmodes: K RKPM kernels and the coefficients of m + 1 modes."""
 
@@ -109,6 +118,23 @@ class Basis:
 
 class Scene:
     """A scene (docs/scenes.md): objects, materials, boundaries, colliders, time stepping."""
+
+    def add_object(
+        self,
+        name: str,
+        basis: Basis,
+        points: ArrayLike,
+        youngs: Union[float, ArrayLike],
+        poisson: Union[float, ArrayLike, None] = None,
+        density: Union[float, ArrayLike, None] = None,
+        volumes: Optional[ArrayLike] = None,
+        *,
+        boundaries: Optional[list[dict[str, Any]]] = None,
+        placement: Optional[dict[str, Any]] = None,
+        cubature: Optional[int] = None,
+    ) -> None:
+        """An object from arrays: its basis, integration points (N, 3) metres, per-point
+        material (Pa, -, kg/m^3), volumes (N,) m^3."""
 
     @staticmethod
     def from_file(path: Path) -> Scene: ...

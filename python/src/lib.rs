@@ -5,6 +5,7 @@ mod basis;
 mod convert;
 mod errors;
 mod progress;
+mod sampling;
 mod world;
 
 use pyo3::prelude::*;
@@ -15,6 +16,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<basis::PyBasis>()?;
     m.add_class::<world::PyScene>()?;
     m.add_class::<world::PyWorld>()?;
+    m.add_function(wrap_pyfunction!(sampling::sample, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -50,7 +50,7 @@ impl PyScene {
         let scene = Scene::load(&path).map_err(|e| to_py(py, &e))?;
         Ok(PyScene {
             scene,
-            base_dir: path.parent().map(PathBuf::from).unwrap_or_default(),
+            base_dir: RunSettings::for_scene_file(&path).base_dir,
             prepared: Vec::new(),
         })
     }

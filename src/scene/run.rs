@@ -26,6 +26,18 @@ pub struct RunSettings {
     pub strict: bool,
 }
 
+impl RunSettings {
+    /// The settings `freeform run` uses for a scene file: relative paths (shapes, the basis
+    /// cache) resolve against the file's directory; no frames; not strict.
+    pub fn for_scene_file(path: &std::path::Path) -> RunSettings {
+        RunSettings {
+            base_dir: path.parent().map(PathBuf::from).unwrap_or_default(),
+            out: None,
+            strict: false,
+        }
+    }
+}
+
 /// One step of one object in the summary.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct StepRow {

@@ -555,6 +555,12 @@ impl World {
         self.objects.last().map_or(0, |o| o.sim.steps)
     }
 
+    /// Number of colliders (the scene's `[[collider]]` tables), for
+    /// [`World::set_collider_pose`].
+    pub fn collider_count(&self) -> usize {
+        self.colliders.len()
+    }
+
     /// The objects, in scene order.
     pub fn objects(&self) -> &[SceneObject] {
         &self.objects

@@ -36,15 +36,10 @@ pub fn run(args: RunArgs) -> CliResult {
     if args.no_cache {
         scene.cache.enabled = false;
     }
-    let base_dir = args
-        .scene
-        .parent()
-        .map(|p| p.to_path_buf())
-        .unwrap_or_default();
     let settings = RunSettings {
-        base_dir,
         out: args.out.clone(),
         strict: args.strict,
+        ..RunSettings::for_scene_file(&args.scene)
     };
     let bar = TerminalProgress::new();
     let progress: &dyn Progress = if std::io::stderr().is_terminal() {
