@@ -10,6 +10,9 @@ use freeform::precompute::sampling::{CloudVolumeOptions, Resolution};
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 
+/// Points (N x 3) and volumes (N) as NumPy arrays.
+type PointsAndVolumes<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>);
+
 /// Points inside a shape and their volumes: ``(points (N, 3) metres, volumes (N,) m^3)``.
 /// A regular grid inside primitives and watertight meshes (``points``: about how many;
 /// ``spacing``: the grid step, metres; default 20,000 points), a point cloud's own points
@@ -22,7 +25,7 @@ pub fn sample<'py>(
     points: Option<usize>,
     spacing: Option<f64>,
     allow_open_mesh: bool,
-) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>)> {
+) -> PyResult<PointsAndVolumes<'py>> {
     let resolution = match (points, spacing) {
         (Some(_), Some(_)) => {
             return Err(invalid(
