@@ -184,7 +184,8 @@ class World:
     def integration_positions(self, object: ObjectRef) -> Float2: ...
     def triangles(self, object: ObjectRef) -> Optional[npt.NDArray[np.uint32]]: ...
     def state(self, object: ObjectRef) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-        """(z, zdot), 12 (m + 1) each."""
+        """(z, zdot), 12 (m + 1) each: z[4 (m + 1) r + 4 j + a] = Z_j[r, a], the 3 x 4 affine
+        handle of mode j in x(X) = X + sum_j W_j(X) Z_j [X; 1]; zdot = dz/dt."""
     def set_state(self, object: ObjectRef, z: ArrayLike, zdot: ArrayLike) -> None: ...
     def set_gravity(self, gravity: Optional[Sequence[float]]) -> None:
         """m/s^2; None: off."""

@@ -438,8 +438,9 @@ impl PyWorld {
         }))
     }
 
-    /// The reduced state (z, zdot): two arrays of 12 (m + 1) values (affine handles
-    /// A_j (row-major) and b_j per mode, and their velocities).
+    /// The reduced state (z, zdot): two arrays of 12 (m + 1) values. z holds the 3 x 4
+    /// affine handles Z_j of x(X) = X + sum_j W_j(X) Z_j [X; 1] with
+    /// ``z[4 (m + 1) r + 4 j + a] = Z_j[r, a]``; zdot = dz/dt (per s).
     fn state<'py>(
         &self,
         py: Python<'py>,
