@@ -186,3 +186,46 @@ def test_reports_and_summaries_are_dicts():
     assert summaries[0]["steps"][0]["step"] == 1
     basis = world.basis("bar")
     assert basis.kernels == 80 and basis.modes == 6
+
+
+def test_an_object_from_arrays_moves_as_the_same_object_from_its_shape():
+    # The scene's own object and the same object made from arrays (the same points,
+    # materials, volumes and basis): the same arithmetic, so the same positions.
+    spec = {"name": "bar", "shape": "box:1,0.2,0.2", "basis": {"kernels": 60, "modes": 6, "points": 3000},
+            "material": {"youngs": 1e5, "poisson": 0.4, "density": 1000.0},
+            "boundary": [{"region": {"half_space": {"point": [0.1, 0, 0], "normal": [-1, 0, 0]}}}]}
+    settings = {"simulation": {"dt": 0.01, "steps": 5, "gravity": [0.0, -9.81, 0.0]},
+                "solver": {"cubature": 300}, "cache": {"enabled": False}}
+    from_shape = ff.World(ff.Scene.from_dict({**settings, "object": [spec]}))
+    points, volumes = ff.sample("box:1,0.2,0.2", points=3000)
+    basis = ff.Basis.from_points(points, 1e5, 0.4, 1000.0, volumes, kernels=60, modes=6)
+    np.testing.assert_array_equal(basis.eigenvalues, from_shape.basis("bar").eigenvalues)
+    scene = ff.Scene.from_dict(settings)
+    scene.add_object("bar", basis, points, 1e5, 0.4, 1000.0, volumes, boundaries=spec["boundary"])
+    assert scene.object_names == ["bar"]
+    from_arrays = ff.World(scene)
+    from_shape.step(5)
+    from_arrays.step(5)
+    np.testing.assert_array_equal(from_arrays.positions("bar"), from_shape.positions("bar"))
+    # Mistakes are reported when the object is added, naming what is wrong.
+    with pytest.raises(ff.InvalidInputError, match="two objects are named 'bar'"):
+        scene.add_object("bar", basis, points, 1e5)
+    with pytest.raises(ff.InvalidInputError, match=f"expected {len(points)} values"):
+        scene.add_object("other", basis, points, np.ones(10))
+    with pytest.raises(ff.InvalidInputError, match="boundaries"):
+        scene.add_object("other", basis, points, 1e5, boundaries=[{"area": 1}])
+    with pytest.raises(ff.InvalidInputError, match="no \\[\\[object\\]\\]"):
+        ff.World(ff.Scene.from_dict(settings))
+
+
+def test_sample_gives_points_inside_with_the_volume():
+    points, volumes = ff.sample("sphere:0.5", points=5000)
+    assert points.shape == (len(volumes), 3) and abs(len(points) - 5000) < 500
+    assert np.all(np.linalg.norm(points, axis=1) < 0.5)
+    # The grid cells inside a sphere of radius 0.5 add up to its volume (the sampler
+    # scales the cells to the exact volume of primitives).
+    np.testing.assert_allclose(volumes.sum(), 4 / 3 * np.pi * 0.125, rtol=1e-9)
+    with pytest.raises(ff.InvalidInputError, match="not both"):
+        ff.sample("box:1,1,1", points=10, spacing=0.1)
+    with pytest.raises(ff.FreeformIOError, match="nothing.obj"):
+        ff.sample("nothing.obj")
