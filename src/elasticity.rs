@@ -37,6 +37,38 @@ pub fn first_piola(f: &Mat3, lambda: f64, mu: f64) -> Mat3 {
     p
 }
 
+/// Cauchy (true) stress sigma = P F^T / det F, Pa, symmetric; None where det F <= 0 (an
+/// inverted point has no physical true stress).
+pub fn cauchy_stress(f: &Mat3, lambda: f64, mu: f64) -> Option<Mat3> {
+    let j = det3(f);
+    if !(j > 0.0) {
+        return None;
+    }
+    let p = first_piola(f, lambda, mu);
+    let mut s = [[0.0; 3]; 3];
+    for r in 0..3 {
+        for c in 0..3 {
+            s[r][c] = (0..3).map(|k| p[r][k] * f[c][k]).sum::<f64>() / j;
+        }
+    }
+    // Symmetric in exact arithmetic (P F^T = mu F F^T + s J I); symmetrize the rounding.
+    for r in 0..3 {
+        for c in 0..r {
+            let m = 0.5 * (s[r][c] + s[c][r]);
+            s[r][c] = m;
+            s[c][r] = m;
+        }
+    }
+    Some(s)
+}
+
+/// Principal stresses: the eigenvalues of a symmetric stress, Pa, in descending order.
+pub fn principal_stresses(sigma: &Mat3) -> [f64; 3] {
+    let (mut w, _) = sym_eig3(sigma);
+    w.sort_by(|a, b| b.total_cmp(a));
+    w
+}
+
 /// Levi-Civita symbol for indices in 0..3.
 #[inline]
 fn levi(i: usize, j: usize, k: usize) -> f64 {
@@ -150,6 +182,57 @@ pub fn negative_eigenpairs(f: &Mat3, lambda: f64, mu: f64) -> Vec<(f64, [f64; 9]
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn cauchy_stress_is_zero_at_rest_objective_and_linear_for_small_strains() {
+        let (e, nu) = (1e6, 0.3);
+        let (lambda, mu) = crate::material::lame(e, nu);
+        let i3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        assert!(cauchy_stress(&i3, lambda, mu)
+            .unwrap()
+            .iter()
+            .flatten()
+            .all(|v| v.abs() < 1e-9));
+        // Small uniaxial strain eps along x with the lateral contraction -nu eps: linear
+        // elasticity gives sigma_xx = E eps, other components 0, to O(eps^2) relative.
+        let eps = 1e-6;
+        let f = [
+            [1.0 + eps, 0.0, 0.0],
+            [0.0, 1.0 - nu * eps, 0.0],
+            [0.0, 0.0, 1.0 - nu * eps],
+        ];
+        let s = cauchy_stress(&f, lambda, mu).unwrap();
+        assert!((s[0][0] - e * eps).abs() < 1e-4 * e * eps, "{s:?}");
+        assert!(
+            s[1][1].abs() < 1e-4 * e * eps && s[0][1].abs() < 1e-12,
+            "{s:?}"
+        );
+        // Objectivity: sigma(R F) = R sigma(F) R^T.
+        let f = [[1.1, 0.2, -0.05], [0.03, 0.9, 0.1], [-0.1, 0.04, 1.05]];
+        let (c, si) = (0.7f64.cos(), 0.7f64.sin());
+        let (c2, s2) = (0.3f64.cos(), 0.3f64.sin());
+        let r = crate::linalg3::mul(
+            &[[c, -si, 0.0], [si, c, 0.0], [0.0, 0.0, 1.0]],
+            &[[1.0, 0.0, 0.0], [0.0, c2, -s2], [0.0, s2, c2]],
+        );
+        let rf = crate::linalg3::mul(&r, &f);
+        let a = cauchy_stress(&rf, lambda, mu).unwrap();
+        let b = crate::linalg3::mul(
+            &crate::linalg3::mul(&r, &cauchy_stress(&f, lambda, mu).unwrap()),
+            &crate::linalg3::transpose(&r),
+        );
+        for i in 0..3 {
+            for j in 0..3 {
+                assert!((a[i][j] - b[i][j]).abs() < 1e-9 * e, "{a:?} vs {b:?}");
+            }
+        }
+        // Principal values: the trace is kept and they come in descending order.
+        let p = principal_stresses(&a);
+        assert!(p[0] >= p[1] && p[1] >= p[2]);
+        assert!((p.iter().sum::<f64>() - (a[0][0] + a[1][1] + a[2][2])).abs() < 1e-9 * e);
+        let inverted = [[-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        assert!(cauchy_stress(&inverted, lambda, mu).is_none());
+    }
 
     fn dense9(h: &Mat9) -> faer::Mat<f64> {
         faer::Mat::from_fn(9, 9, |i, j| h[i][j])
