@@ -681,7 +681,12 @@ fn validate(path: &Path, s: &mut Splats) -> Result<SplatReadReport, GeometryErro
             finite(i, format!("f_dc_{a}"), s.sh_dc[i][a])?;
             let v = s.log_scales[i][a];
             if !v.is_finite() {
-                return Err(bad(i, &format!("scale_{a}"), v.to_string(), "is not finite"));
+                return Err(bad(
+                    i,
+                    &format!("scale_{a}"),
+                    v.to_string(),
+                    "is not finite",
+                ));
             }
             if v.abs() > MAX_LOG_SCALE {
                 return Err(bad(
@@ -854,8 +859,12 @@ mod tests {
             h
         };
         let rows = [
-            [0.5f32, 1.0, -2.0, 0.1, 0.2, 0.3, -1.0, -3.0, -3.5, -4.0, 1.0, 0.0, 0.0, 0.0],
-            [1.5, 0.0, 2.0, 0.0, 0.0, 0.0, 2.0, -2.0, -2.0, -2.0, 0.0, 0.0, 2.0, 0.0],
+            [
+                0.5f32, 1.0, -2.0, 0.1, 0.2, 0.3, -1.0, -3.0, -3.5, -4.0, 1.0, 0.0, 0.0, 0.0,
+            ],
+            [
+                1.5, 0.0, 2.0, 0.0, 0.0, 0.0, 2.0, -2.0, -2.0, -2.0, 0.0, 0.0, 2.0, 0.0,
+            ],
         ];
         let mut ascii = head("ascii").into_bytes();
         let mut bin = head("binary_little_endian").into_bytes();

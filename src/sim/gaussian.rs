@@ -6,8 +6,8 @@
 //!
 //! docs/splats.md gives the math and the conventions.
 
-use crate::linalg3::{det3, matrix_to_quat, mul, quat_to_matrix, svd3_rv, sym_eig3, transpose};
 use crate::linalg3::Mat3;
+use crate::linalg3::{det3, matrix_to_quat, mul, quat_to_matrix, svd3_rv, sym_eig3, transpose};
 use rayon::prelude::*;
 use std::sync::OnceLock;
 
@@ -93,7 +93,7 @@ pub fn deform_gaussian(f: &Mat3, log_scale: &[f64; 3], rotation: &[f64; 4]) -> D
     let floor = (vmax * MIN_VARIANCE_RATIO).max(f64::MIN_POSITIVE);
     let mut clamped = false;
     for v in &mut var {
-        if !(*v >= floor) {
+        if v.is_nan() || *v < floor {
             *v = floor;
             clamped = true;
         }
@@ -474,7 +474,12 @@ mod tests {
     fn rest_keeps_scales_and_rotation() {
         let id = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
         let mut st = 7;
-        for s in [[-3.0, -2.5, -4.0], [-2.0, -2.0, -5.0], [-1.0, -1.0, -1.0], [0.1, -3.0, 0.1]] {
+        for s in [
+            [-3.0, -2.5, -4.0],
+            [-2.0, -2.0, -5.0],
+            [-1.0, -1.0, -1.0],
+            [0.1, -3.0, 0.1],
+        ] {
             for _ in 0..20 {
                 let q = unit_quat(&mut st);
                 let g = deform_gaussian(&id, &s, &q);
@@ -509,7 +514,11 @@ mod tests {
         let mut st = 3;
         for case in 0..500 {
             let q = unit_quat(&mut st);
-            let s = [2.0 * lcg(&mut st) - 3.0, 2.0 * lcg(&mut st) - 3.0, lcg(&mut st) - 3.0];
+            let s = [
+                2.0 * lcg(&mut st) - 3.0,
+                2.0 * lcg(&mut st) - 3.0,
+                lcg(&mut st) - 3.0,
+            ];
             let mut f = [[0.0; 3]; 3];
             for r in 0..3 {
                 for c in 0..3 {
@@ -523,7 +532,10 @@ mod tests {
             let g = deform_gaussian(&f, &s, &q);
             let want = push(&f, &covariance(&s, &q));
             let got = covariance(&g.log_scale, &g.rotation);
-            assert!(rel_diff(&got, &want) < 1e-12, "case {case}: {got:?} vs {want:?}");
+            assert!(
+                rel_diff(&got, &want) < 1e-12,
+                "case {case}: {got:?} vs {want:?}"
+            );
             let (lam, _) = sym_eig3(&got);
             assert!(lam.iter().all(|&l| l > 0.0));
             assert!((det3(&g.polar) - 1.0).abs() < 1e-12);
