@@ -181,9 +181,131 @@ pub fn svd3_rv(f: &Mat3) -> (Mat3, [f64; 3], Mat3) {
     (u, s, v)
 }
 
+/// Rotation matrix of a unit quaternion `q = (w, x, y, z)` (w first, as 3D Gaussian splat
+/// files store it): the matrix of x -> q x q^*. `q` is used as given (not normalized).
+pub fn quat_to_matrix(q: &[f64; 4]) -> Mat3 {
+    let [w, x, y, z] = *q;
+    [
+        [
+            1.0 - 2.0 * (y * y + z * z),
+            2.0 * (x * y - w * z),
+            2.0 * (x * z + w * y),
+        ],
+        [
+            2.0 * (x * y + w * z),
+            1.0 - 2.0 * (x * x + z * z),
+            2.0 * (y * z - w * x),
+        ],
+        [
+            2.0 * (x * z - w * y),
+            2.0 * (y * z + w * x),
+            1.0 - 2.0 * (x * x + y * y),
+        ],
+    ]
+}
+
+/// Unit quaternion `(w, x, y, z)` of a proper rotation matrix (Shepperd's method: the
+/// largest of the four squared components is taken from the diagonal, the others from the
+/// off-diagonal sums, so every rotation is converted to a few ulps). The sign is the one
+/// with `w >= 0` when that is unambiguous; callers that need continuity flip it themselves.
+pub fn matrix_to_quat(r: &Mat3) -> [f64; 4] {
+    let tr = r[0][0] + r[1][1] + r[2][2];
+    let cands = [tr, r[0][0], r[1][1], r[2][2]];
+    let mut k = 0;
+    for i in 1..4 {
+        if cands[i] > cands[k] {
+            k = i;
+        }
+    }
+    let q = match k {
+        0 => {
+            let s = 2.0 * (1.0 + tr).sqrt();
+            [
+                0.25 * s,
+                (r[2][1] - r[1][2]) / s,
+                (r[0][2] - r[2][0]) / s,
+                (r[1][0] - r[0][1]) / s,
+            ]
+        }
+        1 => {
+            let s = 2.0 * (1.0 + r[0][0] - r[1][1] - r[2][2]).sqrt();
+            [
+                (r[2][1] - r[1][2]) / s,
+                0.25 * s,
+                (r[0][1] + r[1][0]) / s,
+                (r[0][2] + r[2][0]) / s,
+            ]
+        }
+        2 => {
+            let s = 2.0 * (1.0 + r[1][1] - r[0][0] - r[2][2]).sqrt();
+            [
+                (r[0][2] - r[2][0]) / s,
+                (r[0][1] + r[1][0]) / s,
+                0.25 * s,
+                (r[1][2] + r[2][1]) / s,
+            ]
+        }
+        _ => {
+            let s = 2.0 * (1.0 + r[2][2] - r[0][0] - r[1][1]).sqrt();
+            [
+                (r[1][0] - r[0][1]) / s,
+                (r[0][2] + r[2][0]) / s,
+                (r[1][2] + r[2][1]) / s,
+                0.25 * s,
+            ]
+        }
+    };
+    // Renormalize (removes the rounding of a slightly non-orthogonal input).
+    let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
+    let sign = if q[0] < 0.0 { -1.0 } else { 1.0 };
+    [
+        sign * q[0] / n,
+        sign * q[1] / n,
+        sign * q[2] / n,
+        sign * q[3] / n,
+    ]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn quaternions_round_trip_through_matrices() {
+        let id = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        // Generic, half-turns about each axis (w = 0, the branches of Shepperd's method)
+        // and the identity.
+        let s = 0.5f64.sqrt();
+        let cases: [[f64; 4]; 7] = [
+            [0.3, -0.5, 0.7, 0.1],
+            [0.0, 1.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+            [0.0, s, s, 0.0],
+            [1.0, 0.0, 0.0, 0.0],
+            [0.9, 0.1, -0.2, -0.3],
+        ];
+        for q in cases {
+            let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+            let q = q.map(|v| v / n);
+            let r = quat_to_matrix(&q);
+            assert!(max_abs_diff(&mul(&transpose(&r), &r), &id) < 1e-15, "{q:?}");
+            assert!((det3(&r) - 1.0).abs() < 1e-15);
+            let back = matrix_to_quat(&r);
+            let sign = if back.iter().zip(&q).map(|(a, b)| a * b).sum::<f64>() < 0.0 {
+                -1.0
+            } else {
+                1.0
+            };
+            for k in 0..4 {
+                assert!((sign * back[k] - q[k]).abs() < 1e-15, "{q:?} -> {back:?}");
+            }
+        }
+        // A quarter turn about z maps x to y.
+        let h = 0.25 * std::f64::consts::PI;
+        let r = quat_to_matrix(&[h.cos(), 0.0, 0.0, h.sin()]);
+        assert!(max_abs_diff(&r, &[[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]) < 1e-15);
+    }
 
     fn max_abs_diff(a: &Mat3, b: &Mat3) -> f64 {
         (0..9)

@@ -1,4 +1,5 @@
-//! File formats: shape inputs (OBJ, STL, PLY meshes and point clouds), the basis file (.npz)
+//! File formats: shape inputs (OBJ, STL, PLY meshes and point clouds), 3D Gaussian splat PLY
+//! files ([`splat`]), the basis file (.npz)
 //! and matrix exchange (MatrixMarket, PETSc binary).
 //!
 //! [`read_shape`] is the entry for shapes: it parses a spec ([`crate::geometry::ShapeSpec`]) and
@@ -9,6 +10,7 @@ pub mod matrix_market;
 pub mod obj;
 pub mod ply;
 mod shape;
+pub mod splat;
 pub mod stl;
 pub mod vtk;
 

@@ -14,7 +14,8 @@ use std::path::Path;
 /// prefix case-insensitive), or a path to a `.obj`, `.stl` (ASCII or binary) or `.ply` file
 /// (extension case-insensitive), read with [`obj::read_obj`], [`stl::read_stl`] or
 /// [`ply::read_ply`]. A PLY with a non-empty `face` element is a mesh, otherwise a point cloud
-/// (Gaussian splat files included: only x, y, z are read).
+/// (Gaussian splat files included: only x, y, z are read; a scene reads a 3DGS file whole with
+/// [`super::splat::read_splats`] and writes 3DGS frames).
 ///
 /// ```
 /// use freeform::geometry::ShapeOptions;

@@ -1,5 +1,6 @@
 //! Frame output as observers of a [`World`]: [`FrameWriter`] writes VTK (`.vtp` per frame
-//! and a `.pvd` collection per object, for ParaView) and PLY files.
+//! and a `.pvd` collection per object, for ParaView) and PLY files (3DGS splat PLY for splat
+//! objects).
 
 use super::spec::Format;
 use super::world::{SceneObject, World};
@@ -27,6 +28,7 @@ pub struct FrameWriter {
     pvd: Vec<Vec<(f64, String)>>,
     files: Vec<String>,
     frames: usize,
+    rotate_splat_sh: bool,
 }
 
 impl FrameWriter {
@@ -42,7 +44,16 @@ impl FrameWriter {
             pvd: Vec::new(),
             files: Vec::new(),
             frames: 0,
+            rotate_splat_sh: true,
         })
+    }
+
+    /// Whether splat objects' `.ply` frames rotate the SH colour (default true; the scene's
+    /// `output.rotate_splat_sh`).
+    #[must_use]
+    pub fn rotate_splat_sh(mut self, on: bool) -> FrameWriter {
+        self.rotate_splat_sh = on;
+        self
     }
 
     /// Files written so far, in order.
@@ -89,6 +100,14 @@ impl FrameWriter {
                 }
                 Format::Ply => {
                     let path = dir.join(format!("{stem}.ply"));
+                    if let (Some(base), Some(moved)) = (
+                        object.splats(),
+                        object.splat_frame(x.clone(), self.rotate_splat_sh),
+                    ) {
+                        crate::io::splat::write_splats_moved(&path, base, &moved)?;
+                        self.files.push(path.display().to_string());
+                        continue;
+                    }
                     crate::io::write_atomically(&path, |tmp| {
                         match object.triangles() {
                             Some(t) => crate::io::ply::write_ply_mesh(

@@ -164,7 +164,10 @@ pub fn run(scene: &Scene, settings: &RunSettings, progress: &dyn Progress) -> Re
     let total = Stopwatch::start();
     let mut world = World::new(scene, settings, progress)?;
     let mut writer = match &settings.out {
-        Some(out) => Some(FrameWriter::new(out, &scene.output.formats)?),
+        Some(out) => Some(
+            FrameWriter::new(out, &scene.output.formats)?
+                .rotate_splat_sh(scene.output.rotate_splat_sh),
+        ),
         None => None,
     };
     if let Some(w) = writer.as_mut() {

@@ -112,7 +112,8 @@ impl SolverSettings {
 pub enum Format {
     /// VTK XML PolyData per frame plus a `.pvd` collection (ParaView).
     Vtk,
-    /// Binary PLY per frame (points, or the deformed mesh for mesh inputs).
+    /// Binary PLY per frame (points, or the deformed mesh for mesh inputs, or the deformed
+    /// splats in the input's 3DGS layout for splat inputs).
     Ply,
 }
 
@@ -125,6 +126,10 @@ pub struct OutputSettings {
     pub every: usize,
     /// Formats, default ["vtk", "ply"].
     pub formats: Vec<Format>,
+    /// For objects whose shape is a 3DGS splat PLY: rotate each splat's SH colour (degrees
+    /// 1-3) by the rotation of its deformation gradient in the `.ply` frames. Default true
+    /// (view-dependent colour turns with the material); false copies the coefficients.
+    pub rotate_splat_sh: bool,
 }
 
 impl Default for OutputSettings {
@@ -132,6 +137,7 @@ impl Default for OutputSettings {
         Self {
             every: 1,
             formats: vec![Format::Vtk, Format::Ply],
+            rotate_splat_sh: true,
         }
     }
 }

@@ -4,7 +4,8 @@ use super::run::{ObjectSummary, RunSettings, StepRow};
 use super::setup::{object_basis, resolve_shape, ObjectBasis, ResolvedShape};
 use super::spec::{ObjectSpec, Scene};
 use crate::error::check_strict;
-use crate::geometry::{Shape, ShapeOptions};
+use crate::geometry::{PointCloud, Shape, ShapeOptions};
+use crate::io::splat::{MovedSplats, Splats};
 use crate::material::MaterialField;
 use crate::precompute::sampling::IntegrationPoints;
 use crate::precompute::skinning::{Basis, SkinningWeights};
@@ -25,6 +26,8 @@ struct RenderPoints {
     weights: SkinningWeights,
     /// Mesh triangles (indices into the render points), for mesh shapes.
     triangles: Option<Vec<[u32; 3]>>,
+    /// The splats of a 3DGS shape file (their centres are `rest`).
+    splats: Option<Splats>,
 }
 
 /// What an object's setup computed or was given: basis, integration points, materials, and
@@ -99,13 +102,27 @@ impl SceneObject {
             source: Box::new(e),
         };
         let (shape_spec, file) = resolve_shape(&spec.shape, &settings.base_dir);
-        let shape = crate::io::read_shape(
-            &shape_spec,
-            &ShapeOptions {
-                allow_open_mesh: spec.allow_open_mesh,
-            },
-        )
-        .map_err(|e| ctx(e.into()))?;
+        // A 3DGS splat PLY is read once, whole: its centres are the point cloud (integration
+        // points come from it as from any cloud; docs/splats.md).
+        let (shape, splats) = match &file {
+            Some(path) if is_splat_file(path) => {
+                let (splats, report) =
+                    crate::io::splat::read_splats_with_report(path).map_err(|e| ctx(e.into()))?;
+                if let Some(w) = report.warning(path) {
+                    warnings.push(format!("object '{}': {w}", spec.name));
+                }
+                let cloud = PointCloud::new(splats.means.clone())
+                    .map_err(|e| ctx(e.with_path(path).into()))?;
+                (Shape::PointCloud(cloud), Some(splats))
+            }
+            _ => {
+                let opts = ShapeOptions {
+                    allow_open_mesh: spec.allow_open_mesh,
+                };
+                let shape = crate::io::read_shape(&shape_spec, &opts).map_err(|e| ctx(e.into()))?;
+                (shape, None)
+            }
+        };
         let resolved = ResolvedShape {
             shape,
             spec: shape_spec,
@@ -129,7 +146,10 @@ impl SceneObject {
             monitors,
             precompute_s: clock.elapsed(),
         };
-        SceneObject::from_parts(index, spec, scene, Some(&resolved.shape), parts, progress)
+        let mut object =
+            SceneObject::from_parts(index, spec, scene, Some(&resolved.shape), parts, progress)?;
+        object.render.splats = splats;
+        Ok(object)
     }
 
     /// The reduced model and render points of an object whose basis, integration points and
@@ -224,6 +244,7 @@ impl SceneObject {
                 rest,
                 weights: render_weights,
                 triangles,
+                splats: None,
             },
             summary,
             warned_inverted: false,
@@ -295,6 +316,40 @@ impl SceneObject {
         self.sim.positions(self.render_rest(), &self.render.weights)
     }
 
+    /// The splats of an object whose shape file is a 3DGS splat PLY (rest state, as read).
+    pub fn splats(&self) -> Option<&Splats> {
+        self.render.splats.as_ref()
+    }
+
+    /// The current frame of a splat object (None for other shapes): centres moved to
+    /// `positions` (the deformed render points, [`SceneObject::render_positions`]),
+    /// covariances pushed forward by the deformation gradient at each centre and re-derived as
+    /// log-scales and rotations, and with `rotate_sh` the SH colour rotated by the polar
+    /// rotation ([`crate::sim::gaussian::deform_splats`]).
+    pub fn splat_frame(&self, positions: Vec<Point3>, rotate_sh: bool) -> Option<MovedSplats> {
+        let s = self.render.splats.as_ref()?;
+        let f = crate::sim::deformation::deformation_gradients(
+            self.sim.layout(),
+            &self.sim.z,
+            self.render_rest(),
+            &self.render.weights,
+        );
+        let d = crate::sim::gaussian::deform_splats(
+            &f,
+            &s.log_scales,
+            &s.rotations,
+            &s.sh_rest,
+            s.sh_degree,
+            rotate_sh,
+        );
+        Some(MovedSplats {
+            means: positions,
+            log_scales: d.log_scales,
+            rotations: d.rotations,
+            sh_rest: d.sh_rest,
+        })
+    }
+
     /// Deformed mesh vertices, V x 3, metres (None unless the shape is a mesh).
     pub fn mesh_vertices(&self) -> Option<Vec<Point3>> {
         self.render
@@ -347,6 +402,16 @@ impl SceneObject {
         }
         rep
     }
+}
+
+/// Whether `path` names a 3DGS splat PLY (a `.ply` whose vertex element has splat
+/// properties); any error reading the header leaves the file to the shape reader.
+fn is_splat_file(path: &std::path::Path) -> bool {
+    let ply = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("ply"));
+    ply && crate::io::splat::is_splat_ply(path).unwrap_or(false)
 }
 
 /// Materials and volumes of a prepared object match its points; volumes positive.

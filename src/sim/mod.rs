@@ -9,9 +9,13 @@
 //! - [`motion`]: prescribed rigid motions for boundaries.
 //! - [`newton`]: the per-step minimiser and its strategies.
 //! - [`object`]: one simulated object (setup, state, stepping).
+//! - [`deformation`]: the deformation map's gradient F at any points.
+//! - [`gaussian`]: Gaussian splats carried by F (covariance, rotation, SH colour).
 
 pub mod cubature;
+pub mod deformation;
 pub mod elastic;
+pub mod gaussian;
 mod lanes;
 pub mod motion;
 pub mod newton;

@@ -26,6 +26,7 @@ mod properties;
 mod rkpm;
 mod scene;
 mod sim;
+mod splats;
 mod strict;
 mod sweep_cli;
 mod world;

@@ -242,6 +242,7 @@ fn frames_are_written_for_paraview_and_a_ball_rests_on_the_floor() {
         .output(OutputSettings {
             every: 20,
             formats: vec![Format::Vtk, Format::Ply],
+            ..Default::default()
         })
         .object(
             ObjectSpec::new("ball", "sphere:0.2")
@@ -334,6 +335,7 @@ fn mesh_and_point_cloud_objects_write_deformed_meshes_and_points() {
         .output(OutputSettings {
             every: 4,
             formats: vec![Format::Vtk, Format::Ply],
+            ..Default::default()
         })
         .object(
             ObjectSpec::new("ball", "ball.obj")
