@@ -41,7 +41,7 @@ pub fn first_piola(f: &Mat3, lambda: f64, mu: f64) -> Mat3 {
 /// inverted point has no physical true stress).
 pub fn cauchy_stress(f: &Mat3, lambda: f64, mu: f64) -> Option<Mat3> {
     let j = det3(f);
-    if !(j > 0.0) {
+    if j.is_nan() || j <= 0.0 {
         return None;
     }
     let p = first_piola(f, lambda, mu);

@@ -192,6 +192,9 @@ pub struct Splats {
     pub sh_degree: usize,
     /// Every other vertex property, in file order.
     pub extras: Vec<ExtraProperty>,
+    /// Norm of each quaternion as stored (3DGS training leaves them unnormalized; renderers
+    /// normalize): written quaternions are scaled back by it, so a file round-trips.
+    rotation_norms: Vec<f64>,
     layout: Vec<(String, PlyType, Slot)>,
 }
 
@@ -205,7 +208,8 @@ pub struct SplatReadReport {
 }
 
 impl SplatReadReport {
-    /// A warning for `path` if quaternions were normalized.
+    /// A note for `path` if quaternions were not unit (they are used normalized and written
+    /// back with their stored norm; 3DGS training files routinely hold such quaternions).
     pub fn warning(&self, path: &Path) -> Option<String> {
         (self.normalized_rotations > 0).then(|| {
             format!(
@@ -332,6 +336,7 @@ impl Splats {
             layout.push((format!("rot_{a}"), f, Slot::Rot(a)));
         }
         Ok(Splats {
+            rotation_norms: vec![1.0; n],
             means,
             log_scales,
             rotations,
@@ -537,6 +542,7 @@ pub fn read_splats_from(
     let count = vdef.count;
     let reserve = count.min(1 << 20);
     let mut s = Splats {
+        rotation_norms: Vec::with_capacity(reserve),
         means: Vec::with_capacity(reserve),
         log_scales: Vec::with_capacity(reserve),
         rotations: Vec::with_capacity(reserve),
@@ -717,6 +723,7 @@ fn validate(path: &Path, s: &mut Splats) -> Result<SplatReadReport, GeometryErro
             report.max_norm_error = report.max_norm_error.max(e);
         }
         s.rotations[i] = q.map(|v| v / n);
+        s.rotation_norms.push(n);
     }
     Ok(report)
 }
@@ -799,7 +806,7 @@ fn write_impl(
                     Slot::Rest(k) => sh_rest[i * per + k],
                     Slot::Opacity => s.opacities[i],
                     Slot::Scale(a) => log_scales[i][a],
-                    Slot::Rot(a) => rotations[i][a],
+                    Slot::Rot(a) => rotations[i][a] * s.rotation_norms[i],
                     Slot::Extra(e) => s.extras[e].values[i],
                 };
                 ty.encode(v, &mut out);
@@ -885,5 +892,19 @@ mod tests {
         assert_eq!(a.extras[0].values, vec![7.0, 8.0]);
         assert_eq!(a.extras[0].ty, PlyType::UChar);
         assert_eq!(a.sh_degree, 0);
+        // The non-unit quaternion (0, 0, 2, 0) is used normalized and written back as stored.
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("back.ply");
+        write_splats(&out, &a).unwrap();
+        let written = std::fs::read(&out).unwrap();
+        let body = &written[written.len() - 2 * (14 * 4 + 1)..];
+        let rot_of = |row: usize| -> Vec<f32> {
+            let at = row * (14 * 4 + 1) + 10 * 4;
+            (0..4)
+                .map(|k| f32::from_le_bytes(body[at + 4 * k..at + 4 * k + 4].try_into().unwrap()))
+                .collect()
+        };
+        assert_eq!(rot_of(1), vec![0.0, 0.0, 2.0, 0.0]);
+        assert_eq!(rot_of(0), vec![1.0, 0.0, 0.0, 0.0]);
     }
 }

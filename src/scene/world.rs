@@ -106,11 +106,9 @@ impl SceneObject {
         // points come from it as from any cloud; docs/splats.md).
         let (shape, splats) = match &file {
             Some(path) if is_splat_file(path) => {
-                let (splats, report) =
-                    crate::io::splat::read_splats_with_report(path).map_err(|e| ctx(e.into()))?;
-                if let Some(w) = report.warning(path) {
-                    warnings.push(format!("object '{}': {w}", spec.name));
-                }
+                // Non-unit quaternions are normal in 3DGS files (renderers normalize): they
+                // are used normalized and written back with their norm, without a warning.
+                let splats = crate::io::splat::read_splats(path).map_err(|e| ctx(e.into()))?;
                 let cloud = PointCloud::new(splats.means.clone())
                     .map_err(|e| ctx(e.with_path(path).into()))?;
                 (Shape::PointCloud(cloud), Some(splats))
