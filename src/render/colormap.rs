@@ -105,7 +105,7 @@ pub fn draw_colorbar(
         image.set(rect.x + bar_w - 1, top + row, black);
     }
     let x = (rect.x + bar_w + 4) as i32;
-    draw_text(image, rect.x as i32, rect.y as i32, 14.0, black, label)?;
+    draw_text(image, rect.x as i32, rect.y as i32, 13.0, black, label)?;
     draw_text(image, x, top as i32, 13.0, black, &number(range[1]))?;
     draw_text(
         image,
