@@ -23,6 +23,7 @@ mod fem;
 mod geometry;
 mod pipeline;
 mod properties;
+mod render;
 mod rkpm;
 mod scene;
 mod sim;

@@ -6,6 +6,7 @@ mod export;
 mod messages;
 mod modes;
 mod problem;
+mod render;
 mod run;
 mod sweep;
 
@@ -42,6 +43,8 @@ enum Command {
     Compare(compare::CompareArgs),
     /// Write H_w and M of a shape as MatrixMarket and PETSc binary files.
     Export(export::ExportArgs),
+    /// Draw a run's frames (the --out directory of `run`) as PNG pictures.
+    Render(render::RenderArgs),
 }
 
 /// The error for SLEPc options in a build without the `slepc` feature (the library's).
@@ -111,6 +114,7 @@ fn dispatch(command: Command) -> CliResult {
         Command::Sweep(args) => sweep::run(args),
         Command::Compare(args) => compare::run(args),
         Command::Export(args) => export::run(args),
+        Command::Render(args) => render::run(args),
     }
 }
 

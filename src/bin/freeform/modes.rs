@@ -58,6 +58,19 @@ pub struct ModesArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
+    /// Also draw the first modes' weights on the shape into this PNG file (a grid of
+    /// tiles, three per row; docs/pictures.md).
+    #[arg(long, value_name = "FILE")]
+    png: Option<PathBuf>,
+    /// Number of non-constant modes in the --png picture.
+    #[arg(long, default_value_t = 6)]
+    png_modes: usize,
+    /// Size of each mode's tile in the --png picture, WIDTHxHEIGHT pixels.
+    #[arg(long, default_value = "360x300")]
+    png_tile: String,
+    /// The camera of the --png picture.
+    #[command(flatten)]
+    view: crate::render::ViewArgs,
     /// Turn warnings (moment matrices close to singular, reproducing error, eigen-residuals
     /// above --tol, lost M-orthonormality) into an error: exit code 1, no basis file written.
     #[arg(long)]
@@ -77,6 +90,9 @@ pub fn run(args: ModesArgs) -> CliResult {
     let mut opts = args.basis.options();
     // Check the parameters before reading a possibly large file.
     opts.validate()?;
+    let png_tile = crate::render::parse_size(&args.png_tile, "--png-tile")?;
+    // Check the camera flags before the precompute, not after it.
+    let _ = args.view.options()?;
     opts.solver = solver_config(args.solver, &args.slepc, &args.petsc_options)?;
     let shape = read_shape(&shape_arg, &args.basis.shape_options())?;
     let bar = TerminalProgress::new();
@@ -103,6 +119,9 @@ pub fn run(args: ModesArgs) -> CliResult {
     }
     freeform::error::check_strict(args.strict, &run.report.warnings)?;
     freeform::io::basis::save(&out, &run.basis, &metadata)?;
+    if let Some(png) = &args.png {
+        crate::render::modes_png(png, &shape, &run, args.png_modes, png_tile, &args.view)?;
+    }
     let r = &run.report;
     if args.json {
         let mut value = serde_json::to_value(r)?;

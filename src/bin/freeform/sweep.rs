@@ -243,9 +243,8 @@ mod plot {
 
     const WIDTH: u32 = 1100;
     const HEIGHT: u32 = 760;
-    const FONT: &str = "sans-serif";
-    /// DejaVu Sans (Bitstream Vera license, assets/fonts/DejaVuSans.LICENSE).
-    static FONT_BYTES: &[u8] = include_bytes!("../../../assets/fonts/DejaVuSans.ttf");
+    /// The embedded DejaVu Sans, registered by the library's renderer.
+    const FONT: &str = freeform::render::FONT_FAMILY;
     /// Colours by m (the first 10 of a common categorical palette), cycled.
     const COLOURS: [(u8, u8, u8); 10] = [
         (31, 119, 180),
@@ -297,15 +296,8 @@ mod plot {
     }
 
     fn register_font() -> PlotResult<()> {
-        static ONCE: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-        let ok = *ONCE.get_or_init(|| {
-            plotters::style::register_font(FONT, FontStyle::Normal, FONT_BYTES).is_ok()
-        });
-        if ok {
-            Ok(())
-        } else {
-            Err("the embedded plot font could not be loaded".into())
-        }
+        freeform::render::register_font()?;
+        Ok(())
     }
 
     /// A marker of shape `shape` (by K: filled circle, filled triangle, filled square,
@@ -430,23 +422,7 @@ mod plot {
         register_font()?;
         let mut rgb = vec![255u8; (WIDTH * HEIGHT * 3) as usize];
         draw(report, cost, &mut rgb)?;
-        freeform::io::write_atomically(path, |tmp| {
-            encode_png(tmp, &rgb).map_err(|e| freeform::Error::Io {
-                path: tmp.to_path_buf(),
-                source: std::io::Error::other(e.to_string()),
-            })
-        })?;
-        Ok(())
-    }
-
-    fn encode_png(path: &Path, rgb: &[u8]) -> PlotResult<()> {
-        let file = std::io::BufWriter::new(std::fs::File::create(path)?);
-        let mut enc = png::Encoder::new(file, WIDTH, HEIGHT);
-        enc.set_color(png::ColorType::Rgb);
-        enc.set_depth(png::BitDepth::Eight);
-        let mut w = enc.write_header()?;
-        w.write_image_data(rgb)?;
-        w.finish()?;
+        freeform::render::write_png_rgb(path, WIDTH, HEIGHT, &rgb)?;
         Ok(())
     }
 

@@ -1,0 +1,333 @@
+//! `freeform render` and `freeform modes --png` end to end, and the renderer's identities
+//! through the public API (src/render/ has the pixel-level unit tests).
+
+use crate::common::freeform;
+use freeform::geometry::Aabb;
+use freeform::render::{draw, Camera, CameraOptions, DrawOptions, Image, Item, Projection};
+use std::path::Path;
+
+/// Width and height of a PNG file, and that its pixels decode.
+fn png_size(path: &Path) -> (u32, u32) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!(info.color_type, png::ColorType::Rgb);
+    (info.width, info.height)
+}
+
+fn stderr(o: &std::process::Output) -> String {
+    String::from_utf8_lossy(&o.stderr).to_string()
+}
+
+/// A 4-step run of a small box writing 3 frames (0, 2, 4) into `dir/frames`.
+fn tiny_run(dir: &Path) -> std::path::PathBuf {
+    let scene = dir.join("s.toml");
+    std::fs::write(
+        &scene,
+        "[simulation]\ndt = 0.01\nsteps = 4\ngravity = [0.0, -9.81, 0.0]\n\
+         [solver]\ncubature = 300\n[output]\nevery = 2\nformats = [\"vtk\"]\n\
+         [[object]]\nname = \"bar\"\nshape = \"box:1,0.2,0.2\"\n\
+         basis = { kernels = 40, modes = 4, points = 2000 }\n",
+    )
+    .unwrap();
+    let out = dir.join("frames");
+    let o = freeform(&[
+        "run",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    out
+}
+
+#[test]
+fn render_writes_one_png_per_selected_frame_with_the_asked_size() {
+    let dir = tempfile::tempdir().unwrap();
+    let frames = tiny_run(dir.path());
+    let f = frames.to_str().unwrap();
+    // Every frame, default colouring (|displacement| with a colour bar), into DIR/png.
+    let o = freeform(&["render", f, "--size", "160x120"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut pngs: Vec<_> = std::fs::read_dir(frames.join("png"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    pngs.sort();
+    assert_eq!(
+        pngs,
+        ["frame_000000.png", "frame_000001.png", "frame_000002.png"]
+    );
+    for p in &pngs {
+        assert_eq!(png_size(&frames.join("png").join(p)), (160, 120));
+    }
+    // Every second frame, no colour, another view, the ground, into --out.
+    let out = dir.path().join("pics");
+    let o = freeform(&[
+        "render",
+        f,
+        "--every",
+        "2",
+        "--color",
+        "none",
+        "--out",
+        out.to_str().unwrap(),
+        "--azimuth",
+        "-60",
+        "--elevation",
+        "45",
+        "--ortho",
+        "--ground",
+        "0",
+        "--object",
+        "bar",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("frames 2 of 3"));
+    assert_eq!(std::fs::read_dir(&out).unwrap().count(), 2);
+    assert_eq!(png_size(&out.join("frame_000002.png")), (800, 600));
+    // The same input gives the same picture.
+    let again = dir.path().join("again");
+    let o = freeform(&[
+        "render",
+        f,
+        "--every",
+        "2",
+        "--color",
+        "none",
+        "--out",
+        again.to_str().unwrap(),
+        "--azimuth",
+        "-60",
+        "--elevation",
+        "45",
+        "--ortho",
+        "--ground",
+        "0",
+        "--object",
+        "bar",
+    ]);
+    assert!(o.status.success());
+    assert_eq!(
+        std::fs::read(out.join("frame_000002.png")).unwrap(),
+        std::fs::read(again.join("frame_000002.png")).unwrap()
+    );
+}
+
+#[test]
+fn render_rejects_bad_input_with_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("nowhere");
+    let o = freeform(&["render", missing.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("nowhere") && stderr(&o).contains("no such directory"),
+        "{}",
+        stderr(&o)
+    );
+    let empty = dir.path().join("empty");
+    std::fs::create_dir(&empty).unwrap();
+    let o = freeform(&["render", empty.to_str().unwrap()]);
+    assert!(stderr(&o).contains("no .pvd files"), "{}", stderr(&o));
+
+    let frames = tiny_run(dir.path());
+    let f = frames.to_str().unwrap();
+    let o = freeform(&["render", f, "--object", "ball"]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("objects: bar"),
+        "{}",
+        stderr(&o)
+    );
+    let o = freeform(&["render", f, "--color", "stress"]);
+    assert!(
+        stderr(&o).contains("no point array `stress`") && stderr(&o).contains("displacement"),
+        "{}",
+        stderr(&o)
+    );
+    for (flag, value) in [
+        ("--size", "800"),
+        ("--size", "0x10"),
+        ("--every", "0"),
+        ("--elevation", "90"),
+        ("--fov", "0"),
+        ("--zoom", "-1"),
+        ("--radius", "0"),
+    ] {
+        let o = freeform(&["render", f, flag, value]);
+        assert!(
+            !o.status.success() && stderr(&o).contains(flag),
+            "{flag} {value}: {}",
+            stderr(&o)
+        );
+    }
+    // A truncated frame: the error names the file; no picture is written for it.
+    let vtp = frames.join("bar").join("bar_000002.vtp");
+    let bytes = std::fs::read(&vtp).unwrap();
+    std::fs::write(&vtp, &bytes[..bytes.len() / 2]).unwrap();
+    let o = freeform(&["render", f]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("bar_000002.vtp"),
+        "{}",
+        stderr(&o)
+    );
+    std::fs::remove_file(&vtp).unwrap();
+    let o = freeform(&["render", f]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("bar_000002.vtp"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
+fn modes_png_draws_a_grid_of_the_first_modes() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("modes.png");
+    let o = freeform(&[
+        "modes",
+        "box:1,0.3,0.3",
+        "--kernels",
+        "40",
+        "--modes",
+        "5",
+        "--points",
+        "2000",
+        "--out",
+        dir.path().join("b.npz").to_str().unwrap(),
+        "--png",
+        png.to_str().unwrap(),
+        "--png-tile",
+        "120x100",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // min(6, 5) modes: 3 per row, 2 rows, a 28-pixel footer.
+    assert_eq!(png_size(&png), (360, 228));
+    let o = freeform(&[
+        "modes",
+        "box:1,0.3,0.3",
+        "--png",
+        png.to_str().unwrap(),
+        "--png-tile",
+        "9x9",
+    ]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("--png-tile"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
+fn a_fitted_camera_keeps_every_point_of_the_bounds_inside_the_image() {
+    // Points spread through skewed bounds, every projection and several views.
+    let b = Aabb {
+        min: [-3.0, 0.5, 10.0],
+        max: [2.0, 0.7, 14.0],
+    };
+    let pts: Vec<[f64; 3]> = (0..2000u64)
+        .map(|i| {
+            let t = [
+                (i * 7919) % 1000,
+                (i * 104_729) % 1000,
+                (i * 1_299_709) % 1000,
+            ]
+            .map(|v| v as f64 / 999.0);
+            [0, 1, 2].map(|k| b.min[k] + t[k] * (b.max[k] - b.min[k]))
+        })
+        .collect();
+    for projection in [
+        Projection::Orthographic,
+        Projection::Perspective { fov_deg: 25.0 },
+        Projection::Perspective { fov_deg: 120.0 },
+    ] {
+        for az in [-170.0, -30.0, 0.0, 45.0, 90.0] {
+            for el in [-60.0, 0.0, 30.0, 85.0] {
+                let cam = Camera::fit(
+                    &b,
+                    &CameraOptions {
+                        azimuth_deg: az,
+                        elevation_deg: el,
+                        projection,
+                        ..Default::default()
+                    },
+                );
+                for (w, h) in [(640.0, 480.0), (100.0, 400.0)] {
+                    for &p in &pts {
+                        let (x, y, _) = cam.project(p, w, h).unwrap();
+                        assert!(
+                            x > 0.0 && x < w && y > 0.0 && y < h,
+                            "{p:?} -> ({x}, {y}) in {w}x{h}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn a_cube_seen_face_on_orthographically_fills_its_square() {
+    // A unit cube seen along -z: its front face covers the square the corners project to.
+    let v: Vec<[f64; 3]> = (0..8)
+        .map(|i| [0, 1, 2].map(|k| (i >> k & 1) as f64))
+        .collect();
+    let t: Vec<[u32; 3]> = vec![
+        [0, 2, 1],
+        [1, 2, 3],
+        [4, 5, 6],
+        [5, 7, 6],
+        [0, 1, 4],
+        [1, 5, 4],
+        [2, 6, 3],
+        [3, 6, 7],
+        [0, 4, 2],
+        [2, 4, 6],
+        [1, 3, 5],
+        [3, 7, 5],
+    ];
+    let b = Aabb {
+        min: [0.0; 3],
+        max: [1.0; 3],
+    };
+    let cam = Camera::fit(
+        &b,
+        &CameraOptions {
+            azimuth_deg: 0.0,
+            elevation_deg: 0.0,
+            projection: Projection::Orthographic,
+            ..Default::default()
+        },
+    );
+    let mut img = Image::new(200, 200, [255; 3]);
+    let rect = img.rect();
+    let item = Item::Triangles {
+        positions: &v,
+        triangles: &t,
+        scalars: None,
+        colour: [0, 100, 200],
+    };
+    // Flat shading: each face is one colour (smooth shading blends the corner normals).
+    let flat = DrawOptions {
+        smooth: false,
+        ..Default::default()
+    };
+    draw(&mut img, rect, &cam, &[item], &flat).unwrap();
+    let (x0, y0, _) = cam.project([0.0, 1.0, 1.0], 200.0, 200.0).unwrap();
+    let (x1, y1, _) = cam.project([1.0, 0.0, 1.0], 200.0, 200.0).unwrap();
+    let mut first = None;
+    for y in 0..200 {
+        for x in 0..200 {
+            let (cx, cy) = (x as f64 + 0.5, y as f64 + 0.5);
+            let inside = cx > x0 + 1e-9 && cx < x1 - 1e-9 && cy > y0 + 1e-9 && cy < y1 - 1e-9;
+            let outside = cx < x0 - 1e-9 || cx > x1 + 1e-9 || cy < y0 - 1e-9 || cy > y1 + 1e-9;
+            let c = img.pixel(x, y);
+            if inside {
+                // One flat face: one colour.
+                assert_eq!(c, *first.get_or_insert(c), "pixel {x},{y}");
+            } else if outside {
+                assert_eq!(c, [255; 3], "pixel {x},{y}");
+            }
+        }
+    }
+}
