@@ -13,6 +13,8 @@ pub enum PointData<'a> {
     Scalar(&'a str, &'a [f64]),
     /// A 3-vector per point.
     Vector(&'a str, &'a [[f64; 3]]),
+    /// A 3 x 3 tensor per point, row-major (9 components, as ParaView reads tensors).
+    Tensor(&'a str, &'a [[f64; 9]]),
 }
 
 struct Appended {
@@ -55,6 +57,7 @@ pub fn write_vtp(
         let len = match d {
             PointData::Scalar(_, v) => v.len(),
             PointData::Vector(_, v) => v.len(),
+            PointData::Tensor(_, v) => v.len(),
         };
         if len != n {
             return Err(Error::LengthMismatch {
@@ -71,6 +74,7 @@ pub fn write_vtp(
         let (name, comps, off) = match d {
             PointData::Scalar(name, v) => (name, 1, app.f64s(v.iter().copied())),
             PointData::Vector(name, v) => (name, 3, app.f64s(v.iter().flatten().copied())),
+            PointData::Tensor(name, v) => (name, 9, app.f64s(v.iter().flatten().copied())),
         };
         pd.push_str(&format!(
             "        <DataArray type=\"Float64\" Name=\"{}\" NumberOfComponents=\"{comps}\" format=\"appended\" offset=\"{off}\"/>\n",

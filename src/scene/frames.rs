@@ -29,6 +29,7 @@ pub struct FrameWriter {
     files: Vec<String>,
     frames: usize,
     rotate_splat_sh: bool,
+    stress: bool,
 }
 
 impl FrameWriter {
@@ -45,6 +46,7 @@ impl FrameWriter {
             files: Vec::new(),
             frames: 0,
             rotate_splat_sh: true,
+            stress: false,
         })
     }
 
@@ -53,6 +55,13 @@ impl FrameWriter {
     #[must_use]
     pub fn rotate_splat_sh(mut self, on: bool) -> FrameWriter {
         self.rotate_splat_sh = on;
+        self
+    }
+
+    /// Write the Cauchy stress into the VTK frames (`stress`, `principal_stress`,
+    /// `von_mises`; see `output.stress`). Default off.
+    pub fn stress(mut self, on: bool) -> FrameWriter {
+        self.stress = on;
         self
     }
 
@@ -89,12 +98,17 @@ impl FrameWriter {
             match f {
                 Format::Vtk => {
                     let path = dir.join(format!("{stem}.vtp"));
-                    vtk::write_vtp(
-                        &path,
-                        &x,
-                        object.triangles(),
-                        &[PointData::Vector("displacement", &disp)],
-                    )?;
+                    let stress = match self.stress {
+                        true => Some(StressArrays::of(object)?),
+                        false => None,
+                    };
+                    let mut data = vec![PointData::Vector("displacement", &disp)];
+                    if let Some(s) = &stress {
+                        data.push(PointData::Tensor("stress", &s.tensor));
+                        data.push(PointData::Vector("principal_stress", &s.principal));
+                        data.push(PointData::Scalar("von_mises", &s.von_mises));
+                    }
+                    vtk::write_vtp(&path, &x, object.triangles(), &data)?;
                     self.pvd[index].push((object.sim().time, format!("{name}/{stem}.vtp")));
                     self.files.push(path.display().to_string());
                 }
@@ -125,6 +139,38 @@ impl FrameWriter {
             }
         }
         Ok(())
+    }
+}
+
+/// The stress point arrays of one frame of one object, Pa.
+struct StressArrays {
+    tensor: Vec<[f64; 9]>,
+    principal: Vec<[f64; 3]>,
+    von_mises: Vec<f64>,
+}
+
+impl StressArrays {
+    fn of(object: &SceneObject) -> Result<StressArrays> {
+        let sigma = object.render_stress()?;
+        let principal: Vec<[f64; 3]> = sigma
+            .iter()
+            .map(crate::elasticity::principal_stresses)
+            .collect();
+        let von_mises = principal
+            .iter()
+            .map(|p| {
+                (0.5 * ((p[0] - p[1]).powi(2) + (p[1] - p[2]).powi(2) + (p[2] - p[0]).powi(2)))
+                    .sqrt()
+            })
+            .collect();
+        Ok(StressArrays {
+            tensor: sigma
+                .iter()
+                .map(|s| std::array::from_fn(|k| s[k / 3][k % 3]))
+                .collect(),
+            principal,
+            von_mises,
+        })
     }
 }
 

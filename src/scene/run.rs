@@ -166,7 +166,8 @@ pub fn run(scene: &Scene, settings: &RunSettings, progress: &dyn Progress) -> Re
     let mut writer = match &settings.out {
         Some(out) => Some(
             FrameWriter::new(out, &scene.output.formats)?
-                .rotate_splat_sh(scene.output.rotate_splat_sh),
+                .rotate_splat_sh(scene.output.rotate_splat_sh)
+                .stress(scene.output.stress),
         ),
         None => None,
     };

@@ -130,6 +130,10 @@ pub struct OutputSettings {
     /// 1-3) by the rotation of its deformation gradient in the `.ply` frames. Default true
     /// (view-dependent colour turns with the material); false copies the coefficients.
     pub rotate_splat_sh: bool,
+    /// Write the Cauchy stress at the render points into the VTK frames: `stress` (3 x 3,
+    /// Pa), `principal_stress` (sigma_1 >= sigma_2 >= sigma_3, Pa) and `von_mises` (Pa).
+    /// Default false (it costs a deformation gradient and an eigendecomposition per point).
+    pub stress: bool,
 }
 
 impl Default for OutputSettings {
@@ -138,6 +142,7 @@ impl Default for OutputSettings {
             every: 1,
             formats: vec![Format::Vtk, Format::Ply],
             rotate_splat_sh: true,
+            stress: false,
         }
     }
 }

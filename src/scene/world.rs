@@ -6,6 +6,7 @@ use super::spec::{ObjectSpec, Scene};
 use crate::error::check_strict;
 use crate::geometry::{PointCloud, Shape, ShapeOptions};
 use crate::io::splat::{MovedSplats, Splats};
+use crate::linalg3::Mat3;
 use crate::material::MaterialField;
 use crate::precompute::sampling::IntegrationPoints;
 use crate::precompute::skinning::{Basis, SkinningWeights};
@@ -68,6 +69,11 @@ pub struct SceneObject {
     /// Weights at the integration points when they are not the render points: evaluated on
     /// the first request (they are large and only the simulator's setup needs them).
     ip_weights: OnceLock<SkinningWeights>,
+    /// Material at the integration points.
+    material: MaterialField,
+    /// Lame parameters (lambda, mu) at the render points, Pa: made on the first stress
+    /// request.
+    render_lame: OnceLock<Vec<(f64, f64)>>,
     render: RenderPoints,
     summary: ObjectSummary,
     /// Whether the inversion warning was given.
@@ -238,6 +244,8 @@ impl SceneObject {
             basis,
             points,
             ip_weights: OnceLock::new(),
+            material,
+            render_lame: OnceLock::new(),
             render: RenderPoints {
                 rest,
                 weights: render_weights,
@@ -346,6 +354,42 @@ impl SceneObject {
             rotations: d.rotations,
             sh_rest: d.sh_rest,
         })
+    }
+
+    /// Cauchy stress at the render points, N, Pa (3 x 3 row-major, symmetric): the object's
+    /// material (with its region overrides, at the rest positions) at the deformation
+    /// gradient of the skinning map there. Points with det F <= 0 (inverted; counted in the
+    /// step monitors) get zero stress.
+    pub fn render_stress(&self) -> Result<Vec<Mat3>> {
+        let f = crate::sim::deformation::deformation_gradients(
+            self.sim.layout(),
+            &self.sim.z,
+            self.render_rest(),
+            &self.render.weights,
+        );
+        let lame = match self.render_lame.get() {
+            Some(l) => l,
+            None => {
+                let field = match &self.render.rest {
+                    // Prepared objects carry per-point materials no region describes.
+                    None => self.material.clone(),
+                    Some(rest) => MaterialField::from_regions(
+                        rest,
+                        &self.spec.material,
+                        &self.spec.overrides,
+                    )?,
+                };
+                let lame = (0..field.len()).map(|i| field.lame(i)).collect();
+                self.render_lame.get_or_init(|| lame)
+            }
+        };
+        Ok(f
+            .iter()
+            .zip(lame)
+            .map(|(f, &(lambda, mu))| {
+                crate::elasticity::cauchy_stress(f, lambda, mu).unwrap_or([[0.0; 3]; 3])
+            })
+            .collect())
     }
 
     /// Deformed mesh vertices, V x 3, metres (None unless the shape is a mesh).

@@ -148,6 +148,7 @@ fn splat_scene(file: &str, rotate_sh: bool) -> Scene {
             every: 1,
             formats: vec![freeform::scene::Format::Ply],
             rotate_splat_sh: rotate_sh,
+            ..OutputSettings::default()
         })
         .object(ObjectSpec::new("splats", file).kernels(80).modes(4))
         .build()

@@ -511,3 +511,86 @@ fn a_prepared_object_moves_exactly_as_the_same_object_from_its_shape() {
         .to_string()
         .contains("two objects are named 'bar'"));
 }
+
+#[test]
+fn stress_frames_hold_the_material_law_at_a_homogeneous_deformation() {
+    use freeform::io::vtk::read_vtp;
+    use freeform::material::Material;
+    use freeform::scene::{FrameObserver, FrameWriter};
+    // A bar whose right half is 10x stiffer, stretched and sheared homogeneously.
+    let stiff = Material {
+        youngs: 1e6,
+        poisson: 0.3,
+        density: 1000.0,
+    };
+    let half = Region::HalfSpace {
+        point: [0.5, 0.0, 0.0],
+        normal: [1.0, 0.0, 0.0],
+    };
+    let scene = SceneBuilder::new(0.01, 1)
+        .cubature(400)
+        .cache(no_cache())
+        .object(small_bar("bar").region_material(half, stiff))
+        .build()
+        .unwrap();
+    let mut world = World::new(&scene, &RunSettings::default(), &Silent).unwrap();
+    let f = [[1.1, 0.05, 0.0], [0.0, 0.95, 0.02], [0.01, 0.0, 0.97]];
+    // x = F X + t through the constant mode alone: W_0 = w0 everywhere (RKPM partition of
+    // unity), so Z_0 = [F - I | t] / w0 and every other handle is zero.
+    let object = world.object(0);
+    let w0 = object.basis().weights(&[[0.5, 0.1, 0.1]]).unwrap().values[0];
+    let n = object.sim().z.len();
+    let handles = n / 12;
+    let mut z = vec![0.0; n];
+    for r in 0..3 {
+        for a in 0..3 {
+            z[r * 4 * handles + a] = (f[r][a] - if r == a { 1.0 } else { 0.0 }) / w0;
+        }
+        z[r * 4 * handles + 3] = 0.1 / w0;
+    }
+    world.set_state(0, &z, &vec![0.0; n]).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut writer = FrameWriter::new(dir.path(), &[freeform::scene::Format::Vtk])
+        .unwrap()
+        .stress(true);
+    writer.frame(&world, 0).unwrap();
+    let frame = read_vtp(&dir.path().join("bar").join("bar_000000.vtp")).unwrap();
+    let array = |name: &str| {
+        frame
+            .point_data
+            .iter()
+            .find(|(n, _, _)| n == name)
+            .unwrap_or_else(|| panic!("no {name}"))
+            .2
+            .clone()
+    };
+    let (stress, principal, vm) = (array("stress"), array("principal_stress"), array("von_mises"));
+    let rest = world.object(0).render_rest().to_vec();
+    let soft = Material {
+        youngs: 1e5,
+        poisson: 0.4,
+        density: 1000.0,
+    };
+    let mut seen = [0usize; 2];
+    for (i, x) in rest.iter().enumerate() {
+        let m = if half.contains(x) { stiff } else { soft };
+        seen[usize::from(half.contains(x))] += 1;
+        let (lambda, mu) = m.lame();
+        let want = freeform::elasticity::cauchy_stress(&f, lambda, mu).unwrap();
+        let scale = want.iter().flatten().fold(0.0f64, |a, v| a.max(v.abs()));
+        // The gradient of W_0 is zero up to the rounding of the partition of unity
+        // (~1e-13 of the weights), which enters F through the handle's size (~1/w0):
+        // 1e-8 of the largest stress is far above that and far below any real error.
+        for k in 0..9 {
+            let got = stress[9 * i + k];
+            assert!((got - want[k / 3][k % 3]).abs() < 1e-8 * scale, "point {i}: {got} vs {want:?}");
+        }
+        let p = freeform::elasticity::principal_stresses(&want);
+        for k in 0..3 {
+            assert!((principal[3 * i + k] - p[k]).abs() < 1e-8 * scale);
+        }
+        let v = (0.5 * ((p[0] - p[1]).powi(2) + (p[1] - p[2]).powi(2) + (p[2] - p[0]).powi(2))).sqrt();
+        assert!((vm[i] - v).abs() < 1e-8 * scale);
+    }
+    assert!(seen[0] > 100 && seen[1] > 100, "{seen:?}");
+}
