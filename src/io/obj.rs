@@ -124,18 +124,68 @@ fn parse_obj_raw(path: &Path, bytes: &[u8]) -> Result<(Vec<Point3>, Vec<[u32; 3]
             ),
         ));
     }
-    Ok((vertices, triangles))
+    Ok(with_every_vertex(
+        counts.all_positions,
+        &vertices,
+        triangles,
+    ))
+}
+
+/// The file's vertices in file order, unreferenced ones included (the loader keeps only those
+/// faces use), with the faces re-pointed at them. Each loaded vertex is matched to a file
+/// vertex with the same coordinates bit for bit (both parse the same text), the first not yet
+/// matched, so duplicated positions keep their own indices where the file has them.
+fn with_every_vertex(
+    all: Vec<Point3>,
+    loaded: &[Point3],
+    mut triangles: Vec<[u32; 3]>,
+) -> (Vec<Point3>, Vec<[u32; 3]>) {
+    use std::collections::HashMap;
+    if all.len() == loaded.len() && all == loaded {
+        return (all, triangles);
+    }
+    let key = |p: &Point3| p.map(f64::to_bits);
+    let mut by_position: HashMap<[u64; 3], Vec<u32>> = HashMap::with_capacity(all.len());
+    for (i, p) in all.iter().enumerate().rev() {
+        by_position.entry(key(p)).or_default().push(i as u32);
+    }
+    let mut first: HashMap<[u64; 3], u32> = HashMap::new();
+    let mut remap = Vec::with_capacity(loaded.len());
+    for p in loaded {
+        let k = key(p);
+        let index = match by_position.get_mut(&k).and_then(Vec::pop) {
+            Some(i) => {
+                first.entry(k).or_insert(i);
+                i
+            }
+            // Every copy is taken (a vertex loaded twice, e.g. in two groups): reuse one.
+            None => match first.get(&k) {
+                Some(&i) => i,
+                // Not in the file's `v` lines: keep the loaded vertex (cannot happen when
+                // both parse the same text; kept rather than dropped).
+                None => return (loaded.to_vec(), triangles),
+            },
+        };
+        remap.push(index);
+    }
+    for t in &mut triangles {
+        *t = t.map(|i| remap[i as usize]);
+    }
+    (all, triangles)
 }
 
 /// What [`precheck`] counted.
 struct Counts {
     positions: usize,
     faces: usize,
+    /// Every `v` line's position, in file order (referenced by a face or not).
+    all_positions: Vec<Point3>,
 }
 
 /// Validate vertex and face lines (see the module docs) and count them.
 fn precheck(path: &Path, text: &str) -> Result<Counts, GeometryError> {
     let (mut nv, mut nvt, mut nvn, mut nf) = (0usize, 0usize, 0usize, 0usize);
+    let mut all_positions = Vec::new();
     for (line_no, line) in text.lines().enumerate() {
         let line_no = line_no + 1;
         let err = |msg: String| parse_error(path, format!("line {line_no}: {msg}"));
@@ -149,13 +199,15 @@ fn precheck(path: &Path, text: &str) -> Result<Counts, GeometryError> {
                         xyz.len()
                     )));
                 }
-                for w in xyz {
+                let mut p = [0.0; 3];
+                for (d, w) in xyz.into_iter().enumerate() {
                     match w.parse::<f64>() {
-                        Ok(x) if x.is_finite() => {}
+                        Ok(x) if x.is_finite() => p[d] = x,
                         Ok(_) => return Err(err(format!("non-finite vertex coordinate `{w}`"))),
                         Err(_) => return Err(err(format!("`{w}` is not a number"))),
                     }
                 }
+                all_positions.push(p);
                 nv += 1;
             }
             Some("vt") => nvt += 1,
@@ -181,6 +233,7 @@ fn precheck(path: &Path, text: &str) -> Result<Counts, GeometryError> {
     Ok(Counts {
         positions: nv,
         faces: nf,
+        all_positions,
     })
 }
 
@@ -236,4 +289,31 @@ pub fn write_obj(
         write(format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1))?;
     }
     finish(path, w)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_vertex_is_kept_in_file_order_with_faces_re_pointed() {
+        // Vertex 2 is unreferenced, vertex 5 duplicates vertex 1's position, and vertex 1 is
+        // used by two groups (the loader returns it twice).
+        let text = "v 0 0 0\nv 9 9 9\nv 1 0 0\nv 0 1 0\nv 0 0 0\n\
+                    g a\nf 1 3 4\ng b\nf 5 4 3\nf 1 4 3\n";
+        let (v, t) = parse_obj_raw(Path::new("mem.obj"), text.as_bytes()).unwrap();
+        assert_eq!(v.len(), 5);
+        assert_eq!(v[1], [9.0, 9.0, 9.0]);
+        // Each face points at vertices with its corners' positions.
+        let want = [
+            [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            [[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]],
+            [[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]],
+        ];
+        assert_eq!(t.len(), 3);
+        for (tri, w) in t.iter().zip(want) {
+            assert_eq!(tri.map(|i| v[i as usize]), w);
+        }
+        assert!(t.iter().flatten().all(|&i| i != 1));
+    }
 }

@@ -18,14 +18,17 @@ pub trait FrameObserver {
 }
 
 /// Writes each object's render points (or deformed mesh) per frame into `<out>/<object>/`:
-/// `<object>_<frame:06>.vtp` (VTK PolyData with the displacement) and/or `.ply`, and at the
-/// end `<out>/<object>.pvd` collections of the VTK frames with their times.
+/// `<object>_<frame:06>.vtp` (VTK PolyData with the displacement, and the stress if asked)
+/// and/or `.ply`, likewise `<object>_<input>_<frame:06>.*` for each render input, and at the
+/// end `<out>/<object>.pvd` (and `<out>/<object>_<input>.pvd`) collections of the VTK frames
+/// with their times.
 #[derive(Debug)]
 pub struct FrameWriter {
     out: PathBuf,
     formats: Vec<Format>,
-    /// Per object: (time, relative file) of each VTK frame.
-    pvd: Vec<Vec<(f64, String)>>,
+    /// Per `.pvd` collection (an object, or an object's render input), in first-written
+    /// order: its stem and the (time, relative file) of each VTK frame.
+    pvd: Vec<(String, Vec<(f64, String)>)>,
     files: Vec<String>,
     frames: usize,
     rotate_splat_sh: bool,
@@ -75,62 +78,96 @@ impl FrameWriter {
         self.frames
     }
 
-    /// Write one frame of one object.
-    fn write_object(&mut self, index: usize, object: &SceneObject, frame: usize) -> Result<()> {
+    /// Write one frame of one object: its own render points, then each render input.
+    fn write_object(&mut self, object: &SceneObject, frame: usize) -> Result<()> {
         let name = object.name();
         let dir = self.out.join(name);
         std::fs::create_dir_all(&dir).map_err(|source| Error::Io {
             path: dir.clone(),
             source,
         })?;
-        let rest = object.render_rest();
         let x = object.render_positions();
-        let disp: Vec<[f64; 3]> = x
-            .iter()
-            .zip(rest)
-            .map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]])
-            .collect();
-        let stem = format!("{name}_{frame:06}");
-        if self.pvd.len() <= index {
-            self.pvd.resize_with(index + 1, Vec::new);
+        let own = Drawn {
+            stem: name.to_string(),
+            rest: object.render_rest(),
+            triangles: object.triangles(),
+            splats: object
+                .splats()
+                .and_then(|b| Some((b, object.splat_frame(x.clone(), self.rotate_splat_sh)?))),
+            stress: self.stress.then(|| object.render_stress()).transpose()?,
+            x,
+        };
+        self.write_drawn(&dir, name, object.sim().time, frame, own)?;
+        for set in object.render_sets() {
+            let x = set.positions(object.sim());
+            let drawn = Drawn {
+                stem: format!("{name}_{}", set.name()),
+                rest: set.rest(),
+                triangles: set.triangles(),
+                splats: set.splats().and_then(|b| {
+                    Some((
+                        b,
+                        set.splat_frame(object.sim(), x.clone(), self.rotate_splat_sh)?,
+                    ))
+                }),
+                stress: self
+                    .stress
+                    .then(|| object.render_set_stress(set))
+                    .transpose()?,
+                x,
+            };
+            self.write_drawn(&dir, name, object.sim().time, frame, drawn)?;
         }
-        for f in &self.formats {
+        Ok(())
+    }
+
+    /// Write one frame of one drawn point set into `dir` (`<object>/`), in every format.
+    fn write_drawn(
+        &mut self,
+        dir: &Path,
+        object: &str,
+        time: f64,
+        frame: usize,
+        d: Drawn<'_>,
+    ) -> Result<()> {
+        let stem = format!("{}_{frame:06}", d.stem);
+        for f in self.formats.clone() {
             match f {
                 Format::Vtk => {
                     let path = dir.join(format!("{stem}.vtp"));
-                    let stress = match self.stress {
-                        true => Some(StressArrays::of(object)?),
-                        false => None,
-                    };
+                    let disp: Vec<[f64; 3]> =
+                        d.x.iter()
+                            .zip(d.rest)
+                            .map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]])
+                            .collect();
+                    let stress = d.stress.as_deref().map(StressArrays::of);
                     let mut data = vec![PointData::Vector("displacement", &disp)];
                     if let Some(s) = &stress {
                         data.push(PointData::Tensor("stress", &s.tensor));
                         data.push(PointData::Vector("principal_stress", &s.principal));
                         data.push(PointData::Scalar("von_mises", &s.von_mises));
                     }
-                    vtk::write_vtp(&path, &x, object.triangles(), &data)?;
-                    self.pvd[index].push((object.sim().time, format!("{name}/{stem}.vtp")));
+                    vtk::write_vtp(&path, &d.x, d.triangles, &data)?;
+                    self.collection(&d.stem)
+                        .push((time, format!("{object}/{stem}.vtp")));
                     self.files.push(path.display().to_string());
                 }
                 Format::Ply => {
                     let path = dir.join(format!("{stem}.ply"));
-                    if let (Some(base), Some(moved)) = (
-                        object.splats(),
-                        object.splat_frame(x.clone(), self.rotate_splat_sh),
-                    ) {
-                        crate::io::splat::write_splats_moved(&path, base, &moved)?;
+                    if let Some((base, moved)) = &d.splats {
+                        crate::io::splat::write_splats_moved(&path, base, moved)?;
                         self.files.push(path.display().to_string());
                         continue;
                     }
                     crate::io::write_atomically(&path, |tmp| {
-                        match object.triangles() {
+                        match d.triangles {
                             Some(t) => crate::io::ply::write_ply_mesh(
                                 tmp,
-                                &x,
+                                &d.x,
                                 t,
                                 crate::io::ply::PlyWriteOptions::default(),
                             )?,
-                            None => crate::io::ply::write_ply_points(tmp, &x, &[])?,
+                            None => crate::io::ply::write_ply_points(tmp, &d.x, &[])?,
                         }
                         Ok(())
                     })?;
@@ -140,6 +177,29 @@ impl FrameWriter {
         }
         Ok(())
     }
+
+    /// The `.pvd` collection named `stem` (created empty on first use).
+    fn collection(&mut self, stem: &str) -> &mut Vec<(f64, String)> {
+        let i = match self.pvd.iter().position(|(s, _)| s == stem) {
+            Some(i) => i,
+            None => {
+                self.pvd.push((stem.to_string(), Vec::new()));
+                self.pvd.len() - 1
+            }
+        };
+        &mut self.pvd[i].1
+    }
+}
+
+/// One point set of one frame: an object's own render points or one of its render inputs.
+struct Drawn<'a> {
+    /// File stem: `<object>` or `<object>_<input>`.
+    stem: String,
+    rest: &'a [crate::Point3],
+    x: Vec<crate::Point3>,
+    triangles: Option<&'a [[u32; 3]]>,
+    splats: Option<(&'a crate::io::splat::Splats, crate::io::splat::MovedSplats)>,
+    stress: Option<Vec<crate::linalg3::Mat3>>,
 }
 
 /// The stress point arrays of one frame of one object, Pa.
@@ -150,8 +210,7 @@ struct StressArrays {
 }
 
 impl StressArrays {
-    fn of(object: &SceneObject) -> Result<StressArrays> {
-        let sigma = object.render_stress()?;
+    fn of(sigma: &[crate::linalg3::Mat3]) -> StressArrays {
         let principal: Vec<[f64; 3]> = sigma
             .iter()
             .map(crate::elasticity::principal_stresses)
@@ -163,21 +222,21 @@ impl StressArrays {
                     .sqrt()
             })
             .collect();
-        Ok(StressArrays {
+        StressArrays {
             tensor: sigma
                 .iter()
                 .map(|s| std::array::from_fn(|k| s[k / 3][k % 3]))
                 .collect(),
             principal,
             von_mises,
-        })
+        }
     }
 }
 
 impl FrameObserver for FrameWriter {
     fn frame(&mut self, world: &World, frame: usize) -> Result<()> {
-        for (index, object) in world.objects().iter().enumerate() {
-            self.write_object(index, object, frame)?;
+        for object in world.objects() {
+            self.write_object(object, frame)?;
         }
         self.frames += 1;
         Ok(())
@@ -185,9 +244,15 @@ impl FrameObserver for FrameWriter {
 
     fn finish(&mut self, world: &World) -> Result<()> {
         if self.formats.contains(&Format::Vtk) {
-            for (index, object) in world.objects().iter().enumerate() {
-                let path = self.out.join(format!("{}.pvd", object.name()));
-                let entries = self.pvd.get(index).map(Vec::as_slice).unwrap_or(&[]);
+            // Every object and render input gets its collection, even with no frames yet.
+            for object in world.objects() {
+                self.collection(object.name());
+                for set in object.render_sets() {
+                    self.collection(&format!("{}_{}", object.name(), set.name()));
+                }
+            }
+            for (stem, entries) in &self.pvd {
+                let path = self.out.join(format!("{stem}.pvd"));
                 vtk::write_pvd(&path, entries)?;
                 self.files.push(path.display().to_string());
             }

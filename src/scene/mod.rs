@@ -28,12 +28,14 @@
 
 mod cache;
 mod frames;
+mod render_set;
 mod run;
 mod setup;
 mod spec;
 mod world;
 
 pub use frames::{FrameObserver, FrameWriter};
+pub use render_set::RenderSet;
 pub use run::{run, ObjectSummary, RunSettings, RunSummary, StepRow};
 pub use spec::{
     BasisSettings, CacheSettings, Format, ObjectSpec, OutputSettings, Scene, Simulation,
@@ -154,7 +156,14 @@ impl ObjectSpec {
             boundaries: Vec::new(),
             placement: Placement::default(),
             cubature: None,
+            render: Vec::new(),
         }
+    }
+
+    /// Add a render input (a mesh, point cloud or splat file drawn with the object's map).
+    pub fn render(mut self, file: &str) -> Self {
+        self.render.push(file.to_string());
+        self
     }
     /// Number of kernels K.
     pub fn kernels(mut self, k: usize) -> Self {

@@ -1,5 +1,6 @@
 //! A scene being simulated: the live [`World`] you step, read and change between steps.
 
+use super::render_set::{self, RenderSet};
 use super::run::{ObjectSummary, RunSettings, StepRow};
 use super::setup::{object_basis, resolve_shape, ObjectBasis, ResolvedShape};
 use super::spec::{ObjectSpec, Scene};
@@ -75,6 +76,8 @@ pub struct SceneObject {
     /// request.
     render_lame: OnceLock<Vec<(f64, f64)>>,
     render: RenderPoints,
+    /// Extra render inputs (`render = [...]`).
+    render_sets: Vec<RenderSet>,
     summary: ObjectSummary,
     /// Whether the inversion warning was given.
     warned_inverted: bool,
@@ -153,6 +156,7 @@ impl SceneObject {
         let mut object =
             SceneObject::from_parts(index, spec, scene, Some(&resolved.shape), parts, progress)?;
         object.render.splats = splats;
+        object.load_render_sets(&settings.base_dir).map_err(ctx)?;
         Ok(object)
     }
 
@@ -246,6 +250,7 @@ impl SceneObject {
             ip_weights: OnceLock::new(),
             material,
             render_lame: OnceLock::new(),
+            render_sets: Vec::new(),
             render: RenderPoints {
                 rest,
                 weights: render_weights,
@@ -334,26 +339,14 @@ impl SceneObject {
     /// rotation ([`crate::sim::gaussian::deform_splats`]).
     pub fn splat_frame(&self, positions: Vec<Point3>, rotate_sh: bool) -> Option<MovedSplats> {
         let s = self.render.splats.as_ref()?;
-        let f = crate::sim::deformation::deformation_gradients(
-            self.sim.layout(),
-            &self.sim.z,
+        Some(render_set::splat_frame(
+            &self.sim,
             self.render_rest(),
             &self.render.weights,
-        );
-        let d = crate::sim::gaussian::deform_splats(
-            &f,
-            &s.log_scales,
-            &s.rotations,
-            &s.sh_rest,
-            s.sh_degree,
+            s,
+            positions,
             rotate_sh,
-        );
-        Some(MovedSplats {
-            means: positions,
-            log_scales: d.log_scales,
-            rotations: d.rotations,
-            sh_rest: d.sh_rest,
-        })
+        ))
     }
 
     /// Cauchy stress at the render points, N, Pa (3 x 3 row-major, symmetric): the object's
@@ -361,12 +354,6 @@ impl SceneObject {
     /// gradient of the skinning map there. Points with det F <= 0 (inverted; counted in the
     /// step monitors) get zero stress.
     pub fn render_stress(&self) -> Result<Vec<Mat3>> {
-        let f = crate::sim::deformation::deformation_gradients(
-            self.sim.layout(),
-            &self.sim.z,
-            self.render_rest(),
-            &self.render.weights,
-        );
         let lame = match self.render_lame.get() {
             Some(l) => l,
             None => {
@@ -379,17 +366,47 @@ impl SceneObject {
                         &self.spec.overrides,
                     )?,
                 };
-                let lame = (0..field.len()).map(|i| field.lame(i)).collect();
-                self.render_lame.get_or_init(|| lame)
+                self.render_lame.get_or_init(|| render_set::lame_of(&field))
             }
         };
-        Ok(f
-            .iter()
-            .zip(lame)
-            .map(|(f, &(lambda, mu))| {
-                crate::elasticity::cauchy_stress(f, lambda, mu).unwrap_or([[0.0; 3]; 3])
-            })
-            .collect())
+        Ok(render_set::stress(
+            &self.sim,
+            self.render_rest(),
+            &self.render.weights,
+            lame,
+        ))
+    }
+
+    /// The object's extra render inputs (`render = [...]`), in scene order.
+    pub fn render_sets(&self) -> &[RenderSet] {
+        &self.render_sets
+    }
+
+    /// Cauchy stress at the points of render set `set` (see [`SceneObject::render_stress`]).
+    pub fn render_set_stress(&self, set: &RenderSet) -> Result<Vec<Mat3>> {
+        set.stress(&self.sim, &self.spec.material, &self.spec.overrides)
+    }
+
+    /// Read the render inputs of the spec (relative to `base_dir`) and evaluate the basis at
+    /// them; names must differ (they name the files).
+    fn load_render_sets(&mut self, base_dir: &std::path::Path) -> Result<()> {
+        for file in &self.spec.render {
+            let path = base_dir.join(file);
+            let set = RenderSet::load(&path, &self.basis)?;
+            if set.name() == self.spec.name
+                || self.render_sets.iter().any(|s| s.name() == set.name())
+            {
+                return Err(Error::Scene {
+                    message: format!(
+                        "render input {}: its frames would be named '{}' like another of the                          object's; rename the file",
+                        path.display(),
+                        set.name()
+                    ),
+                });
+            }
+            self.render_sets.push(set);
+        }
+        Ok(())
     }
 
     /// Deformed mesh vertices, V x 3, metres (None unless the shape is a mesh).
@@ -611,9 +628,9 @@ impl World {
                 monitors: Monitors::default(),
                 precompute_s: 0.0,
             };
-            objects.push(SceneObject::from_parts(
-                index, &p.spec, scene, None, parts, progress,
-            )?);
+            let mut object = SceneObject::from_parts(index, &p.spec, scene, None, parts, progress)?;
+            object.load_render_sets(&settings.base_dir).map_err(ctx)?;
+            objects.push(object);
         }
         check_strict(settings.strict, &warnings)?;
         Ok(World {

@@ -564,7 +564,11 @@ fn stress_frames_hold_the_material_law_at_a_homogeneous_deformation() {
             .2
             .clone()
     };
-    let (stress, principal, vm) = (array("stress"), array("principal_stress"), array("von_mises"));
+    let (stress, principal, vm) = (
+        array("stress"),
+        array("principal_stress"),
+        array("von_mises"),
+    );
     let rest = world.object(0).render_rest().to_vec();
     let soft = Material {
         youngs: 1e5,
@@ -583,14 +587,102 @@ fn stress_frames_hold_the_material_law_at_a_homogeneous_deformation() {
         // 1e-8 of the largest stress is far above that and far below any real error.
         for k in 0..9 {
             let got = stress[9 * i + k];
-            assert!((got - want[k / 3][k % 3]).abs() < 1e-8 * scale, "point {i}: {got} vs {want:?}");
+            assert!(
+                (got - want[k / 3][k % 3]).abs() < 1e-8 * scale,
+                "point {i}: {got} vs {want:?}"
+            );
         }
         let p = freeform::elasticity::principal_stresses(&want);
         for k in 0..3 {
             assert!((principal[3 * i + k] - p[k]).abs() < 1e-8 * scale);
         }
-        let v = (0.5 * ((p[0] - p[1]).powi(2) + (p[1] - p[2]).powi(2) + (p[2] - p[0]).powi(2))).sqrt();
+        let v =
+            (0.5 * ((p[0] - p[1]).powi(2) + (p[1] - p[2]).powi(2) + (p[2] - p[0]).powi(2))).sqrt();
         assert!((vm[i] - v).abs() < 1e-8 * scale);
     }
     assert!(seen[0] > 100 && seen[1] > 100, "{seen:?}");
+}
+
+#[test]
+fn render_inputs_follow_the_object_map_and_bad_ones_are_named() {
+    use freeform::io::vtk::read_vtp;
+    let dir = tempfile::tempdir().unwrap();
+    let base = SceneBuilder::new(0.01, 3)
+        .gravity([0.0, -9.81, 0.0])
+        .cubature(400)
+        .cache(no_cache());
+    let held = small_bar("bar").hold(Region::HalfSpace {
+        point: [0.2, 0.0, 0.0],
+        normal: [-1.0, 0.0, 0.0],
+    });
+    // Render vertices at some of the object's own render points (its integration points):
+    // the map there is the same arithmetic, so the render input's frames must equal the
+    // object's own at those points, bit for bit. The last vertex is unreferenced and kept.
+    let probe = World::new(
+        &base.clone().object(held.clone()).build().unwrap(),
+        &RunSettings::default(),
+        &Silent,
+    )
+    .unwrap();
+    let picks = [0usize, 7, 100, 500, 1200];
+    let rest: Vec<[f64; 3]> = picks
+        .iter()
+        .map(|&i| probe.object(0).render_rest()[i])
+        .collect();
+    let mut obj = String::new();
+    for p in &rest {
+        obj.push_str(&format!("v {} {} {}\n", p[0], p[1], p[2]));
+    }
+    obj.push_str("f 1 2 3\nf 1 3 4\n");
+    std::fs::write(dir.path().join("skin.obj"), obj).unwrap();
+    let scene = base
+        .clone()
+        .object(held.clone().render("skin.obj"))
+        .build()
+        .unwrap();
+    let settings = RunSettings {
+        base_dir: dir.path().to_path_buf(),
+        out: Some(dir.path().join("out")),
+        strict: false,
+    };
+    run(&scene, &settings, &Silent).unwrap();
+    let out = dir.path().join("out");
+    for frame in [0, 3] {
+        let own = read_vtp(&out.join(format!("bar/bar_{frame:06}.vtp"))).unwrap();
+        let skin = read_vtp(&out.join(format!("bar/bar_skin_{frame:06}.vtp"))).unwrap();
+        assert_eq!(
+            skin.points.len(),
+            5,
+            "every vertex, the unreferenced one too"
+        );
+        assert_eq!(skin.triangles.as_deref(), Some(&[[0, 1, 2], [0, 2, 3]][..]));
+        for (k, &i) in picks.iter().enumerate() {
+            assert_eq!(skin.points[k], own.points[i], "frame {frame}, vertex {k}");
+        }
+    }
+    assert!(out.join("bar_skin.pvd").is_file() && out.join("bar.pvd").is_file());
+
+    // An input outside the object, a missing one, and two with the same name.
+    std::fs::write(
+        dir.path().join("far.obj"),
+        "v 9 9 9\nv 9 9 10\nv 9 10 9\nf 1 2 3\n",
+    )
+    .unwrap();
+    std::fs::create_dir_all(dir.path().join("sub")).unwrap();
+    std::fs::copy(dir.path().join("skin.obj"), dir.path().join("sub/skin.obj")).unwrap();
+    for (file, second, says) in [
+        ("far.obj", None, "outside the simulated object"),
+        ("gone.obj", None, "gone.obj"),
+        ("skin.obj", Some("sub/skin.obj"), "like another"),
+    ] {
+        let mut spec = held.clone().render(file);
+        if let Some(s) = second {
+            spec = spec.render(s);
+        }
+        let scene = base.clone().object(spec).build().unwrap();
+        let msg = World::new(&scene, &settings, &Silent)
+            .unwrap_err()
+            .to_string();
+        assert!(msg.contains("object 'bar'") && msg.contains(says), "{msg}");
+    }
 }
