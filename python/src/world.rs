@@ -397,6 +397,27 @@ impl PyWorld {
         Ok(out.clone())
     }
 
+    /// Cauchy stress at the render points, (N, 3, 3), Pa: the object's material (with its
+    /// region overrides) at the deformation gradient of the skinning map; zero at inverted
+    /// points (det F <= 0).
+    fn stress<'py>(
+        &self,
+        py: Python<'py>,
+        object: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let i = object_index(py, &self.world, object)?;
+        let sigma = self
+            .world
+            .object(i)
+            .render_stress()
+            .map_err(|e| to_py(py, &e))?;
+        let n = sigma.len();
+        let flat: Vec<f64> = sigma.iter().flatten().flatten().copied().collect();
+        Ok(crate::convert::array2(py, flat, n * 3, 3)
+            .reshape([n, 3, 3])?
+            .into_any())
+    }
+
     /// Rest positions of the render points, (N, 3), metres.
     fn rest_positions<'py>(
         &self,

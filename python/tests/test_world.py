@@ -229,3 +229,15 @@ def test_sample_gives_points_inside_with_the_volume():
         ff.sample("box:1,1,1", points=10, spacing=0.1)
     with pytest.raises(ff.FreeformIOError, match="nothing.obj"):
         ff.sample("nothing.obj")
+
+
+def test_stress_at_rest_is_zero_and_under_load_balances_gravity():
+    world = ff.World(scene())
+    assert np.abs(world.stress("bar")).max() < 1e-6
+    world.step(30)
+    sigma = world.stress("bar")
+    assert sigma.shape == (len(world.rest_positions("bar")), 3, 3)
+    np.testing.assert_allclose(sigma, np.transpose(sigma, (0, 2, 1)), atol=1e-9 * np.abs(sigma).max())
+    # The held bar hangs under gravity: bending stress, largest near the held end, of the
+    # order of rho g L^2 / h (1000 * 9.81 * 1 / 0.2 ~ 5e4 Pa).
+    assert 1e3 < np.abs(sigma).max() < 1e6
