@@ -37,4 +37,78 @@ $FF run examples/drop.toml --out "$WORK/drop" > /dev/null
 $FF render "$WORK/drop" --ground 0 --every 10 --size 480x360 --out "$WORK/drop_png"
 for n in 000000 000020 000030 000050; do cp "$WORK/drop_png/frame_$n.png" "docs/img/drop_$n.png"; done
 
-ls -l docs/img/modes_torus.png docs/img/modes_box.png docs/img/drop_*.png
+# A splat object before and after: a beach ball of 3D Gaussians (docs/splats.md) dropped on
+# the floor. 16 000 flat surface splats (Fibonacci sphere, radius 0.3 m; axes along north,
+# east and the normal; six coloured gores and white caps, light baked in) and a grid of faint interior splats
+# 0.03 m apart (so the simulated cloud is solid: `voxel = 0.03` gives every interior splat its
+# voxel's volume). Written as an ASCII 3DGS PLY.
+awk -v N=16000 -v R=0.3 -v G=0.03 'function quat(m,   t, s, w, x, y, z) {
+        # Unit quaternion (w, x, y, z) of the rotation matrix m (row-major m[1..9]).
+        t = m[1] + m[5] + m[9]
+        if (t > 0) { s = 2 * sqrt(1 + t); w = s / 4; x = (m[8] - m[6]) / s; y = (m[3] - m[7]) / s; z = (m[4] - m[2]) / s }
+        else if (m[1] > m[5] && m[1] > m[9]) { s = 2 * sqrt(1 + m[1] - m[5] - m[9]); w = (m[8] - m[6]) / s; x = s / 4; y = (m[2] + m[4]) / s; z = (m[3] + m[7]) / s }
+        else if (m[5] > m[9]) { s = 2 * sqrt(1 + m[5] - m[1] - m[9]); w = (m[3] - m[7]) / s; x = (m[2] + m[4]) / s; y = s / 4; z = (m[6] + m[8]) / s }
+        else { s = 2 * sqrt(1 + m[9] - m[1] - m[5]); w = (m[4] - m[2]) / s; x = (m[3] + m[7]) / s; y = (m[6] + m[8]) / s; z = s / 4 }
+        return sprintf("%.7f %.7f %.7f %.7f", w, x, y, z)
+    }
+    function dc(c) { return (c - 0.5) / 0.28209479177387814 }
+    BEGIN {
+        pi = atan2(0, -1); ga = pi * (3 - sqrt(5)); n = 0
+        for (i = 0; i < N; i++) {
+            y = 1 - 2 * (i + 0.5) / N; rr = sqrt(1 - y * y); ph = ga * i
+            nx = rr * cos(ph); nz = rr * sin(ph)
+            # Axes: north, east (around y), the normal (north x east = normal: a proper rotation).
+            ex = -sin(ph); ez = cos(ph)
+            qx = -y * cos(ph); qy = rr; qz = -y * sin(ph)
+            m[1] = qx; m[2] = ex; m[3] = nx; m[4] = qy; m[5] = 0; m[6] = y; m[7] = qz; m[8] = ez; m[9] = nz
+            g = int(((atan2(nz, nx) + pi) / (2 * pi)) * 6) % 6
+            if (g == 0) { r = 0.85; gg = 0.12; b = 0.12 } else if (g == 1) { r = 0.97; gg = 0.97; b = 0.95 }
+            else if (g == 2) { r = 0.10; gg = 0.35; b = 0.85 } else if (g == 3) { r = 0.98; gg = 0.82; b = 0.10 }
+            else if (g == 4) { r = 0.12; gg = 0.65; b = 0.25 } else { r = 0.98; gg = 0.50; b = 0.08 }
+            if (y > 0.93 || y < -0.93) { r = 0.97; gg = 0.97; b = 0.95 }
+            # Light baked into the colours, as a captured scene has it (from the upper left front).
+            l = -0.35 * nx + 0.75 * y + 0.56 * nz; l = 0.5 + 0.5 * (l > 0 ? l : 0); r *= l; gg *= l; b *= l
+            line[n++] = sprintf("%.7f %.7f %.7f %.6f %.6f %.6f 4.0 %.6f %.6f %.6f %s", R * nx, R * y, R * nz,
+                dc(r), dc(gg), dc(b), log(0.0075), log(0.0075), log(0.0012), quat(m))
+        }
+        for (x = -R; x <= R; x += G) for (y = -R; y <= R; y += G) for (z = -R; z <= R; z += G)
+            if (x * x + y * y + z * z < (R - G) * (R - G))
+                line[n++] = sprintf("%.7f %.7f %.7f 0 0 0 -4.0 %.6f %.6f %.6f 1 0 0 0", x, y, z, log(0.01), log(0.01), log(0.01))
+        print "ply\nformat ascii 1.0\nelement vertex " n
+        print "property float x\nproperty float y\nproperty float z"
+        print "property float f_dc_0\nproperty float f_dc_1\nproperty float f_dc_2\nproperty float opacity"
+        print "property float scale_0\nproperty float scale_1\nproperty float scale_2"
+        print "property float rot_0\nproperty float rot_1\nproperty float rot_2\nproperty float rot_3\nend_header"
+        for (i = 0; i < n; i++) print line[i]
+    }' > "$WORK/ball.ply"
+cat > "$WORK/splat_drop.toml" <<'TOML'
+[simulation]
+dt = 0.005
+steps = 120
+gravity = [0.0, -9.81, 0.0]
+
+[solver]
+hessian = "newton"
+cubature = 2000
+
+[output]
+every = 4
+formats = ["vtk", "ply"]
+
+[[object]]
+name = "ball"
+shape = "ball.ply"
+material = { youngs = 1e5, poisson = 0.4, density = 1000.0 }
+basis = { kernels = 400, modes = 12, voxel = 0.03 }
+placement = { translation = [0.0, 0.8, 0.0], velocity = [0.5, 0.0, 0.0], angular_velocity = [0.0, 0.0, -2.0] }
+
+[[collider]]
+shape = { plane = { point = [0.0, 0.0, 0.0], normal = [0.0, 1.0, 0.0] } }
+TOML
+$FF run "$WORK/splat_drop.toml" --out "$WORK/splat" > /dev/null
+# Frame 0 (t = 0) and frame 20 (t = 0.4 s, the most squashed).
+$FF render "$WORK/splat" --ground 0 --size 480x360 --out "$WORK/splat_png"
+cp "$WORK/splat_png/frame_000000.png" docs/img/splat_before.png
+cp "$WORK/splat_png/frame_000020.png" docs/img/splat_after.png
+
+ls -l docs/img/modes_torus.png docs/img/modes_box.png docs/img/drop_*.png docs/img/splat_*.png

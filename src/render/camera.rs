@@ -178,6 +178,37 @@ impl Camera {
         Some((0.5 * width + nx * half, 0.5 * height - ny * half, depth))
     }
 
+    /// The Jacobian of [`Camera::project`]'s (column, row) with respect to the world point,
+    /// at `p`: 2 x 3, pixels per metre (rows: column, row). The local linear map that turns a
+    /// world covariance at `p` into a screen covariance (EWA splatting). None where `project`
+    /// is None.
+    pub fn jacobian(&self, p: Point3, width: f64, height: f64) -> Option<[[f64; 3]; 2]> {
+        let v = sub(p, self.eye);
+        let depth = dot(v, self.forward);
+        let half = 0.5 * width.min(height);
+        match self.projection {
+            Projection::Perspective { .. } => {
+                if depth <= 1e-12 {
+                    return None;
+                }
+                // column = c + f x / z, row = c' - f y / z with (x, y, z) in the camera frame.
+                let f = half * self.scale / depth;
+                let (x, y) = (dot(v, self.right) / depth, dot(v, self.up) / depth);
+                Some([
+                    [0, 1, 2].map(|k| f * (self.right[k] - x * self.forward[k])),
+                    [0, 1, 2].map(|k| -f * (self.up[k] - y * self.forward[k])),
+                ])
+            }
+            Projection::Orthographic => {
+                let f = half / self.scale;
+                Some([
+                    [0, 1, 2].map(|k| f * self.right[k]),
+                    [0, 1, 2].map(|k| -f * self.up[k]),
+                ])
+            }
+        }
+    }
+
     /// Pixels per metre at `depth` in a viewport whose shorter side is `short` pixels.
     pub fn pixels_per_metre(&self, depth: f64, short: f64) -> f64 {
         match self.projection {
@@ -235,6 +266,48 @@ mod tests {
                             "{p:?} -> {x}, {y}"
                         );
                     }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn jacobian_matches_central_differences_of_the_projection() {
+        let b = Aabb {
+            min: [-1.0, 0.0, 2.0],
+            max: [4.0, 1.0, 3.5],
+        };
+        for projection in [
+            Projection::Perspective { fov_deg: 40.0 },
+            Projection::Orthographic,
+        ] {
+            let cam = Camera::fit(
+                &b,
+                &CameraOptions {
+                    azimuth_deg: 35.0,
+                    elevation_deg: 25.0,
+                    projection,
+                    ..Default::default()
+                },
+            );
+            let p = [3.0, 0.2, 2.2];
+            let j = cam.jacobian(p, 320.0, 200.0).unwrap();
+            let h = 1e-6;
+            for k in 0..3 {
+                let mut a = p;
+                let mut c = p;
+                a[k] += h;
+                c[k] -= h;
+                let (pa, pc) = (
+                    cam.project(a, 320.0, 200.0).unwrap(),
+                    cam.project(c, 320.0, 200.0).unwrap(),
+                );
+                let d = [(pa.0 - pc.0) / (2.0 * h), (pa.1 - pc.1) / (2.0 * h)];
+                for r in 0..2 {
+                    assert!(
+                        (d[r] - j[r][k]).abs() < 1e-5 * (1.0 + d[r].abs()),
+                        "{d:?} {j:?}"
+                    );
                 }
             }
         }

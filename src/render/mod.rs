@@ -3,7 +3,8 @@
 //!
 //! One job: rasterize. A [`Camera`] fitted to bounds ([`CameraOptions`]: direction, up, field
 //! of view or orthographic, zoom), a z-buffered triangle rasterizer with Lambert + ambient
-//! shading ([`draw`]), points as shaded discs with depth, scalars through a [`ColorMap`]
+//! shading ([`draw`]), points as shaded discs with depth, 3D Gaussians as projected ellipses
+//! alpha-blended back to front ([`Gaussians`], EWA splatting), scalars through a [`ColorMap`]
 //! with a colour bar ([`draw_colorbar`]), text in the embedded DejaVu Sans
 //! ([`draw_text`]) and atomic PNG output ([`Image::write_png`]). Everything is sequential
 //! and deterministic: the same input gives the same pixels.
@@ -12,10 +13,12 @@ mod camera;
 mod colormap;
 mod image;
 mod raster;
+mod splat;
 mod text;
 
 pub use camera::{Camera, CameraOptions, Projection};
 pub use colormap::{draw_colorbar, ColorMap};
 pub use image::{write_png_rgb, Image, Rect};
 pub use raster::{disc_radius_from_spacing, draw, DrawOptions, Ground, Item, Scalars};
+pub use splat::{sigmoid, Gaussians, SH_C0};
 pub use text::{draw_text, register_font, FONT_FAMILY};

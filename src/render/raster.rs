@@ -1,9 +1,11 @@
 //! The z-buffered rasterizer: triangles (flat or smooth Lambert + ambient shading) and
-//! points as shaded discs (sphere impostors), optionally coloured by a scalar per vertex.
+//! points as shaded discs (sphere impostors), optionally coloured by a scalar per vertex;
+//! then splats, alpha-blended over them ([`super::splat`]).
 
 use super::camera::Camera;
 use super::colormap::{ColorMap, NAN_COLOUR};
 use super::image::{Image, Rect};
+use super::splat::Gaussians;
 use crate::{Error, Point3, Result};
 
 /// Something to draw.
@@ -31,6 +33,15 @@ pub enum Item<'a> {
         scalars: Option<&'a [f64]>,
         /// Colour without scalars.
         colour: [u8; 3],
+    },
+    /// 3D Gaussians drawn as projected ellipses and alpha-blended back to front after every
+    /// other item ([`Gaussians`]; docs/pictures.md).
+    Splats {
+        /// The Gaussians (centres, covariances, colours, opacities).
+        gaussians: &'a Gaussians,
+        /// A value per Gaussian (N), coloured through [`DrawOptions::scalars`] (then shaded
+        /// by the splat's shortest axis) instead of the Gaussians' own colours.
+        scalars: Option<&'a [f64]>,
     },
 }
 
@@ -72,6 +83,9 @@ pub struct DrawOptions {
     pub ground: Option<Ground>,
     /// Triangles shaded by interpolated vertex normals (true, default) or by face normals.
     pub smooth: bool,
+    /// Variance added to both screen axes of every splat, px^2. Default 0.3 (the 3DGS
+    /// rasterizer's low-pass filter): a splat smaller than a pixel still covers about one.
+    pub splat_low_pass: f64,
 }
 
 impl Default for DrawOptions {
@@ -82,6 +96,7 @@ impl Default for DrawOptions {
             scalars: None,
             ground: None,
             smooth: true,
+            splat_low_pass: 0.3,
         }
     }
 }
@@ -109,19 +124,20 @@ fn unit(a: [f64; 3]) -> [f64; 3] {
 }
 
 /// The viewport's depth buffer and the shading state shared by all items.
-struct Target<'a> {
-    image: &'a mut Image,
-    view: Rect,
-    camera: &'a Camera,
+pub(super) struct Target<'a> {
+    pub(super) image: &'a mut Image,
+    pub(super) view: Rect,
+    pub(super) camera: &'a Camera,
     /// Nearness per viewport pixel: 1 / depth (perspective) or -depth (orthographic), both
     /// affine in screen space; larger is nearer.
-    near: Vec<f64>,
+    pub(super) near: Vec<f64>,
     light: [f64; 3],
     ambient: f64,
 }
 
 impl Target<'_> {
-    fn key(&self, depth: f64) -> f64 {
+    /// The nearness of `depth` (larger is nearer), as stored in `near`.
+    pub(super) fn key(&self, depth: f64) -> f64 {
         if self.camera.is_perspective() {
             1.0 / depth
         } else {
@@ -131,13 +147,18 @@ impl Target<'_> {
 
     /// Lambert + ambient of `colour` for a world normal (turned towards the viewer).
     fn shade(&self, colour: [u8; 3], normal: [f64; 3]) -> [u8; 3] {
+        let f = self.lambert(normal);
+        colour.map(|c| (c as f64 * f).round().clamp(0.0, 255.0) as u8)
+    }
+
+    /// The brightness factor (ambient + Lambert, 0..1) of a world normal, either side lit.
+    pub(super) fn lambert(&self, normal: [f64; 3]) -> f64 {
         let mut n = unit(normal);
         if dot(n, self.camera.forward) > 0.0 {
             n = [-n[0], -n[1], -n[2]];
         }
         let lambert = dot(n, self.light).max(0.0);
-        let f = self.ambient + (1.0 - self.ambient) * lambert;
-        colour.map(|c| (c as f64 * f).round().clamp(0.0, 255.0) as u8)
+        self.ambient + (1.0 - self.ambient) * lambert
     }
 
     /// Write `colour` at viewport pixel (x, y) if `key` is nearer than what is there.
@@ -153,8 +174,10 @@ impl Target<'_> {
 
 /// Draw `items` into `viewport` of `image` as seen by `camera`, with a fresh depth buffer
 /// (pixels outside the viewport are untouched; the background is whatever is there).
-/// Triangles or points behind the eye are skipped. Errors: a triangle index past its
-/// positions, or scalars whose length differs from the positions'.
+/// The ground, triangles and discs are z-buffered; then the splats of every
+/// [`Item::Splats`] together are blended back to front over them. Triangles, points or splats
+/// behind the eye are skipped. Errors: a triangle index past its positions, or scalars (or
+/// splat fields) whose length differs from the positions'.
 pub fn draw(
     image: &mut Image,
     viewport: Rect,
@@ -193,6 +216,16 @@ pub fn draw(
             Item::Points {
                 positions, scalars, ..
             } => (positions.len(), scalars),
+            Item::Splats { gaussians, scalars } => {
+                let n = gaussians
+                    .check()
+                    .map_err(|(what, got)| Error::LengthMismatch {
+                        what,
+                        expected: gaussians.len(),
+                        got,
+                    })?;
+                (n, scalars)
+            }
         };
         if let Some(s) = scalars {
             if s.len() != n {
@@ -229,7 +262,18 @@ pub fn draw(
                 scalars,
                 colour,
             } => draw_points(&mut t, positions, radius, scalars, colour, options.scalars),
+            Item::Splats { .. } => {}
         }
+    }
+    let splats: Vec<(&Gaussians, Option<&[f64]>)> = items
+        .iter()
+        .filter_map(|item| match *item {
+            Item::Splats { gaussians, scalars } => Some((gaussians, scalars)),
+            _ => None,
+        })
+        .collect();
+    if !splats.is_empty() {
+        super::splat::composite(&mut t, &splats, options.scalars, options.splat_low_pass);
     }
     Ok(())
 }

@@ -115,6 +115,114 @@ fn render_writes_one_png_per_selected_frame_with_the_asked_size() {
     );
 }
 
+/// A sphere shell of `n` flat splats (radius 0.2 m, centre 0.5 m up), the upper half red and
+/// the lower half blue, written as a 3DGS PLY.
+fn write_splat_ball(path: &Path, n: usize) {
+    use freeform::io::splat::{write_splats, Splats};
+    use freeform::linalg3::matrix_to_quat;
+    let c0 = 0.282_094_791_773_878_14;
+    let (mut means, mut scales, mut rots, mut dc) = (vec![], vec![], vec![], vec![]);
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    for i in 0..n {
+        let y = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+        let r = (1.0 - y * y).sqrt();
+        let phi = golden * i as f64;
+        let normal = [r * phi.cos(), y, r * phi.sin()];
+        let east = [-phi.sin(), 0.0, phi.cos()];
+        let north = [-y * phi.cos(), r, -y * phi.sin()];
+        // Columns north, east, normal: a proper rotation with the thin axis along the normal.
+        let m = [0, 1, 2].map(|k| [north[k], east[k], normal[k]]);
+        means.push([0.2 * normal[0], 0.5 + 0.2 * normal[1], 0.2 * normal[2]]);
+        scales.push([0.02f64.ln(), 0.02f64.ln(), 0.003f64.ln()]);
+        rots.push(matrix_to_quat(&m));
+        let colour: [f64; 3] = if y > 0.0 {
+            [0.9, 0.1, 0.1]
+        } else {
+            [0.1, 0.1, 0.9]
+        };
+        dc.push(colour.map(|c| (c - 0.5) / c0));
+    }
+    let s = Splats::new(means, scales, rots, vec![5.0; n], dc, vec![], 0).unwrap();
+    write_splats(path, &s).unwrap();
+}
+
+#[test]
+fn render_draws_splat_objects_as_ellipses_from_their_ply_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    write_splat_ball(&dir.path().join("ball.ply"), 400);
+    let scene = dir.path().join("s.toml");
+    std::fs::write(
+        &scene,
+        "[simulation]\ndt = 0.01\nsteps = 4\ngravity = [0.0, -9.81, 0.0]\n\
+         [solver]\ncubature = 200\n[output]\nevery = 2\nformats = [\"vtk\", \"ply\"]\n\
+         [[object]]\nname = \"ball\"\nshape = \"ball.ply\"\n\
+         basis = { kernels = 40, modes = 4 }\n",
+    )
+    .unwrap();
+    let frames = dir.path().join("frames");
+    let o = freeform(&[
+        "run",
+        scene.to_str().unwrap(),
+        "--out",
+        frames.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(frames.join("ball").join("ball_000004.ply").is_file());
+    let f = frames.to_str().unwrap();
+    // Default: a splat object in its own colours, no colour bar.
+    let o = freeform(&[
+        "render",
+        f,
+        "--size",
+        "200x150",
+        "--azimuth",
+        "0",
+        "--elevation",
+        "0",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        String::from_utf8_lossy(&o.stdout).contains("ball (splats as ellipses)"),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    let png = frames.join("png").join("frame_000002.png");
+    assert_eq!(png_size(&png), (200, 150));
+    // Red above, blue below: the SH colours, not an object colour.
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&png).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    reader.next_frame(&mut buf).unwrap();
+    let px = |x: usize, y: usize| {
+        let i = 3 * (y * 200 + x);
+        [buf[i], buf[i + 1], buf[i + 2]]
+    };
+    let (top, bottom) = (px(100, 55), px(100, 95));
+    assert!(top[0] > 150 && top[2] < 80, "top {top:?}");
+    assert!(bottom[2] > 150 && bottom[0] < 80, "bottom {bottom:?}");
+    // By displacement (from the .vtp) with a colour bar; --color splat as the default.
+    for colour in ["displacement", "splat", "none"] {
+        let out = dir.path().join(colour);
+        let o = freeform(&[
+            "render",
+            f,
+            "--color",
+            colour,
+            "--size",
+            "240x160",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{colour}: {}", stderr(&o));
+        assert_eq!(std::fs::read_dir(&out).unwrap().count(), 3);
+        assert_eq!(png_size(&out.join("frame_000001.png")), (240, 160));
+    }
+    assert_eq!(
+        std::fs::read(dir.path().join("splat").join("frame_000002.png")).unwrap(),
+        std::fs::read(dir.path().join("none").join("frame_000002.png")).unwrap()
+    );
+}
+
 #[test]
 fn render_rejects_bad_input_with_clear_errors() {
     let dir = tempfile::tempdir().unwrap();

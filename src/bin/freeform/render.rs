@@ -4,11 +4,12 @@
 use crate::{emit, CliResult};
 use clap::{Args, ValueEnum};
 use freeform::geometry::Aabb;
+use freeform::io::splat::{is_splat_ply, read_splats};
 use freeform::io::vtk::{read_pvd, read_vtp, VtpData};
 use freeform::progress::{Progress, Silent, TerminalProgress};
 use freeform::render::{
     disc_radius_from_spacing, draw, draw_colorbar, draw_text, Camera, CameraOptions, ColorMap,
-    DrawOptions, Ground, Image, Item, Projection, Rect, Scalars,
+    DrawOptions, Gaussians, Ground, Image, Item, Projection, Rect, Scalars,
 };
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -121,10 +122,11 @@ pub struct RenderArgs {
     /// Draw only this object [default: every object of the run in one picture].
     #[arg(long)]
     object: Option<String>,
-    /// Colour by `displacement` (its length, m), `none`, or the name of any point array of
-    /// the frames (vectors by their length).
-    #[arg(long, default_value = "displacement")]
-    color: String,
+    /// Colour by `displacement` (its length, m), `none` (one colour per object; splats their
+    /// own), `splat` (the same), or the name of any point array of the frames (vectors by
+    /// their length) [default: splat objects their own colour, others displacement].
+    #[arg(long)]
+    color: Option<String>,
     /// Image size, WIDTHxHEIGHT pixels.
     #[arg(long, default_value = "800x600")]
     size: String,
@@ -150,6 +152,13 @@ pub struct RenderArgs {
 struct Track {
     name: String,
     frames: Vec<(f64, PathBuf)>,
+    /// Whether its frames have a 3DGS splat `.ply` next to each `.vtp` (drawn from it).
+    splat: bool,
+}
+
+/// The 3DGS `.ply` written next to a `.vtp` frame.
+fn splat_frame(vtp: &Path) -> PathBuf {
+    vtp.with_extension("ply")
 }
 
 /// The objects of a run directory: every `<name>.pvd`, sorted by name (or the one asked for).
@@ -195,16 +204,36 @@ fn tracks(dir: &Path, object: Option<&str>) -> Result<Vec<Track>, Box<dyn std::e
         .into_iter()
         .map(|name| {
             let frames = read_pvd(&dir.join(format!("{name}.pvd")))?;
-            Ok(Track { name, frames })
+            // A splat object: its first frame has a 3DGS .ply beside the .vtp.
+            let splat = match frames.first() {
+                Some((_, vtp)) if splat_frame(vtp).is_file() => is_splat_ply(&splat_frame(vtp))?,
+                _ => false,
+            };
+            Ok(Track {
+                name,
+                frames,
+                splat,
+            })
         })
         .collect()
 }
 
 /// What the frames are coloured by.
 enum Colour {
+    /// One colour per object; splats their own (SH degree 0) colours.
     None,
     /// A point array by name (vectors by length).
     Array(String),
+}
+
+/// What an object is coloured by for `--color` (None: the default).
+fn colour_of(flag: Option<&str>, splat: bool) -> Colour {
+    match flag {
+        None if splat => Colour::None,
+        None => Colour::Array("displacement".into()),
+        Some("none" | "splat") => Colour::None,
+        Some(name) => Colour::Array(name.to_string()),
+    }
 }
 
 fn scalars_of(data: &VtpData, colour: &Colour, path: &Path) -> Result<Option<Vec<f64>>, String> {
@@ -256,10 +285,15 @@ pub fn run(args: RenderArgs) -> CliResult {
     }
     let camera_options = args.view.options()?;
     let tracks = tracks(&args.dir, args.object.as_deref())?;
-    let colour = match args.color.as_str() {
-        "none" => Colour::None,
-        name => Colour::Array(name.to_string()),
-    };
+    let colours: Vec<Colour> = tracks
+        .iter()
+        .map(|t| colour_of(args.color.as_deref(), t.splat))
+        .collect();
+    // The one array any object is coloured by (for the range and the bar).
+    let array = colours.iter().find_map(|c| match c {
+        Colour::Array(name) => Some(name.clone()),
+        Colour::None => None,
+    });
     let count = tracks.iter().map(|t| t.frames.len()).max().unwrap_or(0);
     let selected: Vec<usize> = (0..count).step_by(args.every).collect();
     if selected.is_empty() {
@@ -285,12 +319,12 @@ pub fn run(args: RenderArgs) -> CliResult {
             };
             let data = read_vtp(path)?;
             grow(&mut bounds, &data.points);
-            if let Some(s) = scalars_of(&data, &colour, path)? {
+            if let Some(s) = scalars_of(&data, &colours[k], path)? {
                 for v in s.into_iter().filter(|v| v.is_finite()) {
                     range = [range[0].min(v), range[1].max(v)];
                 }
             }
-            if data.triangles.is_none() && radii[k].is_none() {
+            if data.triangles.is_none() && !t.splat && radii[k].is_none() {
                 radii[k] = Some(
                     args.radius
                         .unwrap_or_else(|| disc_radius_from_spacing(&data.points)),
@@ -303,9 +337,9 @@ pub fn run(args: RenderArgs) -> CliResult {
     let Some(bounds) = bounds else {
         return Err(format!("{}: the frames hold no points", args.dir.display()).into());
     };
-    let scalars = match &colour {
-        Colour::None => None,
-        Colour::Array(name) => {
+    let scalars = match &array {
+        None => None,
+        Some(name) => {
             // A length starts at 0; a signed array spans its own range.
             let lo = if name == "displacement" {
                 0.0
@@ -348,32 +382,54 @@ pub fn run(args: RenderArgs) -> CliResult {
     for (done, &i) in selected.iter().enumerate() {
         let mut frames = Vec::new();
         let mut time = None;
-        for t in &tracks {
+        for (k, t) in tracks.iter().enumerate() {
             let Some((at, path)) = t.frames.get(i) else {
                 continue;
             };
             let data = read_vtp(path)?;
-            let s = scalars_of(&data, &colour, path)?;
+            let s = scalars_of(&data, &colours[k], path)?;
+            let gaussians = if t.splat {
+                let ply = splat_frame(path);
+                let splats = read_splats(&ply)?;
+                if s.as_ref().is_some_and(|s| s.len() != splats.len()) {
+                    return Err(format!(
+                        "{}: {} splats, but {} has {} points to colour them by",
+                        ply.display(),
+                        splats.len(),
+                        path.display(),
+                        data.points.len()
+                    )
+                    .into());
+                }
+                Some(Gaussians::from_splats(&splats))
+            } else {
+                None
+            };
             time.get_or_insert(*at);
-            frames.push((data, s));
+            frames.push((k, data, s, gaussians));
         }
         let items: Vec<Item> = frames
             .iter()
-            .enumerate()
-            .map(|(k, (data, s))| match &data.triangles {
-                Some(tris) => Item::Triangles {
-                    positions: &data.points,
-                    triangles: tris,
-                    scalars: s.as_deref(),
-                    colour: OBJECT_COLOURS[k % OBJECT_COLOURS.len()],
+            .map(
+                |(k, data, s, gaussians)| match (&data.triangles, gaussians) {
+                    (_, Some(g)) => Item::Splats {
+                        gaussians: g,
+                        scalars: s.as_deref(),
+                    },
+                    (Some(tris), None) => Item::Triangles {
+                        positions: &data.points,
+                        triangles: tris,
+                        scalars: s.as_deref(),
+                        colour: OBJECT_COLOURS[k % OBJECT_COLOURS.len()],
+                    },
+                    (None, None) => Item::Points {
+                        positions: &data.points,
+                        radius: radii[*k].unwrap_or(0.01),
+                        scalars: s.as_deref(),
+                        colour: OBJECT_COLOURS[k % OBJECT_COLOURS.len()],
+                    },
                 },
-                None => Item::Points {
-                    positions: &data.points,
-                    radius: radii[k].unwrap_or(0.01),
-                    scalars: s.as_deref(),
-                    colour: OBJECT_COLOURS[k % OBJECT_COLOURS.len()],
-                },
-            })
+            )
             .collect();
         let mut image = Image::new(w, h, WHITE);
         draw(&mut image, view, &camera, &items, &options)?;
@@ -404,7 +460,16 @@ pub fn run(args: RenderArgs) -> CliResult {
     }
     progress.finish();
     let secs = clock.elapsed().as_secs_f64();
-    let names: Vec<&str> = tracks.iter().map(|t| t.name.as_str()).collect();
+    let names: Vec<String> = tracks
+        .iter()
+        .map(|t| {
+            if t.splat {
+                format!("{} (splats as ellipses)", t.name)
+            } else {
+                t.name.clone()
+            }
+        })
+        .collect();
     emit(&format!(
         "freeform render {}\n  objects {}  frames {} of {}  size {w}x{h}\n  time {secs:.2} s ({:.1} ms per frame, reading included)\n  written to {}/frame_<n>.png\n",
         args.dir.display(),
