@@ -50,35 +50,35 @@ pub fn per_point(
     if let Ok(v) = obj.extract::<f64>() {
         return Ok(vec![v; n]);
     }
-    let array: PyArrayLike1<'_, f64, AllowTypeChange> = obj.extract().map_err(|_| {
-        invalid(
-            py,
-            format!(
-                "{what}: expected a number or a 1-D array of {n} numbers (got {})",
-                describe(obj)
-            ),
-        )
-    })?;
-    let view = array.as_array();
-    if view.len() != n {
-        return Err(invalid(
-            py,
-            format!(
-                "{what}: expected {n} values (one per point), got {}",
-                view.len()
-            ),
-        ));
-    }
-    Ok(view.to_vec())
+    exactly(
+        py,
+        obj,
+        n,
+        what,
+        "a number or a 1-D array",
+        " (one per point)",
+    )
 }
 
 /// A 1-D array of exactly `n` numbers.
 pub fn vector(py: Python<'_>, obj: &Bound<'_, PyAny>, n: usize, what: &str) -> PyResult<Vec<f64>> {
+    exactly(py, obj, n, what, "a 1-D array", "")
+}
+
+/// A 1-D array of `n` numbers; `expected` and `per` word the errors.
+fn exactly(
+    py: Python<'_>,
+    obj: &Bound<'_, PyAny>,
+    n: usize,
+    what: &str,
+    expected: &str,
+    per: &str,
+) -> PyResult<Vec<f64>> {
     let array: PyArrayLike1<'_, f64, AllowTypeChange> = obj.extract().map_err(|_| {
         invalid(
             py,
             format!(
-                "{what}: expected a 1-D array of {n} numbers (got {})",
+                "{what}: expected {expected} of {n} numbers (got {})",
                 describe(obj)
             ),
         )
@@ -87,7 +87,7 @@ pub fn vector(py: Python<'_>, obj: &Bound<'_, PyAny>, n: usize, what: &str) -> P
     if view.len() != n {
         return Err(invalid(
             py,
-            format!("{what}: expected {n} values, got {}", view.len()),
+            format!("{what}: expected {n} values{per}, got {}", view.len()),
         ));
     }
     Ok(view.to_vec())

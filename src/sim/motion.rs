@@ -191,27 +191,6 @@ fn quaternion(a: &Option<AxisAngle>) -> Result<[f64; 4]> {
     }
 }
 
-fn quaternion_matrix(q: &[f64; 4]) -> Mat3 {
-    let [w, x, y, z] = *q;
-    [
-        [
-            1.0 - 2.0 * (y * y + z * z),
-            2.0 * (x * y - w * z),
-            2.0 * (x * z + w * y),
-        ],
-        [
-            2.0 * (x * y + w * z),
-            1.0 - 2.0 * (x * x + z * z),
-            2.0 * (y * z - w * x),
-        ],
-        [
-            2.0 * (x * z - w * y),
-            2.0 * (y * z + w * x),
-            1.0 - 2.0 * (x * x + y * y),
-        ],
-    ]
-}
-
 fn slerp(a: &[f64; 4], b: &[f64; 4], s: f64) -> [f64; 4] {
     let mut d: f64 = (0..4).map(|i| a[i] * b[i]).sum();
     let mut b = *b;
@@ -332,7 +311,7 @@ impl Motion {
                         }),
                     )
                 };
-                Rigid::about(pivot, quaternion_matrix(&rot), tr)
+                Rigid::about(pivot, crate::linalg3::quat_to_matrix(&rot), tr)
             }
             Motion::Pose {
                 rotation,
