@@ -55,9 +55,9 @@ impl RenderSet {
     /// be closed) and evaluate `basis` at its points.
     ///
     /// # Errors
-    /// The reader's error for an unreadable file; a [`Error::Scene`] naming the file when
-    /// some of its points are not covered by the kernels (the input lies outside the
-    /// simulated object, where the map would be extrapolated).
+    /// The reader's error for an unreadable file; an [`Error::InvalidParameter`] naming the
+    /// file (`render`) when some of its points are not covered by the kernels (the input lies
+    /// outside the simulated object, where the map would be extrapolated).
     pub(super) fn load(file: &Path, basis: &Basis) -> Result<RenderSet> {
         let ext = file
             .extension()
@@ -102,19 +102,20 @@ impl RenderSet {
                 index,
                 position,
                 ..
-            } => Error::Scene {
-                message: format!(
-                    "render input {}: {count} of its {} points are not covered by the \
-                     object's kernels (the first, point {index}, at [{:.4}, {:.4}, {:.4}]): it \
-                     lies outside the simulated object, where the deformation map would be \
-                     extrapolated; place it inside or on the object (same rest frame)",
-                    file.display(),
+            } => Error::param(
+                "render",
+                file.display(),
+                format!(
+                    "{count} of its {} points are not covered by the object's kernels (the \
+                     first, point {index}, at [{:.4}, {:.4}, {:.4}]): the input lies outside \
+                     the simulated object, where the deformation map would be extrapolated; \
+                     place it inside or on the object (same rest frame)",
                     rest.len(),
                     position[0],
                     position[1],
                     position[2]
                 ),
-            },
+            ),
             other => other,
         })?;
         Ok(RenderSet {

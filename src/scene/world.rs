@@ -396,13 +396,15 @@ impl SceneObject {
             if set.name() == self.spec.name
                 || self.render_sets.iter().any(|s| s.name() == set.name())
             {
-                return Err(Error::Scene {
-                    message: format!(
-                        "render input {}: its frames would be named '{}' like another of the                          object's; rename the file",
-                        path.display(),
+                return Err(Error::param(
+                    "render",
+                    path.display(),
+                    format!(
+                        "its frames would be named '{}' like another of the object's; rename \
+                         the file",
                         set.name()
                     ),
-                });
+                ));
             }
             self.render_sets.push(set);
         }

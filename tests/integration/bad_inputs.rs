@@ -152,6 +152,11 @@ const RUN_SCENES: &[Case] = &[
     (&["@scene/huge_youngs.toml"], "non-finite value"),
     (&["@scene/zero_normal_collider.toml"], "a plane needs a finite point and a non-zero normal"),
     (&["@scene/does_not_exist.toml"], "does_not_exist.toml"),
+    (&["@scene/splats_zero_quat.toml"], "splats_zero_quat.ply: splat PLY element `vertex` 7 property `rot_0..rot_3` = (0, 0, 0, 0) is a zero or non-finite quaternion"),
+    (&["@scene/splats_nan_scale.toml"], "splats_nan_scale.ply: splat PLY element `vertex` 3 property `scale_1` = NaN is not finite"),
+    (&["@scene/splats_no_rot_2.toml"], "splats_no_rot_2.ply: splat PLY element `vertex` has no property `rot_2`"),
+    (&["@scene/render_outside.toml"], "far_render.obj: 3 of its 3 points are not covered by the object's kernels"),
+    (&["@scene/render_missing.toml"], "nowhere.obj"),
 ];
 
 #[rustfmt::skip]

@@ -191,3 +191,32 @@ pair("huge_entry_count", "%%MatrixMarket matrix coordinate real symmetric\n"
 pair("size_mismatch", SPD, "%%MatrixMarket matrix coordinate real symmetric\n7 7 7\n"
      + "".join("%d %d 2\n" % (i, i) for i in range(1, 8)))
 pair("indefinite_mass", SPD, SPD.replace("1 1 2\n", "1 1 -2\n"))
+
+# 3DGS splat objects and render inputs (issue 16): the splat reader's errors name the file,
+# the element `vertex`, the vertex and the property; a render input outside the object or
+# missing is named with its object.
+SPLAT_PROPS = ["x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2", "opacity",
+               "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3"]
+
+
+def splat_ply(rows, props=SPLAT_PROPS):
+    head = "ply\nformat ascii 1.0\nelement vertex %d\n" % len(rows)
+    head += "".join("property float %s\n" % p for p in props) + "end_header\n"
+    return head + "".join(" ".join(repr(v) for v in r) + "\n" for r in rows)
+
+
+SPLATS = [[0.1 * i, 0.1 * j, 0.1 * k, 0, 0, 0, 0.5, 0.2, 0.1, 2.0, -3.0, -3.0, -3.0,
+           1.0, 0.0, 0.0, 0.0] for i in range(10) for j in range(3) for k in range(3)]
+zero_quat = [list(r) for r in SPLATS]
+zero_quat[7][13:17] = [0.0, 0.0, 0.0, 0.0]
+nan_scale = [list(r) for r in SPLATS]
+nan_scale[3][11] = float("nan")
+no_rot2 = [r[:15] + r[16:] for r in SPLATS]
+write("scene/splats_zero_quat.ply", splat_ply(zero_quat))
+write("scene/splats_nan_scale.ply", splat_ply(nan_scale))
+write("scene/splats_no_rot_2.ply", splat_ply(no_rot2, SPLAT_PROPS[:15] + SPLAT_PROPS[16:]))
+for name in ("zero_quat", "nan_scale", "no_rot_2"):
+    write("scene/splats_%s.toml" % name, GOOD.replace("box:1,0.2,0.2", "splats_%s.ply" % name))
+write("scene/far_render.obj", "v 9 9 9\nv 9 9 10\nv 9 10 9\nf 1 2 3\n")
+write("scene/render_outside.toml", GOOD + 'render = ["far_render.obj"]\n')
+write("scene/render_missing.toml", GOOD + 'render = ["nowhere.obj"]\n')
