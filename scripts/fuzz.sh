@@ -13,7 +13,7 @@ SECONDS_PER_TARGET="${1:-60}"
 shift || true
 TARGETS=("$@")
 if [ ${#TARGETS[@]} -eq 0 ]; then
-    TARGETS=(ply obj stl scene matrix_market basis)
+    TARGETS=(ply obj stl scene matrix_market basis splat)
 fi
 # Keep each run's memory bounded (the readers must not allocate from declared counts).
 RSS_LIMIT_MB="${RSS_LIMIT_MB:-2048}"

@@ -510,6 +510,9 @@ fn fuzz_corpus_and_findings_replay_without_panics() {
     for (path, bytes) in fuzz_inputs("basis") {
         let _ = freeform::io::basis::load_from(&path, std::io::Cursor::new(bytes));
     }
+    for (path, bytes) in fuzz_inputs("splat") {
+        let _ = freeform::io::splat::read_splats_from(&path, &mut std::io::Cursor::new(bytes));
+    }
 }
 
 /// The parse-from-memory functions agree with the file readers on the corpus.
