@@ -5,20 +5,9 @@ use freeform::material::MaterialField;
 use freeform::precompute::sampling::IntegrationPoints;
 use freeform::precompute::{BasisOptions, Problem};
 use freeform::progress::Silent;
-use std::path::PathBuf;
-use std::process::Command;
 
-/// The static library cargo built next to this test binary (target/<profile>/deps/, or
-/// target/<profile>/ after a plain `cargo build`).
-fn static_lib() -> PathBuf {
-    let exe = std::env::current_exe().expect("test binary path");
-    let deps = exe.parent().expect("target/<profile>/deps");
-    let name = "libfreeform_capi.a";
-    [deps.join(name), deps.join("..").join(name)]
-        .into_iter()
-        .find(|p| p.is_file())
-        .unwrap_or_else(|| panic!("{name} not found next to {}", exe.display()))
-}
+mod common;
+use common::compile_and_run;
 
 /// The same problem as examples/basis.c: 20 x 10 x 10 cell centres of a 2 x 1 x 1 box.
 fn rust_eigenvalues() -> Vec<f64> {
@@ -56,33 +45,8 @@ fn rust_eigenvalues() -> Vec<f64> {
 
 #[test]
 fn c_example_compiles_runs_and_matches_the_rust_library() {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    let lib = static_lib();
     let dir = tempfile::tempdir().unwrap();
-    let exe = dir.path().join("basis");
-    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
-    let out = Command::new(&cc)
-        .arg(root.join("examples/basis.c"))
-        .arg("-I")
-        .arg(root.join("ffi/include"))
-        .args(["-std=c99", "-Wall", "-Wextra", "-Werror", "-o"])
-        .arg(&exe)
-        .arg(&lib)
-        .args(["-lm", "-lpthread", "-ldl"])
-        .output()
-        .expect("run the C compiler");
-    assert!(
-        out.status.success(),
-        "cc failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let run = Command::new(&exe).output().expect("run the example");
-    let stdout = String::from_utf8_lossy(&run.stdout);
-    assert!(
-        run.status.success(),
-        "example failed: {stdout}\n{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    let stdout = compile_and_run("basis", dir.path(), &[]);
     assert!(stdout.lines().last() == Some("OK"), "{stdout}");
     // The error paths printed their codes and messages.
     assert!(

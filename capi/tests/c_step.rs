@@ -9,24 +9,10 @@ use freeform_capi::*;
 use std::collections::BTreeMap;
 use std::ffi::{c_int, CStr, CString};
 use std::path::{Path, PathBuf};
-use std::process::Command;
+
+mod common;
+use common::{compile_and_run, root};
 use std::ptr::{null, null_mut};
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
-/// The static library cargo built next to this test binary (target/<profile>/deps/, or
-/// target/<profile>/ after a plain `cargo build`).
-fn static_lib() -> PathBuf {
-    let exe = std::env::current_exe().expect("test binary path");
-    let deps = exe.parent().expect("target/<profile>/deps");
-    let name = "libfreeform_capi.a";
-    [deps.join(name), deps.join("..").join(name)]
-        .into_iter()
-        .find(|p| p.is_file())
-        .unwrap_or_else(|| panic!("{name} not found next to {}", exe.display()))
-}
 
 /// What examples/step.c prints, keyed by line kind and step.
 #[derive(Debug, Default, PartialEq)]
@@ -124,36 +110,9 @@ fn rust_trace(scene_path: &Path) -> Trace {
 
 #[test]
 fn c_step_example_compiles_runs_and_matches_the_rust_world() {
-    let root = root();
     let dir = tempfile::tempdir().unwrap();
-    let exe = dir.path().join("step");
-    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
-    let out = Command::new(&cc)
-        .arg(root.join("examples/step.c"))
-        .arg("-I")
-        .arg(root.join("ffi/include"))
-        .args(["-std=c99", "-Wall", "-Wextra", "-Werror", "-o"])
-        .arg(&exe)
-        .arg(static_lib())
-        .args(["-lm", "-lpthread", "-ldl"])
-        .output()
-        .expect("run the C compiler");
-    assert!(
-        out.status.success(),
-        "cc failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let scene = root.join("examples/step.toml");
-    let run = Command::new(&exe)
-        .arg(&scene)
-        .output()
-        .expect("run the example");
-    let stdout = String::from_utf8_lossy(&run.stdout);
-    assert!(
-        run.status.success(),
-        "example failed: {stdout}\n{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    let scene = root().join("examples/step.toml");
+    let stdout = compile_and_run("step", dir.path(), &[&scene]);
     assert_eq!(stdout.lines().last(), Some("OK"), "{stdout}");
     assert!(stdout.contains("restored yes"), "{stdout}");
     assert!(

@@ -34,7 +34,7 @@ use crate::eigen::slepc::{
 use crate::eigen::{relative_residual, EigenError, EigenInfo, EigenRequest, EigenSolution};
 use crate::geometry::Shape;
 use crate::progress::Progress;
-use crate::report::{peak_memory_bytes, Stopwatch, Timings};
+use crate::report::{Stopwatch, Timings};
 use crate::{Point3, Result};
 use faer::Mat;
 
@@ -224,23 +224,10 @@ pub fn build_basis_mpi(
     };
     solution.info.status = convergence_status(k, &request, &rs.status, &solution);
     let solution = solution.into_converged()?;
-    let mut report = ModesReport {
-        kernels: k,
-        points: n,
-        modes: opts.modes,
-        nnz_hessian: nnz,
-        nnz_mass: nnz,
+    let facts = super::SolveFacts {
         solver: "slepc".into(),
-        eigenvalues: solution.values.clone(),
-        max_relative_residual: solution.info.max_relative_residual,
-        orthonormality_error: solution.info.orthonormality_error,
-        reproducing_error: repro.max(),
-        reproducing_detail: repro,
-        timings_s: timings,
-        peak_memory_bytes: peak_memory_bytes().unwrap_or(0),
-        volume: points.total_volume(),
-        kernel: opts.kernel,
-        support: opts.support,
+        nnz: (nnz, nnz),
+        timings,
         coverage: CoverageReport {
             min_moment_rcond: -t[13],
             min_cover: (-t[12]) as usize,
@@ -249,12 +236,9 @@ pub fn build_basis_mpi(
             enlarged_kernels: 0,
             shape_function_bytes: sf_bytes,
         },
-        eigen: solution.info,
-        tol: opts.tol,
         warnings: Vec::new(),
-        monitors: Default::default(),
     };
-    super::check_quality(&mut report);
+    let report = ModesReport::of_solve(opts, k, &points, &solution, repro, facts);
     let basis = Basis {
         kernels,
         coefficients: solution.vectors,

@@ -32,7 +32,7 @@ pub use compare::{compare_solvers, ProblemComparison, SolverComparison, SolverRe
 pub use options::{default_points, BasisOptions, MAX_KERNELS, MAX_POINTS};
 pub use problem::{build_basis, place_kernels, BasisRun, Problem};
 pub use quality::{
-    basis_monitors, check_quality, CoverageReport, ModesReport, ORTHONORMALITY_WARNING,
+    basis_monitors, check_quality, CoverageReport, ModesReport, SolveFacts, ORTHONORMALITY_WARNING,
     RCOND_WARNING, REPRODUCING_WARNING,
 };
 pub use sampling::{sample_shape, sample_with_material};

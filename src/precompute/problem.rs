@@ -5,7 +5,7 @@
 use super::assembly::{assemble, Assembled};
 use super::centers::{farthest_point_sampling, morton_order};
 use super::options::BasisOptions;
-use super::quality::{check_quality, CoverageReport, ModesReport};
+use super::quality::{CoverageReport, ModesReport, SolveFacts};
 use super::rkpm::{self, support_radii, Kernels, ReproducingError, ShapeFunctions, ShapeStats};
 use super::sampling::{sample_with_material, IntegrationPoints};
 use super::skinning::Basis;
@@ -14,7 +14,7 @@ use crate::error::check_cancelled;
 use crate::geometry::Shape;
 use crate::material::MaterialField;
 use crate::progress::Progress;
-use crate::report::{peak_memory_bytes, Monitors, Stopwatch, Timings};
+use crate::report::{Stopwatch, Timings};
 use crate::{Error, Point3, Result};
 
 /// Everything a precomputation produces.
@@ -134,33 +134,8 @@ impl Problem {
         progress: &dyn Progress,
     ) -> Result<Self> {
         opts.validate()?;
+        points.check(&material)?;
         let n = points.len();
-        if points.volumes.len() != n {
-            return Err(Error::LengthMismatch {
-                what: "volumes",
-                expected: n,
-                got: points.volumes.len(),
-            });
-        }
-        if material.len() != n {
-            return Err(Error::LengthMismatch {
-                what: "material values",
-                expected: n,
-                got: material.len(),
-            });
-        }
-        crate::error::check_finite_points("integration points", &points.points)?;
-        if let Some(i) = points
-            .volumes
-            .iter()
-            .position(|v| !(v.is_finite() && *v > 0.0))
-        {
-            return Err(Error::param(
-                "volumes",
-                format!("{} at point {i}", points.volumes[i]),
-                "every integration volume must be positive and finite",
-            ));
-        }
         let mut timings = Timings::default();
         let mut clock = Stopwatch::start();
         let total_clock = Stopwatch::start();
@@ -347,30 +322,17 @@ impl Problem {
         }
         timings.eigensolve = clock.elapsed();
         timings.total += timings.eigensolve;
-        let mut report = ModesReport {
-            kernels: kernels.len(),
-            points: points.len(),
-            modes: opts.modes,
-            nnz_hessian: assembled.hessian.compute_nnz(),
-            nnz_mass: assembled.mass.compute_nnz(),
+        let facts = SolveFacts {
             solver: solver.name().to_string(),
-            eigenvalues: solution.values.clone(),
-            max_relative_residual: solution.info.max_relative_residual,
-            orthonormality_error: solution.info.orthonormality_error,
-            reproducing_error: repro.max(),
-            reproducing_detail: repro,
-            timings_s: timings,
-            peak_memory_bytes: peak_memory_bytes().unwrap_or(0),
-            volume: points.total_volume(),
-            kernel: opts.kernel,
-            support: opts.support,
+            nnz: (
+                assembled.hessian.compute_nnz(),
+                assembled.mass.compute_nnz(),
+            ),
+            timings,
             coverage,
-            eigen: solution.info.clone(),
-            tol: opts.tol,
             warnings,
-            monitors: Monitors::default(),
         };
-        check_quality(&mut report);
+        let report = ModesReport::of_solve(&opts, kernels.len(), &points, &solution, repro, facts);
         let basis = Basis {
             kernels,
             coefficients: solution.vectors,

@@ -1,9 +1,11 @@
 //! The quality figures of a precomputation: the `modes` report ([`ModesReport`]), its coverage
 //! figures, and the warnings raised when a monitor leaves its healthy range.
 
+use super::options::BasisOptions;
 use super::rkpm::{KernelType, ReproducingError, SupportOptions};
-use crate::eigen::EigenInfo;
-use crate::report::{Monitors, Timings};
+use super::sampling::IntegrationPoints;
+use crate::eigen::{EigenInfo, EigenSolution};
+use crate::report::{peak_memory_bytes, Monitors, Timings};
 use serde::Serialize;
 
 /// Quality and size figures of the shape-function stage.
@@ -85,6 +87,61 @@ pub const REPRODUCING_WARNING: f64 = 1e-8;
 
 /// max |c^T M c - I| above this is reported (the solvers reach ~1e-14).
 pub const ORTHONORMALITY_WARNING: f64 = 1e-8;
+
+/// What a solve path knows about its own run, for [`ModesReport::of_solve`].
+#[derive(Debug, Clone)]
+pub struct SolveFacts {
+    /// Solver name.
+    pub solver: String,
+    /// Non-zeros of H_w and of M.
+    pub nnz: (usize, usize),
+    /// Stage timings, s.
+    pub timings: Timings,
+    /// Shape-function coverage figures.
+    pub coverage: CoverageReport,
+    /// Warnings raised before the solve (e.g. enlarged supports).
+    pub warnings: Vec<String>,
+}
+
+impl ModesReport {
+    /// The report of a finished precomputation on `points` with `kernels` kernels: sizes and
+    /// options, the solution's eigenvalues and residuals, the reproducing error, the peak
+    /// memory so far, then the monitors and warnings of [`check_quality`].
+    pub fn of_solve(
+        opts: &BasisOptions,
+        kernels: usize,
+        points: &IntegrationPoints,
+        solution: &EigenSolution,
+        reproducing: ReproducingError,
+        facts: SolveFacts,
+    ) -> ModesReport {
+        let mut report = ModesReport {
+            kernels,
+            points: points.len(),
+            modes: opts.modes,
+            nnz_hessian: facts.nnz.0,
+            nnz_mass: facts.nnz.1,
+            solver: facts.solver,
+            eigenvalues: solution.values.clone(),
+            max_relative_residual: solution.info.max_relative_residual,
+            orthonormality_error: solution.info.orthonormality_error,
+            reproducing_error: reproducing.max(),
+            reproducing_detail: reproducing,
+            timings_s: facts.timings,
+            peak_memory_bytes: peak_memory_bytes().unwrap_or(0),
+            volume: points.total_volume(),
+            kernel: opts.kernel,
+            support: opts.support,
+            coverage: facts.coverage,
+            eigen: solution.info.clone(),
+            tol: opts.tol,
+            warnings: facts.warnings,
+            monitors: Monitors::default(),
+        };
+        check_quality(&mut report);
+        report
+    }
+}
 
 /// Fill `report.monitors` and add a warning for each monitor outside its healthy range:
 /// a moment matrix close to singular, reproducing identities violated, an eigensolve that did

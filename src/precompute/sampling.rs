@@ -36,6 +36,41 @@ impl IntegrationPoints {
     pub fn total_volume(&self) -> f64 {
         self.volumes.iter().sum()
     }
+
+    /// Check the points against their per-point materials: one volume and one material per
+    /// point, finite positions, positive finite volumes.
+    ///
+    /// # Errors
+    /// [`Error::LengthMismatch`], [`Error::NonFinite`] or [`Error::InvalidParameter`]
+    /// (`volumes`), naming the first offending point.
+    pub fn check(&self, material: &MaterialField) -> Result<()> {
+        let n = self.len();
+        for (what, got) in [
+            ("volumes", self.volumes.len()),
+            ("material values", material.len()),
+        ] {
+            if got != n {
+                return Err(Error::LengthMismatch {
+                    what,
+                    expected: n,
+                    got,
+                });
+            }
+        }
+        crate::error::check_finite_points("integration points", &self.points)?;
+        if let Some(i) = self
+            .volumes
+            .iter()
+            .position(|v| !(v.is_finite() && *v > 0.0))
+        {
+            return Err(Error::param(
+                "volumes",
+                format!("{} at point {i}", self.volumes[i]),
+                "every integration volume must be positive and finite",
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// How dense the integration grid is.

@@ -32,18 +32,6 @@ struct RenderPoints {
     splats: Option<Splats>,
 }
 
-/// What an object's setup computed or was given: basis, integration points, materials, and
-/// where they came from.
-struct Parts {
-    basis: Basis,
-    points: IntegrationPoints,
-    material: MaterialField,
-    cached: bool,
-    basis_file: Option<std::path::PathBuf>,
-    monitors: Monitors,
-    precompute_s: f64,
-}
-
 /// An object whose basis, integration points and materials the caller computed (e.g. from
 /// NumPy arrays, with a per-point Young's modulus), for [`World::with_objects`]. It is drawn
 /// at its integration points; `spec.shape` only names it in reports (`spec.basis` and
@@ -136,38 +124,33 @@ impl SceneObject {
             file,
         };
         let clock = Stopwatch::start();
-        let ObjectBasis {
-            basis,
-            points,
-            material,
-            cached,
-            file: basis_file,
-            monitors,
-        } = object_basis(spec, &resolved, scene, settings, progress, warnings).map_err(ctx)?;
-        let parts = Parts {
-            basis,
-            points,
-            material,
-            cached,
-            basis_file,
-            monitors,
-            precompute_s: clock.elapsed(),
-        };
-        let mut object =
-            SceneObject::from_parts(index, spec, scene, Some(&resolved.shape), parts, progress)?;
+        let parts =
+            object_basis(spec, &resolved, scene, settings, progress, warnings).map_err(ctx)?;
+        let precompute_s = clock.elapsed();
+        let mut object = SceneObject::from_parts(
+            index,
+            spec,
+            scene,
+            Some(&resolved.shape),
+            parts,
+            precompute_s,
+            progress,
+        )?;
         object.render.splats = splats;
         object.load_render_sets(&settings.base_dir).map_err(ctx)?;
         Ok(object)
     }
 
     /// The reduced model and render points of an object whose basis, integration points and
-    /// materials are known; `shape` None: drawn at its integration points.
+    /// materials are known (computed in `precompute_s` seconds); `shape` None: drawn at its
+    /// integration points.
     fn from_parts(
         index: usize,
         spec: &ObjectSpec,
         scene: &Scene,
         shape: Option<&Shape>,
-        parts: Parts,
+        parts: ObjectBasis,
+        precompute_s: f64,
         progress: &dyn Progress,
     ) -> Result<SceneObject> {
         let ctx = |e: Error| Error::Object {
@@ -175,14 +158,13 @@ impl SceneObject {
             name: spec.name.clone(),
             source: Box::new(e),
         };
-        let Parts {
+        let ObjectBasis {
             basis,
             points,
             material,
             cached,
-            basis_file,
+            file: basis_file,
             monitors,
-            precompute_s,
         } = parts;
         let clock = Stopwatch::start();
         progress.begin(&format!("setup {}", spec.name), None);
@@ -475,42 +457,16 @@ fn is_splat_file(path: &std::path::Path) -> bool {
     ply && crate::io::splat::is_splat_ply(path).unwrap_or(false)
 }
 
-/// Materials and volumes of a prepared object match its points; volumes positive.
+/// A prepared object has points, with materials and volumes that match them.
 fn check_prepared(p: &PreparedObject) -> Result<()> {
-    let n = p.points.len();
-    if n == 0 {
+    if p.points.is_empty() {
         return Err(Error::param(
             "points",
             0,
             "the object has no integration points",
         ));
     }
-    for (what, got) in [
-        ("volumes", p.points.volumes.len()),
-        ("material values", p.material.len()),
-    ] {
-        if got != n {
-            return Err(Error::LengthMismatch {
-                what,
-                expected: n,
-                got,
-            });
-        }
-    }
-    crate::error::check_finite_points("integration points", &p.points.points)?;
-    if let Some(i) = p
-        .points
-        .volumes
-        .iter()
-        .position(|v| !(v.is_finite() && *v > 0.0))
-    {
-        return Err(Error::param(
-            "volumes",
-            format!("{} at point {i}", p.points.volumes[i]),
-            "every integration volume must be positive and finite",
-        ));
-    }
-    Ok(())
+    p.points.check(&p.material)
 }
 
 /// A scene being simulated, one step at a time: every object's reduced model, the shared
@@ -621,16 +577,16 @@ impl World {
                 source: Box::new(e),
             };
             check_prepared(&p).map_err(ctx)?;
-            let parts = Parts {
+            let parts = ObjectBasis {
                 basis: p.basis,
                 points: p.points,
                 material: p.material,
                 cached: false,
-                basis_file: None,
+                file: None,
                 monitors: Monitors::default(),
-                precompute_s: 0.0,
             };
-            let mut object = SceneObject::from_parts(index, &p.spec, scene, None, parts, progress)?;
+            let mut object =
+                SceneObject::from_parts(index, &p.spec, scene, None, parts, 0.0, progress)?;
             object.load_render_sets(&settings.base_dir).map_err(ctx)?;
             objects.push(object);
         }

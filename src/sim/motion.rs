@@ -263,14 +263,7 @@ impl Motion {
                 }
                 Ok(())
             }
-            Motion::Pose {
-                rotation,
-                translation,
-            } => Rigid {
-                rotation: *rotation,
-                translation: *translation,
-            }
-            .validate(),
+            Motion::Pose { .. } => self.at(0.0).validate(),
         }
     }
 
