@@ -361,7 +361,7 @@ impl PyWorld {
     /// Deformed render points of an object (index or name): mesh vertices, point-cloud
     /// points, or integration points of a primitive; (N, 3), metres. With ``out`` (a
     /// writable float64 (N, 3) C-contiguous array) they are written there and ``out`` is
-    /// returned: no allocation in a stepping loop.
+    /// returned: no new NumPy array per call in a stepping loop.
     #[pyo3(signature = (object, out = None))]
     fn positions<'py>(
         &self,
