@@ -4,7 +4,7 @@
 use crate::fem::beam::{run_beam_reference, BeamReference, BeamTest, FemBeamConfig};
 use crate::material::Region;
 use crate::precompute::sampling::Resolution;
-use crate::precompute::{build_basis, BasisOptions, BasisRun};
+use crate::precompute::{build_basis, BasisOptions, BasisRun, BoundaryModes};
 use crate::progress::Progress;
 use crate::report::{Monitors, Stopwatch};
 use crate::sim::motion::Motion;
@@ -37,6 +37,8 @@ pub struct ReducedBeamOptions {
     /// default, `PENALTY_FACTOR` x max(rho/h^2, E/D^2)). The FEM reference holds its nodes
     /// exactly (Dirichlet); a stiffer penalty approaches that.
     pub hold_stiffness: Option<f64>,
+    /// Free or boundary-aware basis (the held and twisted ends are the regions).
+    pub boundaries: BoundaryModes,
 }
 
 impl Default for ReducedBeamOptions {
@@ -49,6 +51,7 @@ impl Default for ReducedBeamOptions {
             newton: NewtonOptions::default(),
             frames: None,
             hold_stiffness: None,
+            boundaries: BoundaryModes::default(),
         }
     }
 }
@@ -72,6 +75,8 @@ pub struct BeamComparison {
     pub tol: f64,
     /// Frames compared (steps run by the reduced model).
     pub frames: usize,
+    /// Free or boundary-aware basis.
+    pub boundaries: BoundaryModes,
     /// mean |x_red - x_fem|^2 / D^2 over frames and FEM nodes.
     pub normalized_mse: f64,
     /// max |x_red - x_fem| / D.
@@ -145,6 +150,8 @@ pub struct BasisKey {
     pub kernels: usize,
     /// Integration grid (None: the default).
     pub resolution: Option<Resolution>,
+    /// Free or boundary-aware basis.
+    pub boundaries: BoundaryModes,
 }
 
 impl ReducedBeamOptions {
@@ -154,6 +161,7 @@ impl ReducedBeamOptions {
             modes: self.modes,
             kernels: self.kernels,
             resolution: self.resolution,
+            boundaries: self.boundaries,
         }
     }
 
@@ -164,6 +172,10 @@ impl ReducedBeamOptions {
             modes: self.modes,
             resolution: self.resolution,
             material: fem.material,
+            boundary_regions: match self.boundaries {
+                BoundaryModes::Free => Vec::new(),
+                BoundaryModes::Aware => beam_regions(fem),
+            },
             ..BasisOptions::default()
         }
     }
@@ -212,6 +224,16 @@ pub fn beam_basis(
         seconds: clock.elapsed(),
         key: opts.basis_key(),
     })
+}
+
+/// The beam's boundary regions, rest coordinates: the held left end and, for the twist, the
+/// turned right end.
+pub fn beam_regions(fem: &FemBeamConfig) -> Vec<Region> {
+    beam_sim_options(fem, 1, NewtonOptions::default(), None)
+        .boundaries
+        .iter()
+        .map(|b| b.region)
+        .collect()
 }
 
 /// The reduced simulation of the beam test `fem.test` (design.md section 3): time step and
@@ -321,6 +343,7 @@ pub fn simulate_beam(
         hessian: opts.newton.hessian,
         tol: opts.newton.tol,
         frames: steps,
+        boundaries: opts.boundaries,
         normalized_mse: err.normalized_mse,
         max_error: err.max_error,
         normalized_mse_first_half: first.normalized_mse,

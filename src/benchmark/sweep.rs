@@ -20,6 +20,7 @@ use super::pareto::pareto_front;
 use super::{beam_basis, simulate_beam, BeamComparison, ReducedBeamOptions};
 use crate::fem::beam::{run_beam_reference, FemBeamConfig};
 use crate::precompute::sampling::Resolution;
+use crate::precompute::BoundaryModes;
 use crate::progress::{Progress, Silent};
 use crate::report::Stopwatch;
 use crate::sim::{HessianStrategy, NewtonOptions};
@@ -79,6 +80,8 @@ pub struct SweepSpec {
     pub newton: NewtonOptions,
     /// Compare over the first `frames` steps only (None: all of the reference's).
     pub frames: Option<usize>,
+    /// Free or boundary-aware bases for every run. Default: the beam command's.
+    pub boundaries: BoundaryModes,
 }
 
 impl Default for SweepSpec {
@@ -94,6 +97,7 @@ impl Default for SweepSpec {
             base_kernels: beam.kernels,
             newton: beam.newton,
             frames: None,
+            boundaries: beam.boundaries,
         }
     }
 }
@@ -139,6 +143,7 @@ impl SweepSpec {
             },
             frames: self.frames,
             hold_stiffness: None,
+            boundaries: self.boundaries,
         };
         let mut runs: Vec<PlannedRun> = Vec::new();
         let mut push = |axis, opts: ReducedBeamOptions| {

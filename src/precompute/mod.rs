@@ -16,6 +16,7 @@
 //! same stages across MPI ranks.
 
 pub mod assembly;
+pub mod boundary_modes;
 pub mod centers;
 mod compare;
 #[cfg(feature = "slepc")]
@@ -28,6 +29,7 @@ pub mod sampling;
 pub mod skinning;
 mod solver;
 
+pub use boundary_modes::BoundaryModes;
 pub use compare::{compare_solvers, ProblemComparison, SolverComparison, SolverResult};
 pub use options::{default_points, BasisOptions, MAX_KERNELS, MAX_POINTS};
 pub use problem::{build_basis, place_kernels, BasisRun, Problem};

@@ -3,7 +3,7 @@
 use super::rkpm::{KernelType, ShapeFunctionOptions, SupportOptions};
 use super::sampling::{CloudVolumeOptions, Resolution};
 use super::solver::SolverConfig;
-use crate::material::{Material, MaterialOverride};
+use crate::material::{Material, MaterialOverride, Region};
 use crate::{Error, Result};
 use serde::Serialize;
 
@@ -39,6 +39,12 @@ pub struct BasisOptions {
     /// Rounds of local support enlargement (x1.25 on the 4 kernels nearest each badly covered
     /// point) before giving up with a coverage error. Default 3.
     pub coverage_repair_rounds: usize,
+    /// Boundary regions the basis follows exactly, rest coordinates (a boundary-aware basis,
+    /// [`super::boundary_modes`]): B regions give B lifts and m + 1 - B free modes, so at most
+    /// m regions. Empty (the default): the free basis, the constant and m eigenmodes. Left out
+    /// of the serialized options when empty, so cache keys of free bases are unchanged.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub boundary_regions: Vec<Region>,
 }
 
 impl Default for BasisOptions {
@@ -57,6 +63,7 @@ impl Default for BasisOptions {
             max_iter: 1000,
             cloud: CloudVolumeOptions::default(),
             coverage_repair_rounds: 3,
+            boundary_regions: Vec::new(),
         }
     }
 }
@@ -157,6 +164,23 @@ impl BasisOptions {
         for o in &self.overrides {
             o.region.validate()?;
             o.material.validate()?;
+        }
+        for r in &self.boundary_regions {
+            r.validate()?;
+        }
+        if self.boundary_regions.len() > self.modes {
+            return Err(Error::param(
+                "modes",
+                self.modes,
+                format!(
+                    "a boundary-aware basis with {} regions has {} lifts and needs m >= {} to \
+                     keep at least one free mode; raise basis.modes or use basis.boundaries = \
+                     \"free\"",
+                    self.boundary_regions.len(),
+                    self.boundary_regions.len(),
+                    self.boundary_regions.len()
+                ),
+            ));
         }
         Ok(())
     }

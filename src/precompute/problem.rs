@@ -3,6 +3,7 @@
 //! a chosen eigensolver into a [`BasisRun`] (the basis and its report).
 
 use super::assembly::{assemble, Assembled};
+use super::boundary_modes;
 use super::centers::{farthest_point_sampling, morton_order};
 use super::options::BasisOptions;
 use super::quality::{CoverageReport, ModesReport, SolveFacts};
@@ -309,8 +310,31 @@ impl Problem {
         } = self;
         let clock = Stopwatch::start();
         check_cancelled(progress, "eigensolve")?;
+        let regions = &opts.boundary_regions;
+        // A boundary-aware basis solves the grounded restricted problem (boundary_modes.rs)
+        // for the free modes; the lifts come after the solve.
+        let aware = if regions.is_empty() {
+            None
+        } else {
+            let free_modes = request.nev - regions.len();
+            let part = boundary_modes::partition(&kernels, &points, regions, free_modes)?;
+            let (h, m) =
+                boundary_modes::grounded_problem(&assembled.hessian, &assembled.mass, &part);
+            Some((part, h, m, free_modes))
+        };
+        let (h, m, request) = match &aware {
+            None => (&assembled.hessian, &assembled.mass, request),
+            Some((_, h, m, free_modes)) => (
+                h,
+                m,
+                EigenRequest {
+                    nev: free_modes + 1,
+                    ..request
+                },
+            ),
+        };
         let mut solution = solver
-            .solve(&assembled.hessian, &assembled.mass, &request, progress)
+            .solve(h, m, &request, progress)
             .map_err(|e| match e {
                 EigenError::Cancelled { iterations } => Error::Cancelled {
                     stage: format!("eigensolve ({iterations} iterations)"),
@@ -319,6 +343,27 @@ impl Problem {
             })?;
         if require_converged {
             solution = solution.into_converged()?;
+        }
+        let mut boundaries = Vec::new();
+        if let Some((part, ..)) = &aware {
+            let (coefficients, values, reports) = boundary_modes::assemble_aware(
+                &assembled.hessian,
+                &assembled.mass,
+                part,
+                regions,
+                &solution,
+            )?;
+            solution.info.notes.push(format!(
+                "boundary-aware: {} lifts, {} free modes on {} of {} kernels (residuals and \
+                 orthonormality are those of the restricted problem)",
+                part.regions(),
+                values.len() - part.regions(),
+                part.free.len(),
+                kernels.len()
+            ));
+            solution.vectors = coefficients;
+            solution.values = values;
+            boundaries = reports;
         }
         timings.eigensolve = clock.elapsed();
         timings.total += timings.eigensolve;
@@ -332,7 +377,9 @@ impl Problem {
             coverage,
             warnings,
         };
-        let report = ModesReport::of_solve(&opts, kernels.len(), &points, &solution, repro, facts);
+        let mut report =
+            ModesReport::of_solve(&opts, kernels.len(), &points, &solution, repro, facts);
+        report.boundaries = boundaries;
         let basis = Basis {
             kernels,
             coefficients: solution.vectors,

@@ -1,6 +1,7 @@
 //! The quality figures of a precomputation: the `modes` report ([`ModesReport`]), its coverage
 //! figures, and the warnings raised when a monitor leaves its healthy range.
 
+use super::boundary_modes::BoundaryRegionReport;
 use super::options::BasisOptions;
 use super::rkpm::{KernelType, ReproducingError, SupportOptions};
 use super::sampling::IntegrationPoints;
@@ -74,6 +75,9 @@ pub struct ModesReport {
     /// Conditioning and convergence monitors (the same keys as in `run` and `beam`).
     #[serde(default)]
     pub monitors: Monitors,
+    /// Boundary regions of a boundary-aware basis, one per lift (empty for a free basis).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub boundaries: Vec<BoundaryRegionReport>,
 }
 
 /// A moment matrix with a reciprocal condition number below this is reported: 100 times
@@ -137,6 +141,7 @@ impl ModesReport {
             tol: opts.tol,
             warnings: facts.warnings,
             monitors: Monitors::default(),
+            boundaries: Vec::new(),
         };
         check_quality(&mut report);
         report

@@ -5,7 +5,7 @@
 use crate::material::{Material, MaterialOverride};
 use crate::precompute::rkpm::{KernelType, SupportOptions};
 use crate::precompute::sampling::{CloudVolumeOptions, Resolution};
-use crate::precompute::{BasisOptions, SolverConfig};
+use crate::precompute::{BasisOptions, BoundaryModes, SolverConfig};
 use crate::sim::newton::{HessianStrategy, InitialGuess, Precision};
 use crate::sim::{Boundary, Collider, NewtonOptions, Placement};
 use crate::{Error, Result};
@@ -239,6 +239,10 @@ pub struct BasisSettings {
     /// Point clouds: voxel edge, metres.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub voxel: Option<f64>,
+    /// How the basis treats the object's boundary regions: "aware" (default: one lift per
+    /// region and free modes that vanish on the regions) or "free" (global modes, regions held
+    /// by the penalty alone). Objects without boundaries get the same basis either way.
+    pub boundaries: BoundaryModes,
 }
 
 impl Default for BasisSettings {
@@ -256,8 +260,20 @@ impl Default for BasisSettings {
             eigen_tol: b.tol,
             volume: None,
             voxel: None,
+            boundaries: BoundaryModes::default(),
         }
     }
+}
+
+/// The boundaries' regions, each once (two boundaries on one region pin it once).
+fn distinct_regions(boundaries: &[Boundary]) -> Vec<crate::material::Region> {
+    let mut out: Vec<crate::material::Region> = Vec::new();
+    for b in boundaries {
+        if !out.contains(&b.region) {
+            out.push(b.region);
+        }
+    }
+    out
 }
 
 impl ObjectSpec {
@@ -294,6 +310,10 @@ impl ObjectSpec {
             cloud: CloudVolumeOptions {
                 voxel: b.voxel,
                 total_volume: b.volume,
+            },
+            boundary_regions: match b.boundaries {
+                BoundaryModes::Free => Vec::new(),
+                BoundaryModes::Aware => distinct_regions(&self.boundaries),
             },
             ..BasisOptions::default()
         };

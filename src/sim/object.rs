@@ -353,17 +353,53 @@ impl ReducedSim {
         self.mass.total
     }
 
-    /// The constant value of mode 0 (the constant mode), m^(-3/2).
-    fn constant_mode(&self) -> Result<f64> {
-        let c0 = self.mass.b[3] / self.mass.total;
-        if !(c0.abs() > 0.0 && c0.is_finite()) {
-            return Err(Error::param(
+    /// The combination of the weights that is 1 everywhere, alpha with sum_j alpha_j W_j = 1
+    /// (m^(3/2)): a free basis has it in mode 0 alone, a boundary-aware one in its lifts. It
+    /// is the mass-weighted least-squares fit G alpha = g over the integration points
+    /// (G_jk = sum rho v W_j W_k, g_j = sum rho v W_j), checked to reproduce 1.
+    fn unity(&self) -> Result<Vec<f64>> {
+        let nh = self.layout.handles;
+        let b = &self.mass;
+        let g = faer::Mat::from_fn(nh, nh, |j, k| b.bb[(4 * j + 3, 4 * k + 3)]);
+        let rhs = faer::Mat::from_fn(nh, 1, |j, _| b.b[4 * j + 3]);
+        let fail = |detail: String| {
+            Error::param(
                 "basis",
-                c0,
-                "mode 0 of the basis is not the constant mode",
-            ));
+                nh,
+                format!("no combination of the modes is constant ({detail}): a rigid placement needs one"),
+            )
+        };
+        // sum rho v (alpha^T W - 1)^2 / total = (alpha^T G alpha - 2 alpha^T g + total) / total:
+        // 0 for a basis that holds the constant; 1e-8 is far above the rounding of the
+        // cancellation (~1e-16 times the Gram matrix's condition number, ~1e3 here).
+        let misfit = |alpha: &[f64]| {
+            let quad: f64 = (0..nh)
+                .map(|j| {
+                    (0..nh)
+                        .map(|k| alpha[j] * g[(j, k)] * alpha[k])
+                        .sum::<f64>()
+                })
+                .sum();
+            let lin: f64 = (0..nh).map(|j| alpha[j] * rhs[(j, 0)]).sum();
+            (quad - 2.0 * lin + b.total) / b.total
+        };
+        let ok = |alpha: &[f64]| misfit(alpha).abs() <= 1e-8 && alpha.iter().all(|a| a.is_finite());
+        // A free basis: mode 0 alone (exactly as the constant mode's value says).
+        let mut alpha = vec![0.0; nh];
+        alpha[0] = b.total / b.b[3];
+        if ok(&alpha) {
+            return Ok(alpha);
         }
-        Ok(c0)
+        let llt = g
+            .llt(faer::Side::Lower)
+            .map_err(|e| fail(format!("weight Gram matrix: {e:?}")))?;
+        use faer::linalg::solvers::Solve;
+        let sol = llt.solve(&rhs);
+        let alpha: Vec<f64> = (0..nh).map(|j| sol[(j, 0)]).collect();
+        if !ok(&alpha) {
+            return Err(fail(format!("relative misfit {:.2e}", misfit(&alpha))));
+        }
+        Ok(alpha)
     }
 
     /// Put the object at `placement` with its initial velocity.
@@ -381,30 +417,28 @@ impl ReducedSim {
                 return Err(Error::param("velocity", v, "must be finite"));
             }
         }
-        let c0 = self.constant_mode()?;
+        let alpha = self.unity()?;
         let l = self.layout;
         let r = &rigid.rotation;
-        for row in 0..3 {
-            for a in 0..3 {
-                let id = if row == a { 1.0 } else { 0.0 };
-                self.z[l.index(row, 0, a)] = (r[row][a] - id) / c0;
-            }
-            self.z[l.index(row, 0, 3)] = rigid.translation[row] / c0;
-        }
         // Velocity v + w x (x - c) at x = R X + t, with c the placed centre of mass.
         let com0: Point3 = std::array::from_fn(|d| self.mass.xx[d][3] / self.mass.total);
         let com = rigid.apply(&com0);
         let w = p.angular_velocity;
         let wx = [[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]];
-        for row in 0..3 {
-            for a in 0..3 {
-                let v: f64 = (0..3).map(|k| wx[row][k] * r[k][a]).sum();
-                self.zdot[l.index(row, 0, a)] = v / c0;
+        for (j, &aj) in alpha.iter().enumerate() {
+            for row in 0..3 {
+                for a in 0..3 {
+                    let id = if row == a { 1.0 } else { 0.0 };
+                    self.z[l.index(row, j, a)] = aj * (r[row][a] - id);
+                    let v: f64 = (0..3).map(|k| wx[row][k] * r[k][a]).sum();
+                    self.zdot[l.index(row, j, a)] = aj * v;
+                }
+                self.z[l.index(row, j, 3)] = aj * rigid.translation[row];
+                let wt: f64 = (0..3)
+                    .map(|k| wx[row][k] * (rigid.translation[k] - com[k]))
+                    .sum();
+                self.zdot[l.index(row, j, 3)] = aj * (p.velocity[row] + wt);
             }
-            let wt: f64 = (0..3)
-                .map(|k| wx[row][k] * (rigid.translation[k] - com[k]))
-                .sum();
-            self.zdot[l.index(row, 0, 3)] = (p.velocity[row] + wt) / c0;
         }
         Ok(())
     }

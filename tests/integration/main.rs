@@ -17,6 +17,7 @@ mod common;
 mod architecture;
 mod assembly;
 mod bad_inputs;
+mod boundary_modes;
 mod cli;
 mod extremes;
 mod fem;

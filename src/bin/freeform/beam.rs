@@ -8,6 +8,7 @@ use freeform::benchmark::{compare_beam, ReducedBeamOptions};
 use freeform::fem::beam::{BeamTest, FemBeamConfig};
 use freeform::fem::ElementOrder;
 use freeform::precompute::sampling::Resolution;
+use freeform::precompute::BoundaryModes;
 use freeform::progress::{Progress, Silent, TerminalProgress};
 use freeform::sim::{HessianStrategy, NewtonOptions};
 use std::io::IsTerminal;
@@ -45,6 +46,22 @@ impl From<HessianArg> for HessianStrategy {
     }
 }
 
+/// `--boundaries` of `beam` and `sweep`.
+#[derive(Clone, Copy, ValueEnum)]
+pub(crate) enum BoundariesArg {
+    Aware,
+    Free,
+}
+
+impl From<BoundariesArg> for BoundaryModes {
+    fn from(b: BoundariesArg) -> Self {
+        match b {
+            BoundariesArg::Aware => BoundaryModes::Aware,
+            BoundariesArg::Free => BoundaryModes::Free,
+        }
+    }
+}
+
 #[derive(Clone, Copy, ValueEnum)]
 enum OrderArg {
     Linear,
@@ -74,6 +91,10 @@ pub struct BeamArgs {
     /// Hessian strategy of the reduced model.
     #[arg(long, value_enum, default_value = "lbfgs")]
     hessian: HessianArg,
+    /// Basis: "aware" (lifts for the held and twisted ends, free modes that vanish there) or
+    /// "free" (global modes, the ends held by the penalty alone).
+    #[arg(long, value_enum, default_value = "aware")]
+    boundaries: BoundariesArg,
     /// Newton tolerance of the reduced model.
     #[arg(long, default_value_t = NewtonOptions::default().tol)]
     tol: f64,
@@ -146,6 +167,7 @@ pub fn run(args: BeamArgs) -> CliResult {
         },
         frames: None,
         hold_stiffness: args.hold_stiffness,
+        boundaries: args.boundaries.into(),
     };
     let mut r = compare_beam(&fem, &opts, Some(&args.fem.cache), progress().as_ref())?;
     localize_all(&mut r.warnings, Front::Flags);
@@ -153,10 +175,11 @@ pub fn run(args: BeamArgs) -> CliResult {
         emit(&(serde_json::to_string_pretty(&r)? + "\n"))?;
     } else {
         emit(&format!(
-            "freeform beam {}: m = {}, K = {}, {} cubature points ({})\n  normalized MSE {:.3e}, max error {:.3e} (of the diagonal)\n  precompute {:.2} s, reduced step {:.2} ms ({} not converged), FEM step {:.1} ms ({} nodes, {} tets{})\n",
+            "freeform beam {}: m = {}, K = {}, {} basis, {} cubature points ({})\n  normalized MSE {:.3e}, max error {:.3e} (of the diagonal)\n  precompute {:.2} s, reduced step {:.2} ms ({} not converged), FEM step {:.1} ms ({} nodes, {} tets{})\n",
             r.test,
             r.modes,
             r.kernels,
+            r.boundaries,
             r.cubature_points,
             r.hessian.name(),
             r.normalized_mse,

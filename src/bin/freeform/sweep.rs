@@ -3,7 +3,7 @@
 //! a base point (design in `freeform::benchmark::sweep`); writes `sweep.csv`,
 //! `error_vs_precompute.png`, `error_vs_step.png` (and `sweep.json` with `--json`) to `--out`.
 
-use crate::beam::{progress, FemArgs, HessianArg, TestArg};
+use crate::beam::{progress, BoundariesArg, FemArgs, HessianArg, TestArg};
 use crate::messages::{error_message, Front};
 use crate::{emit, set_threads, CliResult};
 use clap::Args;
@@ -59,6 +59,10 @@ pub struct SweepArgs {
     /// reference's 200; the motion is unchanged) [default: all].
     #[arg(long)]
     frames: Option<usize>,
+    /// Basis of every run: "aware" (lifts for the ends, free modes that vanish there) or
+    /// "free" (global modes).
+    #[arg(long, value_enum, default_value = "aware")]
+    boundaries: BoundariesArg,
     /// Output directory (created if missing).
     #[arg(long, default_value = "sweep")]
     out: PathBuf,
@@ -108,6 +112,7 @@ pub fn run(args: SweepArgs) -> CliResult {
             ..NewtonOptions::default()
         },
         frames: args.frames,
+        boundaries: args.boundaries.into(),
     };
     let runs = spec.plan(&fem)?;
     std::fs::create_dir_all(&args.out)

@@ -1,0 +1,224 @@
+//! Boundary-aware bases (docs/math.md, "Boundary-aware modes"): the lifts are exactly 1 / 0 on
+//! the regions and sum to 1, the free modes vanish on the regions and are the restricted
+//! pencil's eigenpairs (against a dense solve), placement and bad regions.
+
+use faer::Mat;
+use freeform::material::Region;
+use freeform::precompute::sampling::Resolution;
+use freeform::precompute::{BasisOptions, Problem, SolverConfig};
+use freeform::progress::Silent;
+use freeform::sparse::{to_dense, SparseMatrix};
+
+const LEFT: Region = Region::HalfSpace {
+    point: [0.25, 0.0, 0.0],
+    normal: [-1.0, 0.0, 0.0],
+};
+const RIGHT: Region = Region::HalfSpace {
+    point: [1.75, 0.0, 0.0],
+    normal: [1.0, 0.0, 0.0],
+};
+
+fn options(regions: Vec<Region>, solver: SolverConfig) -> BasisOptions {
+    BasisOptions {
+        kernels: 160,
+        modes: 6,
+        resolution: Some(Resolution::Count(8000)),
+        solver,
+        boundary_regions: regions,
+        ..BasisOptions::default()
+    }
+}
+
+/// The basis and the full H_w, M it was built from.
+fn build(opts: &BasisOptions) -> (freeform::precompute::BasisRun, SparseMatrix, SparseMatrix) {
+    let shape = freeform::io::read_shape("box:2,0.5,0.5", &Default::default()).unwrap();
+    let problem = Problem::from_shape(&shape, opts, &Silent).unwrap();
+    let h = problem.matrices().hessian.clone();
+    let m = problem.matrices().mass.clone();
+    (problem.solve(&Silent).unwrap(), h, m)
+}
+
+#[test]
+fn lifts_and_free_modes_follow_the_regions_exactly() {
+    for solver in [SolverConfig::Dense, SolverConfig::default()] {
+        let (run, h, m) = build(&options(vec![LEFT, RIGHT], solver.clone()));
+        let basis = &run.basis;
+        assert_eq!(basis.modes(), 7, "2 lifts + 5 free modes");
+        let pts = &run.points.points;
+        let w = basis.weights(pts).unwrap();
+        let (mut left, mut right) = (0, 0);
+        // Rounding of RKPM sums of ~30 terms of size ~1 (lifts) and of coefficients of size
+        // ~1/sqrt(volume) ~ 1.4 (free modes): 1e-10 leaves four orders of margin.
+        for (i, p) in pts.iter().enumerate() {
+            let row = w.row(i);
+            assert!(
+                (row[0] + row[1] - 1.0).abs() < 1e-10,
+                "lifts sum to 1 at {p:?}"
+            );
+            if LEFT.contains(p) {
+                left += 1;
+                assert!(
+                    (row[0] - 1.0).abs() < 1e-10 && row[1].abs() < 1e-10,
+                    "{row:?}"
+                );
+            }
+            if RIGHT.contains(p) {
+                right += 1;
+                assert!(
+                    row[0].abs() < 1e-10 && (row[1] - 1.0).abs() < 1e-10,
+                    "{row:?}"
+                );
+            }
+            if LEFT.contains(p) || RIGHT.contains(p) {
+                for (j, v) in row[2..].iter().enumerate() {
+                    assert!(
+                        v.abs() < 1e-10,
+                        "free mode {j} = {v:e} on a region at {p:?}"
+                    );
+                }
+            }
+        }
+        assert!(left > 100 && right > 100, "{left} {right}");
+        let report = &run.report.boundaries;
+        assert_eq!(report.len(), 2);
+        assert_eq!(report[0].points, left);
+        assert_eq!(report[1].points, right);
+
+        // Free kernels: those where every lift is strictly between 0 and 1 or the free modes
+        // are non-zero; recover them from the coefficients (pinned rows are exactly 0 / 1 in
+        // the lifts and 0 in the free modes).
+        let c = &basis.coefficients;
+        let k = c.nrows();
+        let free: Vec<usize> = (0..k)
+            .filter(|&i| (2..7).any(|j| c[(i, j)] != 0.0))
+            .collect();
+        assert_eq!(
+            free.len() + report[0].kernels + report[1].kernels,
+            k,
+            "every kernel is free or pinned to one region"
+        );
+        let hd = to_dense(&h);
+        let md = to_dense(&m);
+        let sub = |a: &Mat<f64>| Mat::from_fn(free.len(), free.len(), |i, j| a[(free[i], free[j])]);
+        let (hff, mff) = (sub(&hd), sub(&md));
+        let y = Mat::from_fn(free.len(), 5, |i, j| c[(free[i], 2 + j)]);
+        // M_FF-orthonormal and H_FF y = lambda M_FF y (the solver's tolerance is 1e-8).
+        let gram = y.transpose() * &mff * &y;
+        for i in 0..5 {
+            for j in 0..5 {
+                let e = if i == j { 1.0 } else { 0.0 };
+                assert!(
+                    (gram[(i, j)] - e).abs() < 1e-8,
+                    "gram {i} {j} {}",
+                    gram[(i, j)]
+                );
+            }
+        }
+        let hy = &hff * &y;
+        let my = &mff * &y;
+        let (hnorm, mnorm) = (hff.norm_l2(), mff.norm_l2());
+        for j in 0..5 {
+            let lambda = basis.eigenvalues[2 + j];
+            let r = (hy.col(j) - my.col(j) * lambda).norm_l2();
+            // The solver's relative residual (tolerance 1e-8) uses ||.||_1 of the grounded
+            // matrices; with Frobenius norms here the same residual can read up to ~10x
+            // larger (the ratio of the two norms for ~100 nonzeros per row): 1e-6 bounds it.
+            let rel = r / ((hnorm + lambda.abs() * mnorm) * y.col(j).norm_l2());
+            assert!(rel <= 1e-6, "pair {j}: relative residual {rel:e}");
+        }
+        // The eigenvalues are the smallest of the restricted pencil: a dense reference
+        // (M_FF^-1/2 H_FF M_FF^-1/2 from the symmetric eigendecomposition of M_FF).
+        let me = mff.self_adjoint_eigen(faer::Side::Lower).unwrap();
+        let (u, d) = (me.U(), me.S());
+        let n = free.len();
+        let s_inv = Mat::from_fn(n, n, |i, j| {
+            (0..n)
+                .map(|q| u[(i, q)] * u[(j, q)] / d[q].sqrt())
+                .sum::<f64>()
+        });
+        let cmat = &s_inv * &hff * &s_inv;
+        let cs = (&cmat + cmat.transpose()) * 0.5;
+        let mut ev: Vec<f64> = cs.self_adjoint_eigenvalues(faer::Side::Lower).unwrap();
+        ev.sort_by(f64::total_cmp);
+        for j in 0..5 {
+            let got = basis.eigenvalues[2 + j];
+            // Eigenvalues converge with the square of the 1e-8 residual; the dense reference
+            // itself is accurate to ~1e-12 relative: 1e-8 is loose for both.
+            assert!(
+                (got - ev[j]).abs() <= 1e-8 * ev[j].abs(),
+                "eigenvalue {j}: {got:e} vs dense {:e}",
+                ev[j]
+            );
+        }
+        // The lifts are H_w-harmonic on the free kernels: (H c)_F = 0.
+        for b in 0..2 {
+            let lift = Mat::from_fn(k, 1, |i, _| c[(i, b)]);
+            let hl = &hd * &lift;
+            let worst = free.iter().map(|&i| hl[(i, 0)].abs()).fold(0.0, f64::max);
+            assert!(worst <= 1e-9 * hnorm, "lift {b}: (H c)_F up to {worst:e}");
+        }
+    }
+}
+
+#[test]
+fn one_region_lift_is_the_constant_and_free_basis_is_unchanged() {
+    let (run, ..) = build(&options(vec![LEFT], SolverConfig::default()));
+    let c = &run.basis.coefficients;
+    assert_eq!(run.basis.modes(), 7, "1 lift + 6 free modes");
+    for i in 0..c.nrows() {
+        assert_eq!(c[(i, 0)], 1.0, "the single lift is exactly the constant");
+    }
+    // No regions: exactly the free basis of the same options.
+    let (free, ..) = build(&options(vec![], SolverConfig::default()));
+    let opts = options(vec![], SolverConfig::default());
+    let shape = freeform::io::read_shape("box:2,0.5,0.5", &Default::default()).unwrap();
+    let again = freeform::precompute::build_basis(&shape, &opts, &Silent).unwrap();
+    assert_eq!(free.basis.coefficients, again.basis.coefficients);
+    assert!(free.report.boundaries.is_empty());
+}
+
+#[test]
+fn bad_regions_are_named() {
+    let shape = freeform::io::read_shape("box:2,0.5,0.5", &Default::default()).unwrap();
+    let err = |regions: Vec<Region>| {
+        let opts = options(regions, SolverConfig::default());
+        freeform::precompute::build_basis(&shape, &opts, &Silent)
+            .unwrap_err()
+            .to_string()
+    };
+    let outside = Region::Sphere {
+        center: [5.0, 5.0, 5.0],
+        radius: 0.1,
+    };
+    let e = err(vec![LEFT, outside]);
+    assert!(
+        e.contains("boundary region") && e.contains("no integration point"),
+        "{e}"
+    );
+    let near = Region::HalfSpace {
+        point: [0.3, 0.0, 0.0],
+        normal: [1.0, 0.0, 0.0],
+    };
+    let e = err(vec![LEFT, near]);
+    assert!(
+        e.contains("0 and 1") && e.contains("within one kernel support"),
+        "{e}"
+    );
+    let everything = Region::Box {
+        min: [-1.0; 3],
+        max: [3.0; 3],
+    };
+    let e = err(vec![everything]);
+    assert!(e.contains("whole object"), "{e}");
+    let mut opts = options(vec![LEFT, RIGHT], SolverConfig::default());
+    opts.modes = 1;
+    let e = freeform::precompute::build_basis(&shape, &opts, &Silent)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("2 lifts") && e.contains("m >= 2"), "{e}");
+    let nan = Region::Sphere {
+        center: [f64::NAN, 0.0, 0.0],
+        radius: 0.1,
+    };
+    assert!(err(vec![nan]).contains("NaN"));
+}
