@@ -1,13 +1,16 @@
 //! Boundary-aware skinning modes (docs/math.md, "Boundary-aware modes"): with B boundary
-//! regions the m + 1 weights are B *lifts* (lift b is 1 on region b, 0 on the other regions
-//! and H_w-harmonic elsewhere; together they sum to 1) followed by m + 1 - B *free modes*, the
-//! smallest eigenpairs of H_w c = lambda M c restricted to fields that vanish on every region.
+//! regions the m + 1 weights are B *lifts* (lift b is 1 on region b's kernels, 0 on the other
+//! regions' and H_w-harmonic elsewhere; together they sum to 1) followed by m + 1 - B *free
+//! modes*, the smallest eigenpairs of H_w c = lambda M c restricted to fields whose
+//! coefficients vanish on every region's kernels.
 //!
-//! "On a region" is exact at the kernel level: a kernel that covers an integration point of
-//! region b is *pinned* to b. A field whose pinned coefficients are all 1 equals 1 at every
-//! point of the region (RKPM reproduces constants); all 0 gives 0. The free modes therefore
-//! never move a region, and a hold penalty on it no longer constrains them (the locking that
-//! made free-floating modes too stiff, docs/accuracy.md).
+//! A kernel is *pinned* to a region when its centre lies in it, as the nodes of a FEM
+//! Dirichlet boundary are the nodes in the held region. On the region's *core* (the points
+//! covered by its pinned kernels only) a lift is exactly 1 or 0 (RKPM reproduces constants)
+//! and the free modes exactly 0; within one kernel support of the region's edge the free modes
+//! ramp up, as the elements straddling a Dirichlet boundary do. The simulator holds an aware
+//! region through its lift's handle ([`lift_column`]), so the hold never touches the free
+//! modes: the locking of free-floating modes under a stiff hold (docs/accuracy.md) is gone.
 //!
 //! The restricted eigenproblem (H_FF, M_FF) has no null space, while every eigensolver here
 //! deflates the constant. It is handed to them *grounded*: one extra unknown g with the map
@@ -16,8 +19,9 @@
 //! the pencil (H', M') is (H_FF, M_FF): the solvers return the constant and then exactly the
 //! restricted eigenpairs, with no change to LOBPCG, the dense solver or SLEPc.
 
-use super::rkpm::{covering_kernels, Kernels};
+use super::rkpm::Kernels;
 use super::sampling::IntegrationPoints;
+use super::skinning::Basis;
 use crate::eigen::EigenSolution;
 use crate::material::Region;
 use crate::sparse::{self, SparseMatrix};
@@ -77,7 +81,7 @@ pub struct BoundaryRegionReport {
     pub region: Region,
     /// Integration points inside it.
     pub points: usize,
-    /// Kernels pinned to it (they cover at least one of its points).
+    /// Kernels pinned to it (centred in it).
     pub kernels: usize,
     /// H_w energy of its lift over its M norm, c^T H c / c^T M c, Pa / m^2.
     pub lift_rayleigh: f64,
@@ -103,12 +107,13 @@ impl RegionPartition {
     }
 }
 
-/// Pin every kernel that covers an integration point of a region to that region.
+/// Pin every kernel whose centre lies in a region to that region (the RKPM analogue of the
+/// nodes of a FEM Dirichlet boundary).
 ///
 /// # Errors
-/// [`Error::InvalidParameter`] for an invalid region, a region with no integration point,
-/// two regions within one kernel support of each other (a kernel covers points of both), or
-/// regions that leave fewer than `free_modes + 1` kernels free (they cover the object).
+/// [`Error::InvalidParameter`] for an invalid region, a region with no integration point or
+/// no kernel centre (thinner than the kernel spacing), overlapping regions (a kernel centre in
+/// both), or regions that leave fewer than `free_modes + 1` kernels free.
 pub fn partition(
     kernels: &Kernels,
     points: &IntegrationPoints,
@@ -121,13 +126,8 @@ pub fn partition(
     let mut pinned = Vec::with_capacity(regions.len());
     for (b, region) in regions.iter().enumerate() {
         region.validate()?;
-        let inside: Vec<_> = points
-            .points
-            .iter()
-            .filter(|p| region.contains(p))
-            .copied()
-            .collect();
-        if inside.is_empty() {
+        let inside = points.points.iter().filter(|p| region.contains(p)).count();
+        if inside == 0 {
             return Err(Error::param(
                 "boundary region",
                 b,
@@ -137,32 +137,38 @@ pub fn partition(
                 ),
             ));
         }
-        let cover = covering_kernels(kernels, &inside);
         let mut n = 0;
-        for &kk in &cover.kernels {
-            let kk = kk as usize;
-            match owner[kk] {
-                None => {
-                    owner[kk] = Some(b);
-                    n += 1;
-                }
-                Some(o) if o == b => {}
-                Some(o) => {
-                    return Err(Error::param(
-                        "boundary regions",
-                        format!("{o} and {b}"),
-                        format!(
-                            "lie within one kernel support of each other (kernel {kk} at {:?}, \
-                             radius {:.3e} m, covers points of both): the basis cannot be 1 on \
-                             one and 0 on the other; move them apart, merge them, use more \
-                             kernels, or use basis.boundaries = \"free\"",
-                            kernels.centers[kk], kernels.radii[kk]
-                        ),
-                    ))
-                }
+        for kk in 0..k {
+            if !region.contains(&kernels.centers[kk]) {
+                continue;
             }
+            if let Some(o) = owner[kk] {
+                return Err(Error::param(
+                    "boundary regions",
+                    format!("{o} and {b}"),
+                    format!(
+                        "overlap (kernel centre {:?} lies in both): a basis cannot be 1 on one \
+                         and 0 on the other; make them disjoint or merge them",
+                        kernels.centers[kk]
+                    ),
+                ));
+            }
+            owner[kk] = Some(b);
+            n += 1;
         }
-        counts.push(inside.len());
+        if n == 0 {
+            let spacing = kernels.radii.iter().sum::<f64>() / k.max(1) as f64;
+            return Err(Error::param(
+                "boundary region",
+                b,
+                format!(
+                    "{region:?} holds {inside} integration points but no kernel centre: it is \
+                     thinner than the kernel spacing (supports ~{spacing:.3e} m); enlarge it, \
+                     use more kernels, or use basis.boundaries = \"free\""
+                ),
+            ));
+        }
+        counts.push(inside);
         pinned.push(n);
     }
     let free: Vec<usize> = (0..k).filter(|&i| owner[i].is_none()).collect();
@@ -186,6 +192,24 @@ pub fn partition(
         points: counts,
         kernels: pinned,
     })
+}
+
+/// The lift of `region` in `basis`, if the basis is boundary-aware for it: the column that is
+/// exactly 1 on every kernel centred in the region while every other column is exactly 0
+/// there (values set by construction, so the test is exact). None for a free basis or a
+/// region the basis was not built for. The simulator holds such a region through this
+/// column's handle alone.
+pub fn lift_column(basis: &Basis, region: &Region) -> Option<usize> {
+    let c = &basis.coefficients;
+    let inside: Vec<usize> = (0..basis.kernels.len())
+        .filter(|&k| region.contains(&basis.kernels.centers[k]))
+        .collect();
+    let &first = inside.first()?;
+    let j = (0..c.ncols()).find(|&j| c[(first, j)] == 1.0)?;
+    let exact = inside
+        .iter()
+        .all(|&k| (0..c.ncols()).all(|i| c[(k, i)] == if i == j { 1.0 } else { 0.0 }));
+    exact.then_some(j)
 }
 
 /// Index of each kernel among the free ones (usize::MAX for pinned kernels).

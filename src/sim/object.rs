@@ -5,6 +5,7 @@
 //! boundary moments without boundaries, no contact loop without colliders.
 
 use crate::material::{MaterialField, Region};
+use crate::precompute::boundary_modes::lift_column;
 use crate::precompute::sampling::IntegrationPoints;
 use crate::precompute::skinning::{Basis, SkinningWeights};
 use crate::report::Stopwatch;
@@ -245,10 +246,29 @@ impl ReducedSim {
                 ));
             }
             let coef: Vec<f64> = pts.iter().map(|&i| k * ip.volumes[i]).collect();
+            let moments = match lift_column(basis, &spec.region) {
+                // An aware region is held through its lift's handle alone (the region's
+                // points as if every other weight were 0 there): the free modes ramp up near
+                // the region's edge and must not be held (boundary_modes.rs).
+                Some(j) => {
+                    let nh = all.modes;
+                    let held = SkinningWeights {
+                        modes: nh,
+                        values: (0..pts.len() * nh)
+                            .map(|e| if e % nh == j { 1.0 } else { 0.0 })
+                            .collect(),
+                        gradients: vec![[0.0; 3]; pts.len() * nh],
+                    };
+                    let local: Vec<Point3> = pts.iter().map(|&i| ip.points[i]).collect();
+                    let idx: Vec<usize> = (0..pts.len()).collect();
+                    Moments::new(&local, &held, &idx, &coef)
+                }
+                None => Moments::new(&ip.points, all, &pts, &coef),
+            };
             boundaries.push(BoundaryTerm {
                 motion: spec.motion.clone(),
                 stiffness: k,
-                moments: Moments::new(&ip.points, all, &pts, &coef),
+                moments,
                 points: pts,
                 placement,
             });

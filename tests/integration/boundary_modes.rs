@@ -10,11 +10,11 @@ use freeform::progress::Silent;
 use freeform::sparse::{to_dense, SparseMatrix};
 
 const LEFT: Region = Region::HalfSpace {
-    point: [0.25, 0.0, 0.0],
+    point: [0.5, 0.0, 0.0],
     normal: [-1.0, 0.0, 0.0],
 };
 const RIGHT: Region = Region::HalfSpace {
-    point: [1.75, 0.0, 0.0],
+    point: [1.5, 0.0, 0.0],
     normal: [1.0, 0.0, 0.0],
 };
 
@@ -46,43 +46,52 @@ fn lifts_and_free_modes_follow_the_regions_exactly() {
         assert_eq!(basis.modes(), 7, "2 lifts + 5 free modes");
         let pts = &run.points.points;
         let w = basis.weights(pts).unwrap();
+        let cover = freeform::precompute::rkpm::covering_kernels(&basis.kernels, pts);
+        // The core of a region: points covered only by kernels centred in it.
+        let core = |i: usize, r: &Region| {
+            (cover.ptr[i]..cover.ptr[i + 1])
+                .all(|e| r.contains(&basis.kernels.centers[cover.kernels[e] as usize]))
+        };
         let (mut left, mut right) = (0, 0);
-        // Rounding of RKPM sums of ~30 terms of size ~1 (lifts) and of coefficients of size
-        // ~1/sqrt(volume) ~ 1.4 (free modes): 1e-10 leaves four orders of margin.
+        // Rounding of RKPM sums of ~30 terms of size ~1: 1e-10 leaves four orders of margin.
+        // On a core the values are exact: every coefficient involved is exactly 1 or 0.
         for (i, p) in pts.iter().enumerate() {
             let row = w.row(i);
             assert!(
                 (row[0] + row[1] - 1.0).abs() < 1e-10,
                 "lifts sum to 1 at {p:?}"
             );
-            if LEFT.contains(p) {
+            let (in_left, in_right) = (core(i, &LEFT), core(i, &RIGHT));
+            if in_left {
                 left += 1;
-                assert!(
-                    (row[0] - 1.0).abs() < 1e-10 && row[1].abs() < 1e-10,
-                    "{row:?}"
-                );
+                assert!((row[0] - 1.0).abs() < 1e-12 && row[1] == 0.0, "{row:?}");
             }
-            if RIGHT.contains(p) {
+            if in_right {
                 right += 1;
-                assert!(
-                    row[0].abs() < 1e-10 && (row[1] - 1.0).abs() < 1e-10,
-                    "{row:?}"
-                );
+                assert!(row[0] == 0.0 && (row[1] - 1.0).abs() < 1e-12, "{row:?}");
             }
-            if LEFT.contains(p) || RIGHT.contains(p) {
+            if in_left || in_right {
                 for (j, v) in row[2..].iter().enumerate() {
                     assert!(
-                        v.abs() < 1e-10,
-                        "free mode {j} = {v:e} on a region at {p:?}"
+                        *v == 0.0,
+                        "free mode {j} = {v:e} on a region's core at {p:?}"
                     );
                 }
             }
         }
-        assert!(left > 100 && right > 100, "{left} {right}");
         let report = &run.report.boundaries;
         assert_eq!(report.len(), 2);
-        assert_eq!(report[0].points, left);
-        assert_eq!(report[1].points, right);
+        let count = |r: &Region| pts.iter().filter(|p| r.contains(p)).count();
+        assert_eq!(report[0].points, count(&LEFT));
+        assert_eq!(report[1].points, count(&RIGHT));
+        for (b, r) in [LEFT, RIGHT].iter().enumerate() {
+            assert_eq!(
+                freeform::precompute::boundary_modes::lift_column(basis, r),
+                Some(b),
+                "the simulator finds lift {b}"
+            );
+        }
+        assert!(left > 10 && right > 10, "core points: {left} {right}");
 
         // Free kernels: those where every lift is strictly between 0 and 1 or the free modes
         // are non-zero; recover them from the coefficients (pinned rows are exactly 0 / 1 in
@@ -97,6 +106,13 @@ fn lifts_and_free_modes_follow_the_regions_exactly() {
             k,
             "every kernel is free or pinned to one region"
         );
+        for &i in &free {
+            let x = &basis.kernels.centers[i];
+            assert!(
+                !LEFT.contains(x) && !RIGHT.contains(x),
+                "free kernel {i} in a region"
+            );
+        }
         let hd = to_dense(&h);
         let md = to_dense(&m);
         let sub = |a: &Mat<f64>| Mat::from_fn(free.len(), free.len(), |i, j| a[(free[i], free[j])]);
@@ -195,15 +211,37 @@ fn bad_regions_are_named() {
         e.contains("boundary region") && e.contains("no integration point"),
         "{e}"
     );
-    let near = Region::HalfSpace {
-        point: [0.3, 0.0, 0.0],
-        normal: [1.0, 0.0, 0.0],
+    let overlapping = Region::HalfSpace {
+        point: [0.6, 0.0, 0.0],
+        normal: [-1.0, 0.0, 0.0],
     };
-    let e = err(vec![LEFT, near]);
-    assert!(
-        e.contains("0 and 1") && e.contains("within one kernel support"),
-        "{e}"
-    );
+    let e = err(vec![LEFT, overlapping]);
+    assert!(e.contains("0 and 1") && e.contains("overlap"), "{e}");
+    // A tiny ball around an integration point that is no kernel centre.
+    let free = freeform::precompute::build_basis(
+        &shape,
+        &options(vec![], SolverConfig::default()),
+        &Silent,
+    )
+    .unwrap();
+    let lonely = free
+        .points
+        .points
+        .iter()
+        .find(|p| {
+            free.basis
+                .kernels
+                .centers
+                .iter()
+                .all(|c| (0..3).map(|d| (c[d] - p[d]).powi(2)).sum::<f64>() > 1e-4)
+        })
+        .unwrap();
+    let thin = Region::Sphere {
+        center: *lonely,
+        radius: 1e-3,
+    };
+    let e = err(vec![thin]);
+    assert!(e.contains("no kernel centre"), "{e}");
     let everything = Region::Box {
         min: [-1.0; 3],
         max: [3.0; 3],
