@@ -148,6 +148,67 @@ impl Region {
     }
 }
 
+impl std::str::FromStr for Region {
+    type Err = Error;
+
+    /// `box:X0,Y0,Z0,X1,Y1,Z1` (corners), `sphere:CX,CY,CZ,R` or
+    /// `halfspace:PX,PY,PZ,NX,NY,NZ` (a point on the plane and the normal pointing into the
+    /// region), metres; validated.
+    fn from_str(spec: &str) -> Result<Self> {
+        let bad = |why: String| {
+            Error::param(
+                "region",
+                spec,
+                format!(
+                    "{why}; expected box:X0,Y0,Z0,X1,Y1,Z1, sphere:CX,CY,CZ,R or \
+                     halfspace:PX,PY,PZ,NX,NY,NZ (metres)"
+                ),
+            )
+        };
+        let (kind, rest) = spec
+            .split_once(':')
+            .ok_or_else(|| bad("no kind before ':'".into()))?;
+        let v: Vec<f64> = rest
+            .split(',')
+            .map(|t| t.trim().parse::<f64>())
+            .collect::<std::result::Result<_, _>>()
+            .map_err(|e| bad(format!("not a number list ({e})")))?;
+        let need = |n: usize| {
+            if v.len() == n {
+                Ok(())
+            } else {
+                Err(bad(format!("{} numbers, need {n}", v.len())))
+            }
+        };
+        let region = match kind.trim().to_ascii_lowercase().as_str() {
+            "box" => {
+                need(6)?;
+                Region::Box {
+                    min: [v[0], v[1], v[2]],
+                    max: [v[3], v[4], v[5]],
+                }
+            }
+            "sphere" => {
+                need(4)?;
+                Region::Sphere {
+                    center: [v[0], v[1], v[2]],
+                    radius: v[3],
+                }
+            }
+            "halfspace" => {
+                need(6)?;
+                Region::HalfSpace {
+                    point: [v[0], v[1], v[2]],
+                    normal: [v[3], v[4], v[5]],
+                }
+            }
+            other => return Err(bad(format!("unknown kind '{other}'"))),
+        };
+        region.validate()?;
+        Ok(region)
+    }
+}
+
 /// A material that applies inside a region.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

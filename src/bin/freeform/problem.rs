@@ -4,7 +4,7 @@
 use clap::{Args, ValueEnum};
 use freeform::geometry::{Shape, ShapeOptions};
 use freeform::io::read_shape;
-use freeform::material::Material;
+use freeform::material::{Material, Region};
 use freeform::precompute::rkpm::{KernelType, SupportOptions};
 use freeform::precompute::sampling::{CloudVolumeOptions, Resolution};
 use freeform::precompute::BasisOptions;
@@ -65,6 +65,16 @@ pub struct BasisArgs {
     /// Accept a mesh with holes (inside = winding number >= 0.5).
     #[arg(long)]
     allow_open_mesh: bool,
+    /// A boundary region the basis follows exactly (a boundary-aware basis: one lift per
+    /// region, free modes that vanish there; docs/math.md), rest coordinates in metres:
+    /// box:X0,Y0,Z0,X1,Y1,Z1, sphere:CX,CY,CZ,R or halfspace:PX,PY,PZ,NX,NY,NZ. Repeat for
+    /// several regions (at most --modes).
+    #[arg(long = "region", value_name = "REGION", value_parser = parse_region)]
+    regions: Vec<Region>,
+}
+
+fn parse_region(s: &str) -> Result<Region, String> {
+    s.parse::<Region>().map_err(|e| e.to_string())
 }
 
 impl BasisArgs {
@@ -99,6 +109,7 @@ impl BasisArgs {
                 voxel: self.voxel,
                 total_volume: self.volume,
             },
+            boundary_regions: self.regions.clone(),
             ..BasisOptions::default()
         }
     }
