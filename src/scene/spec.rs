@@ -401,7 +401,7 @@ impl Scene {
             if !names.insert(o.name.clone()) {
                 return Err(scene_err(format!("two objects are named '{}'", o.name)));
             }
-            let _checked = o.basis_options().map_err(|e| in_object(&o.name, e))?;
+            // Boundaries first: an aware basis's options carry their regions.
             for (i, b) in o.boundaries.iter().enumerate() {
                 b.region
                     .validate()
@@ -410,6 +410,7 @@ impl Scene {
                     .validate()
                     .map_err(|e| in_object(&o.name, scene_err(format!("boundary {i}: {e}"))))?;
             }
+            let _checked = o.basis_options().map_err(|e| in_object(&o.name, e))?;
             if o.cubature == Some(0) {
                 return Err(in_object(
                     &o.name,

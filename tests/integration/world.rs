@@ -4,6 +4,7 @@
 
 use crate::common::{no_cache, small_bar};
 use freeform::material::Region;
+use freeform::precompute::BoundaryModes;
 use freeform::progress::Silent;
 use freeform::scene::{
     run, CacheSettings, FrameObserver, FrameWriter, ObjectSpec, RunSettings, Scene, SceneBuilder,
@@ -178,7 +179,7 @@ fn gravity_switched_on_between_steps_starts_a_free_fall() {
 
 #[test]
 fn a_moved_boundary_target_carries_the_held_region_with_it() {
-    let scene = SceneBuilder::new(0.01, 1)
+    let mut scene = SceneBuilder::new(0.01, 1)
         .cubature(400)
         .cache(no_cache())
         .object(small_bar("bar").hold(Region::HalfSpace {
@@ -187,6 +188,10 @@ fn a_moved_boundary_target_carries_the_held_region_with_it() {
         }))
         .build()
         .unwrap();
+    // Every held point on its target is the free basis's pointwise hold; an aware basis
+    // holds the region through its lift (its edge band follows within the kernel
+    // resolution), tested in boundary_modes.rs.
+    scene.objects[0].basis.boundaries = BoundaryModes::Free;
     let mut world = World::new(&scene, &RunSettings::default(), &Silent).unwrap();
     world.step().unwrap();
     let now = world.time();
@@ -241,7 +246,7 @@ fn a_moved_boundary_target_carries_the_held_region_with_it() {
 
 #[test]
 fn a_boundary_pose_set_between_steps_is_where_the_held_region_goes() {
-    let scene = SceneBuilder::new(0.01, 1)
+    let mut scene = SceneBuilder::new(0.01, 1)
         .cubature(400)
         .cache(no_cache())
         .object(small_bar("bar").hold(Region::HalfSpace {
@@ -250,6 +255,10 @@ fn a_boundary_pose_set_between_steps_is_where_the_held_region_goes() {
         }))
         .build()
         .unwrap();
+    // Every held point on its target is the free basis's pointwise hold; an aware basis
+    // holds the region through its lift (its edge band follows within the kernel
+    // resolution), tested in boundary_modes.rs.
+    scene.objects[0].basis.boundaries = BoundaryModes::Free;
     let mut world = World::new(&scene, &RunSettings::default(), &Silent).unwrap();
     // A small turn about z through the origin plus a lift: the target is a rigid pose of the
     // held end, reached in the steps after it is set.
