@@ -139,6 +139,7 @@ impl SweepSpec {
             },
             frames: self.frames,
             hold_stiffness: None,
+            fit: false,
         };
         let mut runs: Vec<PlannedRun> = Vec::new();
         let mut push = |axis, opts: ReducedBeamOptions| {
