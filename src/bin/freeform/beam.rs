@@ -81,6 +81,10 @@ pub struct BeamArgs {
     /// frames and FEM nodes, as mean |r|/D and mean |r|^2/D^2 (paper Table 6).
     #[arg(long)]
     fit: bool,
+    /// Compare (and fit) over the first N frames only (the reduced model runs N steps of the
+    /// reference's 200; the motion is unchanged) [default: all].
+    #[arg(long)]
+    frames: Option<usize>,
     #[command(flatten)]
     fem: FemArgs,
     /// Print the JSON report.
@@ -148,10 +152,11 @@ pub fn run(args: BeamArgs) -> CliResult {
             tol: args.tol,
             ..NewtonOptions::default()
         },
-        frames: None,
+        frames: args.frames,
         hold_stiffness: args.hold_stiffness,
         fit: args.fit,
     };
+    opts.validate(&fem)?;
     let mut r = compare_beam(&fem, &opts, Some(&args.fem.cache), progress().as_ref())?;
     localize_all(&mut r.warnings, Front::Flags);
     if args.json {
