@@ -324,7 +324,11 @@ pub fn simulate_beam(
         crate::fem::metric::trajectory_error(rest, &reference.frames[..half], &frames[..half])
             .map_err(metric)?;
     let fit = if opts.fit {
-        Some(fit_residual_from_weights(&weights, rest, &reference.frames[..steps])?)
+        Some(fit_residual_from_weights(
+            &weights,
+            rest,
+            &reference.frames[..steps],
+        )?)
     } else {
         None
     };

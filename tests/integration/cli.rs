@@ -301,15 +301,24 @@ fn beam_reports_every_key_and_caches_the_fem_reference() {
     let r3: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let f = &r3["fit"];
     assert_eq!(r3["frames"], 50);
-    assert_eq!((&f["frames"], &f["nodes"], &f["columns"]), (&50.into(), &24.into(), &20.into()));
+    assert_eq!(
+        (&f["frames"], &f["nodes"], &f["columns"]),
+        (&50.into(), &24.into(), &20.into())
+    );
     let fit_mse = f["mean_squared_over_diagonal2"].as_f64().unwrap();
     let fit_abs = f["mean_abs_over_diagonal"].as_f64().unwrap();
-    assert!(fit_mse >= 0.0 && fit_mse <= r3["normalized_mse"].as_f64().unwrap(), "{r3}");
+    assert!(
+        fit_mse >= 0.0 && fit_mse <= r3["normalized_mse"].as_f64().unwrap(),
+        "{r3}"
+    );
     assert!(fit_abs <= f["max_over_diagonal"].as_f64().unwrap(), "{f}");
     let text: Vec<&str> = fitted.iter().copied().filter(|a| *a != "--json").collect();
     let o = freeform(&text);
     let out = String::from_utf8_lossy(&o.stdout);
-    assert!(o.status.success() && out.contains("mean |r|^2/D^2"), "{out}");
+    assert!(
+        o.status.success() && out.contains("mean |r|^2/D^2"),
+        "{out}"
+    );
     let o = freeform(&[&args[..], &["--frames", "0"]].concat());
     assert_eq!(o.status.code(), Some(1));
 }
