@@ -13,8 +13,11 @@ use crate::{Error, Point3, Result};
 use serde::Serialize;
 use std::path::Path;
 
+pub mod fit;
 pub mod pareto;
 pub mod sweep;
+
+pub use fit::{fit_residual, fit_residual_from_weights, FitResidual};
 
 /// The reduced model's settings for a beam run.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -39,6 +42,9 @@ pub struct ReducedBeamOptions {
     pub hold_stiffness: Option<f64>,
     /// Free or boundary-aware basis (the held and twisted ends are the regions).
     pub boundaries: BoundaryModes,
+    /// Also fit the FEM frames compared onto the basis by least squares and report the
+    /// residual ([`BeamComparison::fit`], paper Table 6). Default false.
+    pub fit: bool,
 }
 
 impl Default for ReducedBeamOptions {
@@ -52,6 +58,7 @@ impl Default for ReducedBeamOptions {
             frames: None,
             hold_stiffness: None,
             boundaries: BoundaryModes::default(),
+            fit: false,
         }
     }
 }
@@ -110,6 +117,10 @@ pub struct BeamComparison {
     /// The basis warnings and one per non-converged reduced step (strict mode,
     /// [`crate::error::check_strict`], makes them an error).
     pub warnings: Vec<String>,
+    /// The basis fitting residual of the FEM frames compared (paper Table 6), when
+    /// [`ReducedBeamOptions::fit`] asked for it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fit: Option<FitResidual>,
 }
 
 /// Run the reduced model on the beam test `fem.test` and compare it with the FEM reference
@@ -334,6 +345,21 @@ pub fn simulate_beam(
     let first =
         crate::fem::metric::trajectory_error(rest, &reference.frames[..half], &frames[..half])
             .map_err(metric)?;
+    let fit = if opts.fit {
+        Some(fit_residual_from_weights(
+            &weights,
+            rest,
+            &reference.frames[..steps],
+        )?)
+    } else {
+        None
+    };
+    if let Some(f) = fit.filter(FitResidual::rank_deficient) {
+        warnings.push(format!(
+            "basis fit: the design matrix at the FEM nodes has rank {} of {} columns",
+            f.rank, f.columns
+        ));
+    }
     Ok(BeamComparison {
         test: fem.test.name(),
         modes: opts.modes,
@@ -359,5 +385,6 @@ pub fn simulate_beam(
         fem_cached: matches!(reference.cache, crate::fem::beam::CacheStatus::Hit(_)),
         monitors,
         warnings,
+        fit,
     })
 }

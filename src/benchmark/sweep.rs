@@ -144,6 +144,7 @@ impl SweepSpec {
             frames: self.frames,
             hold_stiffness: None,
             boundaries: self.boundaries,
+            fit: false,
         };
         let mut runs: Vec<PlannedRun> = Vec::new();
         let mut push = |axis, opts: ReducedBeamOptions| {

@@ -291,4 +291,34 @@ fn beam_reports_every_key_and_caches_the_fem_reference() {
     let r2: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(r2["fem_cached"], true);
     assert_eq!(r2["normalized_mse"], r["normalized_mse"]);
+    assert!(r.get("fit").is_none(), "no fit unless --fit: {r}");
+
+    // --fit --frames: the basis fitting residual of the frames compared. The simulation's
+    // frames are one choice of z in the same space, so the best fit is never worse.
+    let fitted = [&args[..], &["--fit", "--frames", "50"]].concat();
+    let o = freeform(&fitted);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r3: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let f = &r3["fit"];
+    assert_eq!(r3["frames"], 50);
+    assert_eq!(
+        (&f["frames"], &f["nodes"], &f["columns"]),
+        (&50.into(), &24.into(), &20.into())
+    );
+    let fit_mse = f["mean_squared_over_diagonal2"].as_f64().unwrap();
+    let fit_abs = f["mean_abs_over_diagonal"].as_f64().unwrap();
+    assert!(
+        fit_mse >= 0.0 && fit_mse <= r3["normalized_mse"].as_f64().unwrap(),
+        "{r3}"
+    );
+    assert!(fit_abs <= f["max_over_diagonal"].as_f64().unwrap(), "{f}");
+    let text: Vec<&str> = fitted.iter().copied().filter(|a| *a != "--json").collect();
+    let o = freeform(&text);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success() && out.contains("mean |r|^2/D^2"),
+        "{out}"
+    );
+    let o = freeform(&[&args[..], &["--frames", "0"]].concat());
+    assert_eq!(o.status.code(), Some(1));
 }
