@@ -45,6 +45,7 @@ class Basis:
         poisson: float = 0.45,
         density: float = 1000.0,
         allow_open_mesh: bool = False,
+        regions: Optional[list[str]] = None,
         progress: bool = False,
     ) -> Basis:
         """A basis from a shape spec ("box:2,1,1", "sphere:0.5") or an OBJ/STL/PLY file.
@@ -68,6 +69,7 @@ class Basis:
         max_iter: int = 1000,
         voxel: Optional[float] = None,
         total_volume: Optional[float] = None,
+        regions: Optional[list[str]] = None,
         progress: bool = False,
     ) -> Basis:
         """A basis from integration points (N, 3) in metres with per-point (or one) Young's

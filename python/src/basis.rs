@@ -35,6 +35,7 @@ const OPTION_KEYS: &[&str] = &[
     "poisson",
     "density",
     "allow_open_mesh",
+    "regions",
     "progress",
 ];
 
@@ -146,6 +147,13 @@ pub fn options(
             poisson: get(py, kwargs, "poisson")?.unwrap_or(d.poisson),
             density: get(py, kwargs, "density")?.unwrap_or(d.density),
         };
+    }
+    if let Some(regions) = get::<Vec<String>>(py, kwargs, "regions")? {
+        o.boundary_regions = regions
+            .iter()
+            .map(|r| r.parse::<freeform::material::Region>())
+            .collect::<freeform::Result<_>>()
+            .map_err(|e| to_py(py, &e))?;
     }
     let shape = ShapeOptions {
         allow_open_mesh: get(py, kwargs, "allow_open_mesh")?.unwrap_or(false),

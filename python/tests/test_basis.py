@@ -33,6 +33,27 @@ def test_eigenvalues_equal_the_cli_on_the_same_input(freeform_bin, tmp_path):
     assert loaded.metadata["shape"] == "box:2,1,1"
 
 
+def test_aware_basis_equals_the_cli_and_pins_its_region(freeform_bin, tmp_path):
+    region = "halfspace:0.6,0,0,-1,0,0"
+    run = subprocess.run(
+        [freeform_bin, "modes", "box:2,1,1", "--kernels", "120", "--modes", "6",
+         "--points", "3000", "--region=" + region, "--out", str(tmp_path / "a.npz"), "--json"],
+        capture_output=True, text=True, check=True,
+    )
+    cli = json.loads(run.stdout)
+    basis = ff.Basis.from_shape("box:2,1,1", regions=[region], **SMALL)
+    # Same code, same input: rounding-level differences only (see the test above).
+    np.testing.assert_allclose(basis.eigenvalues, cli["eigenvalues"], rtol=1e-10, atol=1e-6)
+    assert len(cli["boundaries"]) == 1
+    # One region: its lift is the constant (exactly 1 on every kernel), and the free modes
+    # are exactly 0 on the kernels centred in the region.
+    c = basis.coefficients
+    assert np.all(c[:, 0] == 1.0)
+    pinned = basis.centers[:, 0] <= 0.6
+    assert pinned.sum() == cli["boundaries"][0]["kernels"] > 0
+    assert np.all(c[pinned, 1:] == 0.0)
+
+
 def test_weights_reproduce_constants_and_linear_fields():
     basis = ff.Basis.from_shape("box:2,1,1", **SMALL)
     rng = np.random.default_rng(1)
@@ -116,6 +137,9 @@ def test_save_and_load_round_trip(tmp_path):
         (lambda: ff.Basis.from_shape("box:2,1,1", points=100, spacing=0.1), "not both"),
         (lambda: ff.Basis.from_shape("cone:1"), "unknown shape"),
         (lambda: ff.Basis.from_shape("box:2,1,1", eigensolver="magic"), "magic"),
+        (lambda: ff.Basis.from_shape("box:2,1,1", regions=["halfspace:0.5,0,0"]), "need 6"),
+        (lambda: ff.Basis.from_shape("box:2,1,1", regions=["sphere:9,9,9,0.1"], **SMALL),
+         "no integration point"),
     ],
 )
 def test_bad_input_raises_a_clear_error(call, match):
