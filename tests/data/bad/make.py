@@ -153,6 +153,13 @@ write("scene/bad_hessian.toml", GOOD + '[solver]\nhessian = "magic"\n')
 write("scene/nan_placement.toml", GOOD + "placement = { translation = [nan, 0.0, 0.0] }\n")
 write("scene/nan_boundary_region.toml", GOOD + "[[object.boundary]]\n"
       "region = { sphere = { center = [nan, 0.0, 0.0], radius = 1.0 } }\n")
+HOLD = ("[[object.boundary]]\n"
+        "region = { half_space = { point = [%s, 0.0, 0.0], normal = [-1.0, 0.0, 0.0] } }\n")
+write("scene/overlapping_boundaries.toml", GOOD + HOLD % "0.3" + HOLD % "0.2")
+write("scene/boundary_covers_object.toml", GOOD + "[[object.boundary]]\n"
+      "region = { box = { min = [-1.0, -1.0, -1.0], max = [2.0, 2.0, 2.0] } }\n")
+write("scene/bad_boundaries_mode.toml",
+      GOOD.replace("points = 2000 }", 'points = 2000, boundaries = "sometimes" }'))
 write("scene/zero_normal_boundary.toml", GOOD + "[[object.boundary]]\n"
       "region = { half_space = { point = [0.1, 0.0, 0.0], normal = [0.0, 0.0, 0.0] } }\n")
 write("scene/negative_stiffness.toml", GOOD + "[[object.boundary]]\n"
