@@ -65,6 +65,10 @@ pub struct StepRow {
     pub inverted: usize,
     /// Collider penetrations at the end of the step.
     pub contacts: usize,
+    /// Largest RMS distance of a boundary region's points from their target, metres (absent
+    /// without boundaries; [`StepReport::boundary_rms_deviation`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub boundary_rms_deviation: Option<f64>,
 }
 
 impl From<&StepReport> for StepRow {
@@ -83,6 +87,7 @@ impl From<&StepReport> for StepRow {
             min_det: s.info.min_det,
             inverted: s.info.inverted,
             contacts: s.info.contacts,
+            boundary_rms_deviation: r.boundary_rms_deviation,
         }
     }
 }

@@ -116,6 +116,12 @@ pub struct StepReport {
     /// The minimisation's report.
     #[serde(flatten)]
     pub solve: SolveReport,
+    /// The largest over the boundary regions of the volume-weighted RMS distance of a
+    /// region's integration points from their targets at the end of the step, metres (None
+    /// without boundaries). A free basis holds every point, an aware one its lift, so an aware
+    /// region's edge band shows here, as does a region the basis cannot follow.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub boundary_rms_deviation: Option<f64>,
 }
 
 /// A simulated object.
@@ -246,7 +252,8 @@ impl ReducedSim {
                 ));
             }
             let coef: Vec<f64> = pts.iter().map(|&i| k * ip.volumes[i]).collect();
-            let moments = match lift_column(basis, &spec.region) {
+            let pointwise = Moments::new(&ip.points, all, &pts, &coef);
+            let (moments, pointwise) = match lift_column(basis, &spec.region) {
                 // An aware region is held through its lift's handle alone (the region's
                 // points as if every other weight were 0 there): the free modes ramp up near
                 // the region's edge and must not be held (boundary_modes.rs).
@@ -261,9 +268,9 @@ impl ReducedSim {
                     };
                     let local: Vec<Point3> = pts.iter().map(|&i| ip.points[i]).collect();
                     let idx: Vec<usize> = (0..pts.len()).collect();
-                    Moments::new(&local, &held, &idx, &coef)
+                    (Moments::new(&local, &held, &idx, &coef), Some(pointwise))
                 }
-                None => Moments::new(&ip.points, all, &pts, &coef),
+                None => (pointwise, None),
             };
             boundaries.push(BoundaryTerm {
                 motion: spec.motion.clone(),
@@ -271,6 +278,7 @@ impl ReducedSim {
                 moments,
                 points: pts,
                 placement,
+                pointwise,
             });
         }
         let contacts = if opts.colliders.is_empty() {
@@ -509,11 +517,17 @@ impl ReducedSim {
         self.z = z;
         self.time = t;
         self.steps += 1;
+        let wall_s = sw.elapsed();
         StepReport {
             step: self.steps,
             time: t,
-            wall_s: sw.elapsed(),
+            wall_s,
             solve,
+            boundary_rms_deviation: self
+                .boundaries
+                .iter()
+                .map(|b| b.rms_deviation(self.layout, t, &self.z))
+                .reduce(f64::max),
         }
     }
 

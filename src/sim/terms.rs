@@ -146,6 +146,56 @@ pub struct BoundaryTerm {
     pub points: Vec<usize>,
     /// The object's initial placement; the motion acts on the placed positions.
     pub placement: Rigid,
+    /// For a region of a boundary-aware basis, held through its lift: the moments with every
+    /// weight (those `rms_deviation` reports on). None when `moments` already are.
+    pub pointwise: Option<Moments>,
+}
+
+/// 1/2 sum_i c_i |x_i - target_i|^2 over a point set with moments `m` (coefficients c_i), for
+/// the target offset `g` = [R - I, t]; gradient added to `grad`; returns (E, the size of the
+/// summed terms before cancellation).
+fn penalty_energy(
+    m: &Moments,
+    g: &[[f64; 4]; 3],
+    layout: Layout,
+    z: &[f64],
+    grad: &mut [f64],
+) -> (f64, f64) {
+    let n4 = layout.row_len();
+    let mut e = 0.0;
+    let mut scale = 0.0;
+    for r in 0..3 {
+        let zr = &z[r * n4..(r + 1) * n4];
+        // q = bx G_r^T, the linear coefficient.
+        let q: Vec<f64> = (0..n4)
+            .map(|i| (0..4).map(|a| m.bx[(i, a)] * g[r][a]).sum())
+            .collect();
+        let mut pz = vec![0.0; n4];
+        let mut pz_abs = vec![0.0; n4];
+        for (j, zj) in zr.iter().enumerate() {
+            if *zj != 0.0 {
+                let col = m.bb.col(j);
+                for (i, p) in pz.iter_mut().enumerate() {
+                    *p += col[i] * zj;
+                    pz_abs[i] += (col[i] * zj).abs();
+                }
+            }
+        }
+        let mut c = 0.0;
+        for a in 0..4 {
+            for b in 0..4 {
+                c += g[r][a] * m.xx[a][b] * g[r][b];
+            }
+        }
+        for i in 0..n4 {
+            e += 0.5 * zr[i] * pz[i] - zr[i] * q[i];
+            scale += 0.5 * zr[i].abs() * pz_abs[i] + (zr[i] * q[i]).abs();
+            grad[r * n4 + i] += pz[i] - q[i];
+        }
+        e += 0.5 * c;
+        scale += 0.5 * c.abs();
+    }
+    (e, scale)
 }
 
 impl BoundaryTerm {
@@ -174,43 +224,17 @@ impl BoundaryTerm {
         z: &[f64],
         grad: &mut [f64],
     ) -> (f64, f64) {
-        let n4 = layout.row_len();
-        let g = self.offset(t);
-        let m = &self.moments;
-        let mut e = 0.0;
-        let mut scale = 0.0;
-        for r in 0..3 {
-            let zr = &z[r * n4..(r + 1) * n4];
-            // q = bx G_r^T, the linear coefficient.
-            let q: Vec<f64> = (0..n4)
-                .map(|i| (0..4).map(|a| m.bx[(i, a)] * g[r][a]).sum())
-                .collect();
-            let mut pz = vec![0.0; n4];
-            let mut pz_abs = vec![0.0; n4];
-            for (j, zj) in zr.iter().enumerate() {
-                if *zj != 0.0 {
-                    let col = m.bb.col(j);
-                    for (i, p) in pz.iter_mut().enumerate() {
-                        *p += col[i] * zj;
-                        pz_abs[i] += (col[i] * zj).abs();
-                    }
-                }
-            }
-            let mut c = 0.0;
-            for a in 0..4 {
-                for b in 0..4 {
-                    c += g[r][a] * m.xx[a][b] * g[r][b];
-                }
-            }
-            for i in 0..n4 {
-                e += 0.5 * zr[i] * pz[i] - zr[i] * q[i];
-                scale += 0.5 * zr[i].abs() * pz_abs[i] + (zr[i] * q[i]).abs();
-                grad[r * n4 + i] += pz[i] - q[i];
-            }
-            e += 0.5 * c;
-            scale += 0.5 * c.abs();
-        }
-        (e, scale)
+        penalty_energy(&self.moments, &self.offset(t), layout, z, grad)
+    }
+
+    /// Volume-weighted RMS distance (m) between the region's integration points and their
+    /// targets at time `t`, every weight included (for an aware region the hold acts on its
+    /// lift alone, [`BoundaryTerm::pointwise`]; this is how far the whole region is off).
+    pub fn rms_deviation(&self, layout: Layout, t: f64, z: &[f64]) -> f64 {
+        let m = self.pointwise.as_ref().unwrap_or(&self.moments);
+        let mut scratch = vec![0.0; z.len()];
+        let (e, _) = penalty_energy(m, &self.offset(t), layout, z, &mut scratch);
+        (2.0 * e.max(0.0) / m.total.max(f64::MIN_POSITIVE)).sqrt()
     }
 
     /// The target transform of rest positions at time `t`: motion(t) after the placement.

@@ -329,3 +329,57 @@ fn small_aware_beam_does_not_depend_on_the_hold_stiffness() {
     // Against the FEM reference (P2, r = 2, 30 steps): 5x above the measured 2.2e-5.
     assert!(errors[2] < 1e-4, "aware {errors:?}");
 }
+
+#[test]
+fn steps_report_how_far_each_region_is_from_its_target() {
+    use freeform::sim::motion::Motion;
+    use freeform::sim::{Boundary, ReducedSim, SimOptions};
+    let (run, ..) = build(&options(vec![LEFT, RIGHT], SolverConfig::default()));
+    let opts = SimOptions {
+        gravity: Some([0.0, -9.81, 0.0]),
+        boundaries: vec![
+            Boundary {
+                region: LEFT,
+                motion: Motion::Fixed,
+                stiffness: None,
+            },
+            Boundary {
+                region: RIGHT,
+                motion: Motion::Translate {
+                    velocity: [0.0, 1.0, 0.0],
+                },
+                stiffness: None,
+            },
+        ],
+        ..SimOptions::default()
+    };
+    let mut sim = ReducedSim::new(&run.basis, &run.points, &run.material, &opts).unwrap();
+    let pts = &run.points.points;
+    let vol = &run.points.volumes;
+    let w = run.basis.weights(pts).unwrap();
+    for _ in 0..5 {
+        let r = sim.step();
+        let x = sim.positions(pts, &w);
+        // Independent: the RMS over each region's points from their positions.
+        let rms = |region: &Region, offset: f64| {
+            let (mut s, mut v) = (0.0, 0.0);
+            for (i, p) in pts.iter().enumerate() {
+                if region.contains(p) {
+                    let d = [x[i][0] - p[0], x[i][1] - p[1] - offset, x[i][2] - p[2]];
+                    s += vol[i] * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+                    v += vol[i];
+                }
+            }
+            (s / v).sqrt()
+        };
+        let want = rms(&LEFT, 0.0).max(rms(&RIGHT, r.time));
+        let got = r.boundary_rms_deviation.unwrap();
+        // Moments against a direct sum: the same quantity by two roundings; the energy form
+        // cancels terms of size ~|x - X|^2 ~ (1 cm)^2, so ~1e-7 of the lift (1e-9 m here).
+        assert!(
+            (got - want).abs() <= 1e-9 + 1e-6 * want,
+            "{got:e} vs {want:e}"
+        );
+        assert!(got > 0.0 && got < 0.01, "{got:e}");
+    }
+}
