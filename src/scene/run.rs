@@ -63,8 +63,11 @@ pub struct StepRow {
     pub min_det: f64,
     /// Cubature points with det F <= 0.
     pub inverted: usize,
-    /// Collider penetrations at the end of the step.
+    /// Collider penetrations at the end of the step: penetrating (cubature point, collider)
+    /// pairs, every collider kind counted.
     pub contacts: usize,
+    /// Deepest collider penetration at the end of the step, metres (0 without contact).
+    pub penetration: f64,
 }
 
 impl From<&StepReport> for StepRow {
@@ -83,6 +86,7 @@ impl From<&StepReport> for StepRow {
             min_det: s.info.min_det,
             inverted: s.info.inverted,
             contacts: s.info.contacts,
+            penetration: s.info.penetration,
         }
     }
 }

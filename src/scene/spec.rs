@@ -30,7 +30,7 @@ pub struct Scene {
     /// The objects (`[[object]]` tables); they do not interact with each other.
     #[serde(default, rename = "object")]
     pub objects: Vec<ObjectSpec>,
-    /// Static obstacles shared by all objects (`[[collider]]` tables).
+    /// Obstacles shared by all objects, static or kinematic (`[[collider]]` tables).
     #[serde(default, rename = "collider", skip_serializing_if = "Vec::is_empty")]
     pub colliders: Vec<Collider>,
 }
@@ -397,11 +397,7 @@ impl Scene {
                 ));
             }
         }
-        for (i, c) in self.colliders.iter().enumerate() {
-            c.shape
-                .validate()
-                .map_err(|e| scene_err(format!("collider {i}: {e}")))?;
-        }
+        crate::sim::collider::validate_colliders(&self.colliders)?;
         Ok(())
     }
 }
