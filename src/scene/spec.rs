@@ -398,6 +398,15 @@ impl Scene {
             }
         }
         crate::sim::collider::validate_colliders(&self.colliders)?;
+        for (i, c) in self.colliders.iter().enumerate() {
+            let stem = super::frames::collider_stem(i, c.name.as_deref());
+            if let Some(o) = self.objects.iter().find(|o| o.name == stem) {
+                return Err(scene_err(format!(
+                    "object '{}' has the frame name of collider {i}; rename one of them",
+                    o.name
+                )));
+            }
+        }
         Ok(())
     }
 }

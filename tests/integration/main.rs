@@ -18,6 +18,7 @@ mod architecture;
 mod assembly;
 mod bad_inputs;
 mod cli;
+mod colliders;
 mod extremes;
 mod fem;
 mod geometry;

@@ -75,6 +75,34 @@ impl Collider {
         }
     }
 
+    /// With a name (for errors, reports and children's `parent`).
+    #[must_use]
+    pub fn named(mut self, name: &str) -> Collider {
+        self.name = Some(name.to_string());
+        self
+    }
+
+    /// With a penalty stiffness, Pa/m^2.
+    #[must_use]
+    pub fn stiffness(mut self, k: f64) -> Collider {
+        self.stiffness = Some(k);
+        self
+    }
+
+    /// Moved by `motion` (relative to the parent's frame when it has a parent).
+    #[must_use]
+    pub fn motion(mut self, motion: Motion) -> Collider {
+        self.motion = motion;
+        self
+    }
+
+    /// Following the collider named `parent` (listed earlier).
+    #[must_use]
+    pub fn parent(mut self, parent: &str) -> Collider {
+        self.parent = Some(parent.to_string());
+        self
+    }
+
     /// Wrap an error about this collider (index `index`) with its index and name.
     pub fn error(&self, index: usize, e: Error) -> Error {
         Error::Collider {
@@ -704,6 +732,60 @@ impl Obstacle {
                 Some((c, 0.5 * dot(&e, &e).sqrt() + radius))
             }
             Obstacle::Mesh(m) => m.bounding_sphere(),
+        }
+    }
+
+    /// A triangulated surface of the obstacle in its rest frame, for drawing (vertices V x 3,
+    /// metres; triangles F x 3, outward): spheres and capsules as icospheres (capsules
+    /// stretched along their axis), boxes as 12 triangles, meshes as they are; None for a
+    /// plane (unbounded).
+    pub fn surface(&self) -> Option<(Vec<Point3>, Vec<[u32; 3]>)> {
+        use crate::geometry::generate::{box_mesh, icosphere};
+        match self {
+            Obstacle::Plane { .. } => None,
+            Obstacle::Box { min, max, rotation } => {
+                let size = std::array::from_fn(|d| max[d] - min[d]);
+                let (v, t) = box_mesh(size);
+                let c: [f64; 3] = std::array::from_fn(|d| 0.5 * (min[d] + max[d]));
+                let v = v
+                    .iter()
+                    .map(|p| {
+                        let local: [f64; 3] = std::array::from_fn(|d| p[d] + min[d] - c[d]);
+                        let turned = rotation.as_ref().map_or(local, |r| rotate(r, &local));
+                        std::array::from_fn(|d| c[d] + turned[d])
+                    })
+                    .collect();
+                Some((v, t))
+            }
+            Obstacle::Sphere { center, radius } => {
+                let (v, t) = icosphere(*radius, 2);
+                let v = v
+                    .iter()
+                    .map(|p| std::array::from_fn(|d| p[d] + center[d]))
+                    .collect();
+                Some((v, t))
+            }
+            Obstacle::Capsule { a, b, radius } => {
+                let (v, t) = icosphere(*radius, 2);
+                let e: [f64; 3] = std::array::from_fn(|d| b[d] - a[d]);
+                let len = dot(&e, &e).sqrt();
+                let axis = if len > 0.0 {
+                    e.map(|x| x / len)
+                } else {
+                    [0.0, 1.0, 0.0]
+                };
+                let c: [f64; 3] = std::array::from_fn(|d| 0.5 * (a[d] + b[d]));
+                // Each half of the sphere moves half the axis length towards its end.
+                let v = v
+                    .iter()
+                    .map(|p| {
+                        let side = if dot(p, &axis) >= 0.0 { 0.5 } else { -0.5 };
+                        std::array::from_fn(|d| c[d] + p[d] + side * len * axis[d])
+                    })
+                    .collect();
+                Some((v, t))
+            }
+            Obstacle::Mesh(m) => Some((m.vertices().to_vec(), m.triangles().to_vec())),
         }
     }
 
