@@ -269,16 +269,14 @@ pub enum GeometryError {
     /// A collider mesh has a triangle of (near-)zero area, whose normal is undefined.
     #[error(
         "{path}: triangle {triangle} (0-based, in the file's triangle order) has zero area \
-         (vertices {vertices:?}); {count} of the {total} triangles are degenerate: remove them \
-         from the collider mesh"
+         (collinear or coincident corners); {count} of the {total} triangles are degenerate: \
+         remove them from the collider mesh"
     )]
     DegenerateTriangle {
         /// File.
         path: PathBuf,
         /// The first degenerate triangle.
         triangle: usize,
-        /// Its corners, metres.
-        vertices: [[f64; 3]; 3],
         /// Degenerate triangles in all.
         count: usize,
         /// Triangles in the file.

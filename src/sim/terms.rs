@@ -337,9 +337,9 @@ impl ContactTerm {
             .zip(&poses)
             .map(|(o, p)| o.bounding_sphere().map(|(c, r)| (p.apply(&c), r)))
             .collect();
-        let mut out = Vec::new();
-        for c in 0..self.points.len() {
+        let point = |c: usize| {
             let x = self.position(layout, c, z);
+            let mut found = Vec::new();
             for (o, ((obstacle, pose), bound)) in
                 obstacles.iter().zip(&poses).zip(&bounds).enumerate()
             {
@@ -350,11 +350,24 @@ impl ContactTerm {
                     }
                 }
                 if let Some(p) = obstacle.penetration(pose, &x) {
-                    out.push((c, o, p));
+                    found.push((c, o, p));
                 }
             }
+            found
+        };
+        // Mesh queries cost microseconds per point (docs/performance.md): spread the points
+        // over threads. The result keeps point order, so the sums over it do not depend on
+        // the thread count.
+        if obstacles.iter().any(|o| o.mesh().is_some()) {
+            use rayon::prelude::*;
+            (0..self.points.len())
+                .into_par_iter()
+                .with_min_len(64)
+                .flat_map_iter(point)
+                .collect()
+        } else {
+            (0..self.points.len()).flat_map(point).collect()
         }
-        out
     }
 
     /// Energy (J), gradient added to `grad`, the number of penetrating (point, obstacle)

@@ -186,16 +186,15 @@ impl MeshObstacle {
                 let [a, b, c] = t.map(|i| vertices[i as usize]);
                 let (ab, ac, bc) = (sub(&b, &a), sub(&c, &a), sub(&c, &b));
                 let longest = norm(&ab).max(norm(&ac)).max(norm(&bc));
-                !(norm(&cross(&ab, &ac)) > DEGENERATE_AREA * longest * longest)
+                norm(&cross(&ab, &ac)).partial_cmp(&(DEGENERATE_AREA * longest * longest))
+                    != Some(std::cmp::Ordering::Greater)
             })
             .map(|(f, _)| f)
             .collect();
         if let Some(&first) = degenerate.first() {
-            let t = triangles[first];
             return Err(GeometryError::DegenerateTriangle {
                 path: path.to_path_buf(),
                 triangle: first,
-                vertices: t.map(|i| vertices[i as usize]),
                 count: degenerate.len(),
                 total: triangles.len(),
             });
@@ -318,7 +317,8 @@ impl MeshObstacle {
     fn penetration_at(&self, y: &Point3, c: &Point3, feature: Feature) -> Option<Penetration> {
         let v = sub(c, y);
         let depth = norm(&v);
-        if !(depth > 0.0) {
+        // Zero (on the surface) or NaN: no penetration.
+        if depth.is_nan() || depth <= 0.0 {
             return None;
         }
         let normal = v.map(|x| x / depth);
@@ -365,8 +365,8 @@ impl MeshObstacle {
     }
 
     /// [`MeshObstacle::signed_distance`] by brute force, O(F): the closest point over every
-    /// triangle; the sign from the generalized winding number (solids: inside where it is
-    /// >= 1/2) or from the angle-weighted pseudo-normal of the closest feature (surfaces),
+    /// triangle; the sign from the generalized winding number (solids: inside where it is at
+    /// least 1/2) or from the angle-weighted pseudo-normal of the closest feature (surfaces),
     /// computed here independently of parry.
     pub fn signed_distance_brute_force(&self, y: &Point3) -> f64 {
         let (c, feature) = self.closest_brute_force(y);
