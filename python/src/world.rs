@@ -538,7 +538,8 @@ impl PyWorld {
     }
 
     /// The kinematic pose of collider ``collider`` (its scene definition moved by
-    /// x -> R x + t; absolute). Planes take any pose, boxes translations only.
+    /// x -> R x + t; absolute; it replaces the collider's scripted motion, and for a collider
+    /// with a parent it is relative to the parent's frame). Any shape takes any rigid pose.
     #[pyo3(signature = (collider, rotation = None, translation = None))]
     fn set_collider_pose(
         &mut self,
