@@ -256,6 +256,7 @@ fn step_dict<'py>(py: Python<'py>, name: &str, r: &StepReport) -> PyResult<Bound
     d.set_item("min_det", row.min_det)?;
     d.set_item("inverted", row.inverted)?;
     d.set_item("contacts", row.contacts)?;
+    d.set_item("penetration", row.penetration)?;
     Ok(d)
 }
 
