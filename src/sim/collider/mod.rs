@@ -951,6 +951,57 @@ impl Kinematics {
 mod tests {
     use super::*;
 
+    /// A two-link chain stays connected: the child's joint (its rest `a`, the parent's rest
+    /// `b`) goes where the parent's tip goes, at every time, and the child turns by the sum of
+    /// the angles (both joints about z).
+    #[test]
+    fn a_child_follows_its_parent_at_the_joint() {
+        let capsule = |a: Point3, b: Point3| {
+            Obstacle::new(&ColliderShape::Capsule { a, b, radius: 0.1 }).unwrap()
+        };
+        let turn = |pivot: Point3, rate: f64| Motion::Rotate {
+            pivot,
+            axis: [0.0, 0.0, 1.0],
+            degrees_per_second: rate,
+        };
+        let joint = [1.0, 0.0, 0.0];
+        let kin = Kinematics::new(
+            vec![capsule([0.0; 3], joint), capsule(joint, [1.5, 0.0, 0.0])],
+            vec![turn([0.0; 3], 30.0), turn(joint, 45.0)],
+            vec![None, Some(0)],
+        )
+        .unwrap();
+        for t in [0.0, 0.5, 1.0, 2.0] {
+            let p = kin.poses(t);
+            let (tip, elbow) = (p[0].apply(&joint), p[1].apply(&joint));
+            for d in 0..3 {
+                assert!(
+                    (tip[d] - elbow[d]).abs() < 1e-14,
+                    "t {t}: {tip:?} vs {elbow:?}"
+                );
+            }
+            // The child's end: the elbow plus 0.5 m along the summed angle.
+            let angle = (75.0 * t as f64).to_radians();
+            let end = p[1].apply(&[1.5, 0.0, 0.0]);
+            let expected = [
+                elbow[0] + 0.5 * angle.cos(),
+                elbow[1] + 0.5 * angle.sin(),
+                0.0,
+            ];
+            for d in 0..3 {
+                assert!((end[d] - expected[d]).abs() < 1e-14, "t {t}: {end:?}");
+            }
+        }
+        // A parent must come first.
+        let err = Kinematics::new(
+            vec![capsule([0.0; 3], joint)],
+            vec![Motion::Fixed],
+            vec![Some(0)],
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("listed before"), "{err}");
+    }
+
     /// Central differences of d^2/2 against the push-out gradient -d u and of that gradient
     /// against the exact Hessian, at points inside each primitive (away from region seams).
     #[test]
