@@ -981,7 +981,7 @@ mod tests {
                 );
             }
             // The child's end: the elbow plus 0.5 m along the summed angle.
-            let angle = (75.0 * t as f64).to_radians();
+            let angle = (75.0 * t).to_radians();
             let end = p[1].apply(&[1.5, 0.0, 0.0]);
             let expected = [
                 elbow[0] + 0.5 * angle.cos(),
