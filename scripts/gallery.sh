@@ -37,6 +37,13 @@ $FF run examples/drop.toml --out "$WORK/drop" > /dev/null
 $FF render "$WORK/drop" --ground 0 --every 10 --size 480x360 --out "$WORK/drop_png"
 for n in 000000 000020 000030 000050; do cp "$WORK/drop_png/frame_$n.png" "docs/img/drop_$n.png"; done
 
+# The robot arm sweeping three objects (examples/robot_push.toml): frame 24 of 33 (t = 1.2 s),
+# the arm's capsules drawn from the collider frames.
+$FF run examples/robot_push.toml --out "$WORK/robot_push" > /dev/null
+$FF render "$WORK/robot_push" --ground 0 --elevation 45 --azimuth 20 --every 24 \
+    --out "$WORK/robot_push_png"
+cp "$WORK/robot_push_png/frame_000024.png" docs/img/robot_push.png
+
 # A splat object before and after: a beach ball of 3D Gaussians (docs/splats.md) dropped on
 # the floor. 16 000 flat surface splats (Fibonacci sphere, radius 0.3 m; axes along north,
 # east and the normal; six coloured gores and white caps, light baked in) and a grid of faint interior splats

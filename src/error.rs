@@ -104,6 +104,17 @@ pub enum Error {
         /// What went wrong.
         source: Box<Error>,
     },
+    /// A collider of a scene is unusable: its index (`[[collider]]` order, from 0) and name
+    /// around the cause (a bad number, a mesh file that cannot be used).
+    #[error("scene: collider {index}{}: {source}", name.as_ref().map(|n| format!(" '{n}'")).unwrap_or_default())]
+    Collider {
+        /// Index of the collider in the scene.
+        index: usize,
+        /// Its name, if it has one.
+        name: Option<String>,
+        /// What went wrong.
+        source: Box<Error>,
+    },
     /// A basis file is malformed or from an incompatible version.
     #[error("{path}: not a valid freeform basis file: {reason}")]
     BasisFile {
@@ -255,6 +266,53 @@ pub enum GeometryError {
     /// The shape encloses no volume or has no points.
     #[error("{0}")]
     Degenerate(String),
+    /// A collider mesh has a triangle of (near-)zero area, whose normal is undefined.
+    #[error(
+        "{path}: triangle {triangle} (0-based, in the file's triangle order) has zero area \
+         (collinear or coincident corners); {count} of the {total} triangles are degenerate: \
+         remove them from the collider mesh"
+    )]
+    DegenerateTriangle {
+        /// File.
+        path: PathBuf,
+        /// The first degenerate triangle.
+        triangle: usize,
+        /// Degenerate triangles in all.
+        count: usize,
+        /// Triangles in the file.
+        total: usize,
+    },
+    /// A solid collider mesh is not closed and consistently oriented.
+    #[error(
+        "{path}: a solid collider mesh must be closed and consistently oriented, and this one \
+         has {boundary_edges} boundary, {nonmanifold_edges} non-manifold and \
+         {misoriented_edges} misoriented edges; repair it, or use it as a one-sided surface \
+         (sided = \"outside\")"
+    )]
+    ColliderNotClosed {
+        /// File.
+        path: PathBuf,
+        /// Edges used by one triangle.
+        boundary_edges: usize,
+        /// Edges used by more than two triangles.
+        nonmanifold_edges: usize,
+        /// Edges whose two triangles disagree on orientation.
+        misoriented_edges: usize,
+    },
+    /// A one-sided collider surface has no consistent free side.
+    #[error(
+        "{path}: a one-sided collider surface needs manifold, consistently oriented triangles \
+         (its normals say which side is free), and this one has {nonmanifold_edges} \
+         non-manifold and {misoriented_edges} misoriented edges"
+    )]
+    ColliderSurface {
+        /// File.
+        path: PathBuf,
+        /// Edges used by more than two triangles.
+        nonmanifold_edges: usize,
+        /// Edges whose two triangles disagree on orientation.
+        misoriented_edges: usize,
+    },
     /// An argument to a geometry function (e.g. a writer) is inconsistent.
     #[error("invalid input: {0}")]
     InvalidInput(String),

@@ -88,7 +88,7 @@ pub(crate) fn status_of(e: &freeform::Error) -> Status {
         Error::Eigen(_) => Status::Eigensolver,
         Error::Io { .. } | Error::Geometry(GeometryError::Io { .. }) => Status::Io,
         Error::Strict { .. } => Status::Strict,
-        Error::Object { source, .. } => status_of(source),
+        Error::Object { source, .. } | Error::Collider { source, .. } => status_of(source),
         _ => Status::InvalidArgument,
     }
 }

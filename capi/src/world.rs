@@ -452,9 +452,10 @@ pub unsafe extern "C" fn ff_world_set_boundary_pose(
 }
 
 /// Move collider `collider` to the rigid pose x -> R x + t of its definition in the scene,
-/// for every object from the next step on (absolute, not accumulated: a kinematic obstacle).
-/// Planes take any pose, boxes (axis-aligned) translations only. `rotation` and `translation`
-/// as in [`ff_world_set_boundary_pose`].
+/// for every object from the next step on (absolute, not accumulated: a kinematic obstacle;
+/// it replaces the collider's scripted motion, and for a collider with a parent it is relative
+/// to the parent's frame). Any shape takes any rigid pose. `rotation` and `translation` as in
+/// [`ff_world_set_boundary_pose`].
 #[no_mangle]
 pub unsafe extern "C" fn ff_world_set_collider_pose(
     world: *mut FfWorld,

@@ -183,8 +183,9 @@ int ff_world_set_boundary_pose(ff_world *world, size_t object, size_t boundary,
                                const double *rotation, const double *translation);
 
 /* Move collider `collider` to the pose x -> R x + t of its definition in the scene, for every
- * object from the next step on (absolute, not accumulated: a kinematic obstacle). Planes take
- * any pose, axis-aligned boxes translations only. rotation and translation as above. */
+ * object from the next step on (absolute, not accumulated: a kinematic obstacle; it replaces the
+ * collider's scripted motion, and for a collider with a parent it is relative to the parent's
+ * frame). Any shape takes any rigid pose. rotation and translation as above. */
 int ff_world_set_collider_pose(ff_world *world, size_t collider, const double *rotation,
                                const double *translation);
 

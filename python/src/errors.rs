@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 /// The Python class for a library error.
 fn class_name(e: &Error) -> &'static str {
     match e {
-        Error::Object { source, .. } => class_name(source),
+        Error::Object { source, .. } | Error::Collider { source, .. } => class_name(source),
         Error::Coverage { .. } => "CoverageError",
         Error::Io { .. } | Error::BasisFile { .. } | Error::BasisArrayTooLarge { .. } => {
             "FreeformIOError"

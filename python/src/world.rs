@@ -256,6 +256,7 @@ fn step_dict<'py>(py: Python<'py>, name: &str, r: &StepReport) -> PyResult<Bound
     d.set_item("min_det", row.min_det)?;
     d.set_item("inverted", row.inverted)?;
     d.set_item("contacts", row.contacts)?;
+    d.set_item("penetration", row.penetration)?;
     d.set_item("boundary_rms_deviation", row.boundary_rms_deviation)?;
     Ok(d)
 }
@@ -539,7 +540,8 @@ impl PyWorld {
     }
 
     /// The kinematic pose of collider ``collider`` (its scene definition moved by
-    /// x -> R x + t; absolute). Planes take any pose, boxes translations only.
+    /// x -> R x + t; absolute; it replaces the collider's scripted motion, and for a collider
+    /// with a parent it is relative to the parent's frame). Any shape takes any rigid pose.
     #[pyo3(signature = (collider, rotation = None, translation = None))]
     fn set_collider_pose(
         &mut self,

@@ -180,7 +180,7 @@ def test_reports_and_summaries_are_dicts():
     world = ff.World(scene())
     reports = world.step()
     assert set(reports[0]) >= {"object", "step", "time", "converged", "iterations", "residual",
-                               "energy", "min_det", "contacts", "wall_ms"}
+                               "energy", "min_det", "contacts", "penetration", "wall_ms"}
     summaries = world.summaries()
     assert [s["name"] for s in summaries] == ["ball", "bar"]
     assert summaries[0]["steps"][0]["step"] == 1

@@ -233,11 +233,64 @@ impl StressArrays {
     }
 }
 
+/// The frame name of collider `index` (`collider-<name>`, or `collider-<index>` without a
+/// name): its `.pvd` collection and the stem of its frames in `<out>/colliders/`.
+pub fn collider_stem(index: usize, name: Option<&str>) -> String {
+    match name {
+        Some(n) => format!("collider-{n}"),
+        None => format!("collider-{index}"),
+    }
+}
+
+impl FrameWriter {
+    /// Write the surfaces of the colliders other than planes at their current poses into
+    /// `<out>/colliders/<stem>_<frame:06>.vtp` (with the obstacle's `displacement` from its
+    /// scene definition), collected in `<out>/<stem>.pvd`: ParaView and `freeform render`
+    /// then draw the kinematic bodies with the objects. VTK only.
+    fn write_colliders(&mut self, world: &World, frame: usize) -> Result<()> {
+        if !self.formats.contains(&Format::Vtk) {
+            return Ok(());
+        }
+        let poses = world.collider_poses();
+        let kin = world.collider_kinematics();
+        let dir = self.out.join("colliders");
+        for (i, (obstacle, pose)) in kin.obstacles().iter().zip(&poses).enumerate() {
+            let Some((rest, triangles)) = obstacle.surface() else {
+                continue;
+            };
+            std::fs::create_dir_all(&dir).map_err(|source| Error::Io {
+                path: dir.clone(),
+                source,
+            })?;
+            let stem = collider_stem(i, world.colliders()[i].name.as_deref());
+            let x: Vec<crate::Point3> = rest.iter().map(|p| pose.apply(p)).collect();
+            let disp: Vec<[f64; 3]> = x
+                .iter()
+                .zip(&rest)
+                .map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]])
+                .collect();
+            let file = format!("{stem}_{frame:06}.vtp");
+            let path = dir.join(&file);
+            vtk::write_vtp(
+                &path,
+                &x,
+                Some(&triangles),
+                &[PointData::Vector("displacement", &disp)],
+            )?;
+            self.collection(&stem)
+                .push((world.time(), format!("colliders/{file}")));
+            self.files.push(path.display().to_string());
+        }
+        Ok(())
+    }
+}
+
 impl FrameObserver for FrameWriter {
     fn frame(&mut self, world: &World, frame: usize) -> Result<()> {
         for object in world.objects() {
             self.write_object(object, frame)?;
         }
+        self.write_colliders(world, frame)?;
         self.frames += 1;
         Ok(())
     }

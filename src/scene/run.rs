@@ -63,8 +63,11 @@ pub struct StepRow {
     pub min_det: f64,
     /// Cubature points with det F <= 0.
     pub inverted: usize,
-    /// Collider penetrations at the end of the step.
+    /// Collider penetrations at the end of the step: penetrating (cubature point, collider)
+    /// pairs, every collider kind counted.
     pub contacts: usize,
+    /// Deepest collider penetration at the end of the step, metres (0 without contact).
+    pub penetration: f64,
     /// Largest RMS distance of a boundary region's points from their target, metres (absent
     /// without boundaries; [`StepReport::boundary_rms_deviation`]).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -87,6 +90,7 @@ impl From<&StepReport> for StepRow {
             min_det: s.info.min_det,
             inverted: s.info.inverted,
             contacts: s.info.contacts,
+            penetration: s.info.penetration,
             boundary_rms_deviation: r.boundary_rms_deviation,
         }
     }

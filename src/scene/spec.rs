@@ -30,7 +30,7 @@ pub struct Scene {
     /// The objects (`[[object]]` tables); they do not interact with each other.
     #[serde(default, rename = "object")]
     pub objects: Vec<ObjectSpec>,
-    /// Static obstacles shared by all objects (`[[collider]]` tables).
+    /// Obstacles shared by all objects, static or kinematic (`[[collider]]` tables).
     #[serde(default, rename = "collider", skip_serializing_if = "Vec::is_empty")]
     pub colliders: Vec<Collider>,
 }
@@ -418,10 +418,15 @@ impl Scene {
                 ));
             }
         }
+        crate::sim::collider::validate_colliders(&self.colliders)?;
         for (i, c) in self.colliders.iter().enumerate() {
-            c.shape
-                .validate()
-                .map_err(|e| scene_err(format!("collider {i}: {e}")))?;
+            let stem = super::frames::collider_stem(i, c.name.as_deref());
+            if let Some(o) = self.objects.iter().find(|o| o.name == stem) {
+                return Err(scene_err(format!(
+                    "object '{}' has the frame name of collider {i}; rename one of them",
+                    o.name
+                )));
+            }
         }
         Ok(())
     }

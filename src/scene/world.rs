@@ -13,8 +13,8 @@ use crate::precompute::sampling::IntegrationPoints;
 use crate::precompute::skinning::{Basis, SkinningWeights};
 use crate::progress::Progress;
 use crate::report::{Monitors, Stopwatch};
+use crate::sim::collider::{self, Collider, Kinematics};
 use crate::sim::motion::{Motion, Rigid};
-use crate::sim::terms::ColliderShape;
 use crate::sim::{Placement, ReducedSim, SimOptions, StepReport};
 use crate::{Error, Point3, Result};
 use std::sync::OnceLock;
@@ -509,8 +509,10 @@ fn check_prepared(p: &PreparedObject) -> Result<()> {
 /// ```
 pub struct World {
     objects: Vec<SceneObject>,
-    /// The scene's colliders as defined (rest poses), for [`World::set_collider_pose`].
-    colliders: Vec<ColliderShape>,
+    /// The scene's colliders as defined (meshes loaded).
+    colliders: Vec<Collider>,
+    /// The colliders' obstacles and current motions (every object holds the same).
+    kinematics: Kinematics,
     dt: f64,
     strict: bool,
     warnings: Vec<String>,
@@ -556,6 +558,16 @@ impl World {
         let mut all = scene.clone();
         all.objects.extend(prepared.iter().map(|p| p.spec.clone()));
         all.validate()?;
+        // Mesh colliders are read once, before any basis is computed, and shared by every
+        // object.
+        let mut loaded = scene.clone();
+        for (i, c) in loaded.colliders.iter_mut().enumerate() {
+            let mut shape = c.shape.clone();
+            shape.load(&settings.base_dir).map_err(|e| c.error(i, e))?;
+            c.shape = shape;
+        }
+        let kinematics = collider::kinematics(&loaded.colliders)?;
+        let scene = &loaded;
         let mut warnings = Vec::new();
         let mut objects = Vec::new();
         for (index, spec) in scene.objects.iter().enumerate() {
@@ -593,7 +605,8 @@ impl World {
         check_strict(settings.strict, &warnings)?;
         Ok(World {
             objects,
-            colliders: scene.colliders.iter().map(|c| c.shape).collect(),
+            colliders: scene.colliders.clone(),
+            kinematics,
             dt: scene.simulation.dt,
             strict: settings.strict,
             warnings,
@@ -736,27 +749,57 @@ impl World {
     }
 
     /// The kinematic pose of collider `index`: its shape as defined in the scene, moved by
-    /// `pose` (x -> R x + t, metres), for every object from the next step on. Poses are
-    /// absolute (relative to the scene's definition), not accumulated. Planes take any pose;
-    /// boxes are axis-aligned and take translations only.
+    /// `pose` (x -> R x + t, metres; R a proper rotation), for every object from the next step
+    /// on, whatever its shape (planes, boxes, spheres, capsules, meshes). Poses are absolute
+    /// (relative to the scene's definition), not accumulated; for a collider with a `parent`
+    /// the pose is relative to the parent's frame (a joint), and children follow. It replaces
+    /// the collider's scripted `motion` (as a [`Motion::Pose`]).
     pub fn set_collider_pose(&mut self, index: usize, pose: &Rigid) -> Result<()> {
-        let rest = self.colliders.get(index).ok_or_else(|| {
-            Error::param(
+        pose.validate()?;
+        self.set_collider_motion(
+            index,
+            Motion::Pose {
+                rotation: pose.rotation,
+                translation: pose.translation,
+            },
+        )
+    }
+
+    /// A new motion for collider `index` from the next step on, evaluated at the simulation
+    /// time (a keyframe at [`World::time`] starts now); relative to the parent's frame for a
+    /// collider with a `parent`.
+    pub fn set_collider_motion(&mut self, index: usize, motion: Motion) -> Result<()> {
+        if index >= self.colliders.len() {
+            return Err(Error::param(
                 "collider",
                 index,
                 format!(
                     "the scene has {} colliders (indices from 0)",
                     self.colliders.len()
                 ),
-            )
-        })?;
-        pose.validate()?;
-        // Every object validates the same shape: the first refuses it or all take it.
-        let moved = rest.transformed(pose)?;
-        for o in &mut self.objects {
-            o.sim.set_collider_shape(index, moved)?;
+            ));
         }
-        Ok(())
+        motion.validate()?;
+        // Every object takes the same valid motion: none can refuse it after the first.
+        for o in &mut self.objects {
+            o.sim.set_collider_motion(index, motion.clone())?;
+        }
+        self.kinematics.set_motion(index, motion)
+    }
+
+    /// The scene's colliders as defined (rest frames; meshes loaded).
+    pub fn colliders(&self) -> &[Collider] {
+        &self.colliders
+    }
+
+    /// The colliders' obstacles, motions and parents as the objects see them now.
+    pub fn collider_kinematics(&self) -> &Kinematics {
+        &self.kinematics
+    }
+
+    /// The pose of every collider at the current time (x -> R x + t of its rest frame).
+    pub fn collider_poses(&self) -> Vec<Rigid> {
+        self.kinematics.poses(self.time())
     }
 
     /// The summaries of all objects, with the means and counts of the steps taken.

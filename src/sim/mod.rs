@@ -6,12 +6,15 @@
 //! - [`elastic`]: the elastic energy, gradient and Hessian in z (structured, no dense
 //!   per-point 9 x 12 (m + 1) blocks).
 //! - [`terms`]: inertia, gravity, boundary and collider penalties.
+//! - [`collider`]: obstacles (planes, boxes, spheres, capsules, triangle meshes) and their
+//!   kinematics (scripted or caller-set poses, articulated chains).
 //! - [`motion`]: prescribed rigid motions for boundaries.
 //! - [`newton`]: the per-step minimiser and its strategies.
 //! - [`object`]: one simulated object (setup, state, stepping).
 //! - [`deformation`]: the deformation map's gradient F at any points.
 //! - [`gaussian`]: Gaussian splats carried by F (covariance, rotation, SH colour).
 
+pub mod collider;
 pub mod cubature;
 pub mod deformation;
 pub mod elastic;
@@ -22,5 +25,6 @@ pub mod newton;
 pub mod object;
 pub mod terms;
 
+pub use collider::Collider;
 pub use newton::{HessianStrategy, InitialGuess, NewtonOptions};
-pub use object::{Boundary, Collider, Placement, ReducedSim, SimOptions, StepReport};
+pub use object::{Boundary, Placement, ReducedSim, SimOptions, StepReport};

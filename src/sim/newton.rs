@@ -171,6 +171,8 @@ pub struct EvalInfo {
     pub inverted: usize,
     /// Collider penetrations (point-obstacle pairs).
     pub contacts: usize,
+    /// Deepest collider penetration, metres (0 without contact).
+    pub penetration: f64,
     /// Estimated rounding error of the energy, J (the penalty quadratics cancel large
     /// terms): energy changes below it are noise.
     #[serde(skip)]

@@ -9,6 +9,7 @@ use crate::precompute::boundary_modes::lift_column;
 use crate::precompute::sampling::IntegrationPoints;
 use crate::precompute::skinning::{Basis, SkinningWeights};
 use crate::report::Stopwatch;
+use crate::sim::collider::{self, Collider, ColliderShape, Obstacle};
 use crate::sim::cubature::{self, Cubature, DEFAULT_CUBATURE};
 use crate::sim::elastic::{ElasticTerm, Layout, Precision, Projection};
 use crate::sim::motion::{rotation_matrix, AxisAngle, Motion, Rigid};
@@ -16,7 +17,7 @@ use crate::sim::newton::{
     self, EvalInfo, InitialGuess, NewtonOptions, Potential, SolveReport, SolverContext,
 };
 use crate::sim::terms::{
-    add_block_diagonal, add_block_product, BoundaryTerm, ColliderShape, ContactTerm, Moments,
+    add_block_diagonal, add_block_product, BoundaryTerm, ContactHessian, ContactTerm, Moments,
 };
 use crate::{Error, Point3, Result};
 use faer::linalg::solvers::Llt;
@@ -46,17 +47,6 @@ fn fixed() -> Motion {
     Motion::Fixed
 }
 
-/// A static obstacle with its penalty stiffness.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Collider {
-    /// The obstacle.
-    pub shape: ColliderShape,
-    /// Penalty stiffness, Pa/m^2 (default as for [`Boundary`]).
-    #[serde(default)]
-    pub stiffness: Option<f64>,
-}
-
 /// Initial placement and velocity of an object (applied to its rest shape).
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -84,7 +74,8 @@ pub struct SimOptions {
     pub newton: NewtonOptions,
     /// Kinematic boundary conditions.
     pub boundaries: Vec<Boundary>,
-    /// Static obstacles.
+    /// Obstacles (static or kinematic; meshes loaded by [`ColliderShape::load`] are shared,
+    /// others are read here).
     pub colliders: Vec<Collider>,
     /// Initial placement and velocity.
     pub placement: Placement,
@@ -284,15 +275,16 @@ impl ReducedSim {
         let contacts = if opts.colliders.is_empty() {
             None
         } else {
+            let kinematics = collider::kinematics(&opts.colliders)?;
             let mut ks = Vec::new();
-            for c in &opts.colliders {
+            for (i, c) in opts.colliders.iter().enumerate() {
                 let k = c.stiffness.unwrap_or(default_k);
-                positive("stiffness", k, "a collider penalty stiffness (Pa/m^2)")?;
-                c.shape.validate()?;
+                positive("stiffness", k, "a collider penalty stiffness (Pa/m^2)")
+                    .map_err(|e| c.error(i, e))?;
                 ks.push(k);
             }
             Some(ContactTerm::new(
-                opts.colliders.iter().map(|c| c.shape).collect(),
+                kinematics,
                 ks,
                 &cub.points,
                 &cub.volumes,
@@ -366,7 +358,13 @@ impl ReducedSim {
             t.push(format!("boundary {i} ({} points)", b.points.len()));
         }
         if let Some(c) = &self.contacts {
-            t.push(format!("colliders ({})", c.shapes.len()));
+            let kinds: Vec<&str> = c
+                .kinematics()
+                .obstacles()
+                .iter()
+                .map(Obstacle::kind)
+                .collect();
+            t.push(format!("colliders ({}: {})", kinds.len(), kinds.join(", ")));
         }
         t
     }
@@ -566,21 +564,36 @@ impl ReducedSim {
     }
 
     /// Replace the shape of collider `index` (in the order of [`SimOptions::colliders`]) from
-    /// the next step on, e.g. to move an obstacle; its penalty stiffness stays.
+    /// the next step on; its penalty stiffness, motion and parent stay. A mesh not yet
+    /// [`ColliderShape::load`]ed is read here.
     pub fn set_collider_shape(&mut self, index: usize, shape: ColliderShape) -> Result<()> {
-        shape.validate()?;
-        let count = self.contacts.as_ref().map_or(0, |c| c.shapes.len());
-        match self.contacts.as_mut().and_then(|c| c.shapes.get_mut(index)) {
-            Some(s) => {
-                *s = shape;
-                Ok(())
-            }
-            None => Err(Error::param(
+        let obstacle = Obstacle::new(&shape)?;
+        self.contact_kinematics(index)?
+            .set_obstacle(index, obstacle)
+    }
+
+    /// Move collider `index` by `motion` from the next step on (evaluated at the simulation
+    /// time; relative to its parent's frame if it has one), e.g. a [`Motion::Pose`] set
+    /// between steps by a caller.
+    pub fn set_collider_motion(&mut self, index: usize, motion: Motion) -> Result<()> {
+        self.contact_kinematics(index)?.set_motion(index, motion)
+    }
+
+    fn contact_kinematics(&mut self, index: usize) -> Result<&mut collider::Kinematics> {
+        let count = self.contacts.as_ref().map_or(0, |c| c.kinematics().len());
+        match self.contacts.as_mut() {
+            Some(c) if index < count => Ok(c.kinematics_mut()),
+            _ => Err(Error::param(
                 "collider",
                 index,
                 format!("the object has {count} colliders (indices from 0)"),
             )),
         }
+    }
+
+    /// The collider penalties (None without colliders), for diagnostics and tests.
+    pub fn contacts(&self) -> Option<&ContactTerm> {
+        self.contacts.as_ref()
     }
 
     /// Put the object back into its rest shape at `placement`, with the placement's initial
@@ -775,18 +788,18 @@ impl Potential for StepPotential<'_> {
             e += eb;
             scale += sb;
         }
-        let mut contacts = 0;
+        let mut contacts = crate::sim::terms::ContactInfo::default();
         if let Some(c) = &s.contacts {
-            let (ec, active) = c.energy_gradient(l, z, grad);
-            e += ec;
-            contacts = active;
+            contacts = c.energy_gradient(l, self.t, z, grad);
+            e += contacts.energy;
         }
         (
             e,
             EvalInfo {
                 min_det: st.min_det,
                 inverted: st.inverted,
-                contacts,
+                contacts: contacts.active,
+                penetration: contacts.deepest,
                 rounding: scale * 1e-16 * (l.row_len() as f64).sqrt() * 4.0,
             },
         )
@@ -807,7 +820,7 @@ impl Potential for StepPotential<'_> {
             add_block_diagonal(l, &b.moments.bb, 1.0, &mut h);
         }
         if let Some(c) = &s.contacts {
-            c.add_hessian(l, z, &mut h);
+            c.add_hessian(l, self.t, z, ContactHessian::Psd, &mut h);
         }
         h
     }

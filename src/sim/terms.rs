@@ -8,11 +8,12 @@
 //! are the moments sum c b b^T, sum c b Xh^T and sum c Xh Xh^T, computed once.
 
 use crate::precompute::skinning::SkinningWeights;
+pub use crate::sim::collider::ColliderShape;
+use crate::sim::collider::{Kinematics, Penetration};
 use crate::sim::elastic::Layout;
 use crate::sim::motion::{Motion, Rigid};
 use crate::Point3;
 use faer::{Accum, Mat, Par};
-use serde::{Deserialize, Serialize};
 
 /// Weighted moments of the map b over a point set.
 #[derive(Debug, Clone)]
@@ -267,122 +268,12 @@ impl BoundaryTerm {
     }
 }
 
-/// A static obstacle the object must stay out of.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case", deny_unknown_fields)]
-pub enum ColliderShape {
-    /// The half-space behind a plane: points with (x - point) . normal < 0 penetrate.
-    Plane {
-        /// A point on the plane, metres.
-        point: Point3,
-        /// Normal pointing out of the obstacle (any non-zero length).
-        normal: [f64; 3],
-    },
-    /// An axis-aligned box obstacle [min, max], metres.
-    Box {
-        /// Lower corner.
-        min: Point3,
-        /// Upper corner.
-        max: Point3,
-    },
-}
-
-impl ColliderShape {
-    /// Check for a finite, non-zero normal and an ordered, finite box.
-    pub fn validate(&self) -> crate::Result<()> {
-        let ok = match self {
-            ColliderShape::Plane { point, normal } => {
-                point.iter().chain(normal).all(|v| v.is_finite())
-                    && normal.iter().any(|v| *v != 0.0)
-            }
-            ColliderShape::Box { min, max } => {
-                min.iter().chain(max).all(|v| v.is_finite()) && (0..3).all(|d| min[d] < max[d])
-            }
-        };
-        if ok {
-            Ok(())
-        } else {
-            Err(crate::Error::param(
-                "collider",
-                format!("{self:?}"),
-                "a plane needs a finite point and a non-zero normal; a box needs finite \
-                 corners with min < max on every axis",
-            ))
-        }
-    }
-
-    /// The obstacle moved by the rigid transform `pose` (x -> R x + t, t in metres): a plane's point and
-    /// normal move with it; an axis-aligned box can only be translated (a pose that rotates
-    /// it is an error, since the result would not be axis-aligned).
-    pub fn transformed(&self, pose: &Rigid) -> crate::Result<ColliderShape> {
-        let r = &pose.rotation;
-        let rotate = |v: &[f64; 3]| -> [f64; 3] {
-            std::array::from_fn(|i| r[i][0] * v[0] + r[i][1] * v[1] + r[i][2] * v[2])
-        };
-        match self {
-            ColliderShape::Plane { point, normal } => Ok(ColliderShape::Plane {
-                point: pose.apply(point),
-                normal: rotate(normal),
-            }),
-            ColliderShape::Box { min, max } => {
-                // Exact identity only: a rotation by rounding error would still be refused,
-                // so callers pass Rigid::IDENTITY.rotation for a pure translation.
-                if *r != Rigid::IDENTITY.rotation {
-                    return Err(crate::Error::param(
-                        "collider pose",
-                        format!("{r:?}"),
-                        "an axis-aligned box collider can only be translated (pass the \
-                         identity rotation); use a plane collider for a rotating obstacle",
-                    ));
-                }
-                let t = pose.translation;
-                Ok(ColliderShape::Box {
-                    min: std::array::from_fn(|d| min[d] + t[d]),
-                    max: std::array::from_fn(|d| max[d] + t[d]),
-                })
-            }
-        }
-    }
-
-    /// Penetration depth d >= 0 (m) and the unit push-out direction, or None outside.
-    pub fn penetration(&self, x: &Point3) -> Option<(f64, [f64; 3])> {
-        match self {
-            ColliderShape::Plane { point, normal } => {
-                let n = (normal[0].powi(2) + normal[1].powi(2) + normal[2].powi(2)).sqrt();
-                let u = normal.map(|v| v / n);
-                let s: f64 = (0..3).map(|d| (x[d] - point[d]) * u[d]).sum();
-                (s < 0.0).then_some((-s, u))
-            }
-            ColliderShape::Box { min, max } => {
-                if !(0..3).all(|d| x[d] > min[d] && x[d] < max[d]) {
-                    return None;
-                }
-                // Push out through the nearest face.
-                let mut best = (f64::INFINITY, [0.0; 3]);
-                for d in 0..3 {
-                    let (lo, hi) = (x[d] - min[d], max[d] - x[d]);
-                    if lo < best.0 {
-                        let mut u = [0.0; 3];
-                        u[d] = -1.0;
-                        best = (lo, u);
-                    }
-                    if hi < best.0 {
-                        let mut u = [0.0; 3];
-                        u[d] = 1.0;
-                        best = (hi, u);
-                    }
-                }
-                Some(best)
-            }
-        }
-    }
-}
-
-/// One-sided collider penalties kappa/2 sum_c v_c d_c^2 on the cubature points.
+/// One-sided collider penalties kappa/2 sum_c v_c d_c^2 on the cubature points, d_c the
+/// penetration depth of point c in each obstacle at the obstacles' poses at time t
+/// ([`Kinematics`]).
 #[derive(Debug, Clone)]
 pub struct ContactTerm {
-    /// Obstacles.
-    pub shapes: Vec<ColliderShape>,
+    kinematics: Kinematics,
     /// Penalty stiffness per obstacle, Pa/m^2.
     pub stiffness: Vec<f64>,
     points: Vec<Point3>,
@@ -391,23 +282,55 @@ pub struct ContactTerm {
     handles: usize,
 }
 
+/// What one evaluation of the contact penalties found.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ContactInfo {
+    /// Penalty energy, J.
+    pub energy: f64,
+    /// Penetrating (cubature point, obstacle) pairs.
+    pub active: usize,
+    /// Deepest penetration, metres (0 without contact).
+    pub deepest: f64,
+}
+
+/// Which Hessian of the penalties to add.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ContactHessian {
+    /// The positive semi-definite part (what Newton factorizes): exact for planes, boxes and
+    /// meshes; for spheres and capsules the curvature part, negative inside, is left out.
+    Psd,
+    /// The exact Hessian of the penalty (for tests and diagnostics).
+    Exact,
+}
+
 impl ContactTerm {
-    /// Contacts for the cubature points `points` (volumes `volumes`, skinning weights `w`).
+    /// Contacts of the cubature points `points` (volumes `volumes`, skinning weights `w`)
+    /// with the obstacles of `kinematics`, one penalty stiffness (Pa/m^2) each.
     pub fn new(
-        shapes: Vec<ColliderShape>,
+        kinematics: Kinematics,
         stiffness: Vec<f64>,
         points: &[Point3],
         volumes: &[f64],
         w: &SkinningWeights,
     ) -> ContactTerm {
         ContactTerm {
-            shapes,
+            kinematics,
             stiffness,
             points: points.to_vec(),
             volumes: volumes.to_vec(),
             w: w.values.clone(),
             handles: w.modes,
         }
+    }
+
+    /// The obstacles and their motions.
+    pub fn kinematics(&self) -> &Kinematics {
+        &self.kinematics
+    }
+
+    /// The obstacles and their motions, mutable (to move an obstacle between steps).
+    pub fn kinematics_mut(&mut self) -> &mut Kinematics {
+        &mut self.kinematics
     }
 
     fn b(&self, c: usize) -> impl Iterator<Item = (usize, f64)> + '_ {
@@ -428,51 +351,102 @@ impl ContactTerm {
         x
     }
 
-    /// Energy (J), gradient added to `grad`, and the number of penetrating points.
-    pub fn energy_gradient(&self, layout: Layout, z: &[f64], grad: &mut [f64]) -> (f64, usize) {
-        let n4 = layout.row_len();
-        let mut e = 0.0;
-        let mut active = 0;
-        for c in 0..self.points.len() {
+    /// Every penetration at `z` and time `t`: (cubature point, obstacle, penetration).
+    fn penetrations(&self, layout: Layout, t: f64, z: &[f64]) -> Vec<(usize, usize, Penetration)> {
+        let poses = self.kinematics.poses(t);
+        let obstacles = self.kinematics.obstacles();
+        // Bounding spheres in world coordinates, for a cheap rejection.
+        let bounds: Vec<Option<(Point3, f64)>> = obstacles
+            .iter()
+            .zip(&poses)
+            .map(|(o, p)| o.bounding_sphere().map(|(c, r)| (p.apply(&c), r)))
+            .collect();
+        let point = |c: usize| {
             let x = self.position(layout, c, z);
-            for (shape, &k) in self.shapes.iter().zip(&self.stiffness) {
-                if let Some((d, u)) = shape.penetration(&x) {
-                    active += 1;
-                    let v = self.volumes[c];
-                    e += 0.5 * k * v * d * d;
-                    // dE/dx = -k v d u.
-                    for (kk, bk) in self.b(c) {
-                        for r in 0..3 {
-                            grad[r * n4 + kk] -= k * v * d * u[r] * bk;
-                        }
+            let mut found = Vec::new();
+            for (o, ((obstacle, pose), bound)) in
+                obstacles.iter().zip(&poses).zip(&bounds).enumerate()
+            {
+                if let Some((centre, r)) = bound {
+                    let d2: f64 = (0..3).map(|d| (x[d] - centre[d]).powi(2)).sum();
+                    if d2 >= r * r {
+                        continue;
                     }
+                }
+                if let Some(p) = obstacle.penetration(pose, &x) {
+                    found.push((c, o, p));
+                }
+            }
+            found
+        };
+        // Mesh queries cost microseconds per point (docs/performance.md): spread the points
+        // over threads. The result keeps point order, so the sums over it do not depend on
+        // the thread count.
+        if obstacles.iter().any(|o| o.mesh().is_some()) {
+            use rayon::prelude::*;
+            (0..self.points.len())
+                .into_par_iter()
+                .with_min_len(64)
+                .flat_map_iter(point)
+                .collect()
+        } else {
+            (0..self.points.len()).flat_map(point).collect()
+        }
+    }
+
+    /// Energy (J), gradient added to `grad`, the number of penetrating (point, obstacle)
+    /// pairs and the deepest penetration, with the obstacles at their poses at time `t` (s).
+    pub fn energy_gradient(
+        &self,
+        layout: Layout,
+        t: f64,
+        z: &[f64],
+        grad: &mut [f64],
+    ) -> ContactInfo {
+        let n4 = layout.row_len();
+        let mut info = ContactInfo::default();
+        for (c, o, p) in self.penetrations(layout, t, z) {
+            let (k, v, d, u) = (self.stiffness[o], self.volumes[c], p.depth, p.normal);
+            info.active += 1;
+            info.deepest = info.deepest.max(d);
+            info.energy += 0.5 * k * v * d * d;
+            // dE/dx = -k v d u.
+            for (kk, bk) in self.b(c) {
+                for r in 0..3 {
+                    grad[r * n4 + kk] -= k * v * d * u[r] * bk;
                 }
             }
         }
-        (e, active)
+        info
     }
 
-    /// Add the Hessian of the active penalties (k v u u^T per penetrating point, the
-    /// generalized Gauss-Newton part, PSD) to `h`.
-    pub fn add_hessian(&self, layout: Layout, z: &[f64], h: &mut Mat<f64>) {
+    /// Add the Hessian of the active penalties at time `t` to `h`: k v B^T H B per
+    /// penetrating point, H the exact Hessian of d^2/2 or its PSD part ([`ContactHessian`]).
+    pub fn add_hessian(
+        &self,
+        layout: Layout,
+        t: f64,
+        z: &[f64],
+        which: ContactHessian,
+        h: &mut Mat<f64>,
+    ) {
         let n4 = layout.row_len();
-        for c in 0..self.points.len() {
-            let x = self.position(layout, c, z);
-            for (shape, &k) in self.shapes.iter().zip(&self.stiffness) {
-                if let Some((_, u)) = shape.penetration(&x) {
-                    let v = self.volumes[c];
-                    let b: Vec<(usize, f64)> = self.b(c).collect();
-                    for r in 0..3 {
-                        for s in 0..3 {
-                            let coef = k * v * u[r] * u[s];
-                            if coef == 0.0 {
-                                continue;
-                            }
-                            for &(i, bi) in &b {
-                                for &(j, bj) in &b {
-                                    h[(r * n4 + i, s * n4 + j)] += coef * bi * bj;
-                                }
-                            }
+        for (c, o, p) in self.penetrations(layout, t, z) {
+            let kv = self.stiffness[o] * self.volumes[c];
+            let hx = match which {
+                ContactHessian::Psd => p.hessian_psd,
+                ContactHessian::Exact => p.hessian,
+            };
+            let b: Vec<(usize, f64)> = self.b(c).collect();
+            for r in 0..3 {
+                for s in 0..3 {
+                    let coef = kv * hx[r][s];
+                    if coef == 0.0 {
+                        continue;
+                    }
+                    for &(i, bi) in &b {
+                        for &(j, bj) in &b {
+                            h[(r * n4 + i, s * n4 + j)] += coef * bi * bj;
                         }
                     }
                 }

@@ -19,6 +19,7 @@ mod assembly;
 mod bad_inputs;
 mod boundary_modes;
 mod cli;
+mod colliders;
 mod extremes;
 mod fem;
 mod geometry;

@@ -57,6 +57,9 @@ fn scene_round_trips_through_toml() {
                 normal: [0.0, 1.0, 0.0],
             },
             stiffness: Some(1e9),
+            name: None,
+            motion: freeform::sim::motion::Motion::Fixed,
+            parent: None,
         })
         .build()
         .unwrap();
@@ -168,6 +171,9 @@ fn only_declared_terms_are_built_and_an_unloaded_object_stays_put() {
                 normal: [0.0, 1.0, 0.0],
             },
             stiffness: None,
+            name: None,
+            motion: freeform::sim::motion::Motion::Fixed,
+            parent: None,
         })
         .build()
         .unwrap();
@@ -265,6 +271,9 @@ fn frames_are_written_for_paraview_and_a_ball_rests_on_the_floor() {
                 normal: [0.0, 1.0, 0.0],
             },
             stiffness: None,
+            name: None,
+            motion: freeform::sim::motion::Motion::Fixed,
+            parent: None,
         })
         .hessian(freeform::sim::HessianStrategy::Newton)
         .build()

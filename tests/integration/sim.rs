@@ -81,6 +81,9 @@ fn gradient_and_hessian_match_finite_differences() {
                 normal: [0.0, 1.0, 0.0],
             },
             stiffness: Some(1e7),
+            name: None,
+            motion: freeform::sim::motion::Motion::Fixed,
+            parent: None,
         }],
         ..SimOptions::default()
     };
@@ -459,6 +462,9 @@ fn violent_steps_stay_finite_and_report() {
                 normal: [0.0, 1.0, 0.0],
             },
             stiffness: None,
+            name: None,
+            motion: freeform::sim::motion::Motion::Fixed,
+            parent: None,
         }],
         newton: NewtonOptions {
             max_iter: 30,
@@ -584,6 +590,9 @@ fn bad_simulation_parameters_are_errors() {
                 normal: [0.0; 3],
             },
             stiffness: None,
+            name: None,
+            motion: freeform::sim::motion::Motion::Fixed,
+            parent: None,
         }],
         ..SimOptions::default()
     })

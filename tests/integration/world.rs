@@ -378,20 +378,27 @@ fn a_new_placement_puts_the_rest_shape_where_asked() {
 }
 
 #[test]
-fn a_raised_floor_pushes_the_object_up_and_a_rotated_box_is_refused() {
+fn a_raised_floor_pushes_the_object_up_and_bad_poses_are_refused() {
     let floor = Collider {
         shape: ColliderShape::Plane {
             point: [0.0, -0.5, 0.0],
             normal: [0.0, 1.0, 0.0],
         },
         stiffness: None,
+        name: None,
+        motion: freeform::sim::motion::Motion::Fixed,
+        parent: None,
     };
     let wall = Collider {
         shape: ColliderShape::Box {
             min: [5.0, 5.0, 5.0],
             max: [6.0, 6.0, 6.0],
+            rotation: None,
         },
         stiffness: None,
+        name: None,
+        motion: freeform::sim::motion::Motion::Fixed,
+        parent: None,
     };
     let scene = SceneBuilder::new(0.01, 1)
         .cubature(400)
@@ -415,14 +422,26 @@ fn a_raised_floor_pushes_the_object_up_and_a_rotated_box_is_refused() {
     let x = world.object(0).render_positions();
     let mean_y = x.iter().map(|p| p[1]).sum::<f64>() / x.len() as f64;
     assert!(mean_y > 0.1, "the floor pushed the bar up: mean y {mean_y}");
-    // Boxes translate but do not rotate; unknown colliders are refused.
+    // Every shape takes any rigid pose (boxes too, issue 15); improper rotations, NaN and
+    // unknown colliders are refused.
     let turn = Rigid {
         rotation: [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]],
         translation: [0.0; 3],
     };
     assert!(world.set_collider_pose(1, &up).is_ok());
-    assert!(world.set_collider_pose(1, &turn).is_err());
+    assert!(world.set_collider_pose(1, &turn).is_ok());
     assert!(world.set_collider_pose(0, &turn).is_ok());
+    let mirror = Rigid {
+        rotation: [[-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        translation: [0.0; 3],
+    };
+    assert!(world.set_collider_pose(1, &mirror).is_err());
+    let nan = Rigid {
+        translation: [f64::NAN, 0.0, 0.0],
+        ..Rigid::IDENTITY
+    };
+    let msg = world.set_collider_pose(0, &nan).unwrap_err().to_string();
+    assert!(msg.contains("finite"), "{msg}");
     assert!(world.set_collider_pose(2, &up).is_err());
 }
 

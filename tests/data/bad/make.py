@@ -172,6 +172,28 @@ write("scene/huge_youngs.toml", GOOD + "material = { youngs = 1e308 }\n")
 write("scene/zero_normal_collider.toml", GOOD + "[[collider]]\n"
       "shape = { plane = { point = [0.0, -1.0, 0.0], normal = [0.0, 0.0, 0.0] } }\n")
 
+# Colliders of issue 15: meshes that cannot be obstacles, bad numbers, bad kinematics.
+write("scene/collider_open_solid.toml", GOOD + "[[collider]]\nname = \"lid\"\n"
+      "shape = { mesh = { file = \"../obj/open_box.obj\" } }\n")
+# Triangle 1 of a tetrahedron collapsed onto a line (its third corner between the others).
+write("scene/collider_flat.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0.5 0 0\n"
+      "f 1 3 2\nf 1 2 4\nf 2 3 4\nf 1 4 3\n")
+write("scene/collider_degenerate.toml", GOOD + "[[collider]]\n"
+      "shape = { mesh = { file = \"collider_flat.obj\" } }\n")
+write("scene/collider_points.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
+      "property float y\nproperty float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n")
+write("scene/collider_point_cloud.toml", GOOD + "[[collider]]\n"
+      "shape = { mesh = { file = \"collider_points.ply\" } }\n")
+write("scene/collider_missing_mesh.toml", GOOD + "[[collider]]\n"
+      "shape = { mesh = { file = \"nowhere_collider.stl\" } }\n")
+write("scene/collider_zero_radius.toml", GOOD + "[[collider]]\nname = \"ball\"\n"
+      "shape = { sphere = { center = [0.0, 0.0, 0.0], radius = 0.0 } }\n")
+write("scene/collider_nan_pose.toml", GOOD + "[[collider]]\n"
+      "shape = { capsule = { a = [0.0, 0.0, 0.0], b = [1.0, 0.0, 0.0], radius = 0.1 } }\n"
+      "motion = { pose = { rotation = [[1, 0, 0], [0, 1, 0], [0, 0, 1]], translation = [nan, 0, 0] } }\n")
+write("scene/collider_bad_parent.toml", GOOD + "[[collider]]\nname = \"fore\"\nparent = \"upper\"\n"
+      "shape = { capsule = { a = [0.0, 0.0, 0.0], b = [1.0, 0.0, 0.0], radius = 0.1 } }\n")
+
 # --- MatrixMarket pairs (`freeform modes --from-matrices DIR`) -------------------------
 # A 6 x 6 diagonal SPD matrix: big enough for `--modes 1` (nev = 2 <= K - 2).
 SPD = ("%%MatrixMarket matrix coordinate real symmetric\n6 6 6\n"

@@ -1,0 +1,613 @@
+//! Triangle-mesh obstacles: a closed solid or a one-sided surface, read from OBJ, STL or PLY
+//! with the readers of [`crate::io`], validated, and queried through parry's BVH.
+//!
+//! **Queries.** [`MeshObstacle::penetration_local`] asks parry (`TriMesh` with the `ORIENTED`
+//! flag, `project_local_point_and_get_location` with `solid = false`) for the closest surface
+//! point, the feature it lies on (face, edge or vertex of a triangle) and the inside test by
+//! the angle-weighted pseudo-normal of that feature (Baerentzen and Aanaes 2005), which is
+//! exact for a closed, consistently oriented mesh. [`MeshObstacle::penetration_brute_force`]
+//! is the O(F) reference the tests compare against: every triangle's closest point, and the
+//! sign from the generalized winding number (solids) or its own pseudo-normals (surfaces).
+//!
+//! **Modes** ([`Sided`]). `solid`: the mesh must be closed and consistently oriented; its
+//! inside is the obstacle (an inward-facing file is flipped as a whole, as for object meshes).
+//! `outside`: a one-sided surface that may be open (terrain, an open container): the side its
+//! triangle normals ((b - a) x (c - a), counter-clockwise seen from that side) point to is
+//! free; a point behind the surface's nearest feature penetrates, however far. Beyond an open
+//! boundary the surface acts like the half-space of its boundary triangles, so keep objects
+//! from reaching round behind it.
+//!
+//! **Bad input** is refused with the file and what is wrong: no triangles (a point-cloud PLY),
+//! a zero-area triangle (its index in the file's triangle order; fan-triangulated faces count
+//! one triangle each), a solid mesh that is open, non-manifold or inconsistently oriented, a
+//! surface with non-manifold or inconsistently oriented edges.
+
+use super::{dot, ColliderShape, MeshCollider, Penetration};
+use crate::error::GeometryError;
+use crate::geometry::{weld_exact, Aabb, EdgeReport, ShapeFileFormat, ShapeOptions, ShapeSpec};
+use crate::{Error, Point3, Result};
+use parry3d_f64::math::Vector;
+use parry3d_f64::query::PointQueryWithLocation;
+use parry3d_f64::shape::{TriMesh as ParryMesh, TriMeshFlags, TrianglePointLocation};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Which side of a mesh collider is the obstacle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Sided {
+    /// A closed, consistently oriented mesh; its inside is the obstacle (default).
+    #[default]
+    Solid,
+    /// A one-sided surface, possibly open: the side the triangle normals point to is free,
+    /// the other side is the obstacle.
+    Outside,
+}
+
+impl Sided {
+    /// The scene-file name: "solid" or "outside".
+    pub fn name(self) -> &'static str {
+        match self {
+            Sided::Solid => "solid",
+            Sided::Outside => "outside",
+        }
+    }
+}
+
+/// A loaded, validated triangle-mesh obstacle with its BVH, in its rest frame.
+pub struct MeshObstacle {
+    path: PathBuf,
+    sided: Sided,
+    vertices: Vec<Point3>,
+    triangles: Vec<[u32; 3]>,
+    aabb: Aabb,
+    bvh: ParryMesh,
+}
+
+impl std::fmt::Debug for MeshObstacle {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MeshObstacle")
+            .field("path", &self.path)
+            .field("sided", &self.sided)
+            .field("vertices", &self.vertices.len())
+            .field("triangles", &self.triangles.len())
+            .field("aabb", &self.aabb)
+            .finish_non_exhaustive()
+    }
+}
+
+/// Relative area below which a triangle counts as degenerate: |(b - a) x (c - a)| <=
+/// 1e-10 x (longest edge)^2, i.e. its smallest angle is below ~1e-10 rad, where its normal
+/// (and so the pseudo-normals of its edges and vertices) is no longer defined to working
+/// accuracy.
+const DEGENERATE_AREA: f64 = 1e-10;
+
+fn to_vec(p: &Point3) -> Vector {
+    Vector::new(p[0], p[1], p[2])
+}
+
+fn from_vec(v: Vector) -> Point3 {
+    [v.x, v.y, v.z]
+}
+
+fn sub(a: &Point3, b: &Point3) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn norm(a: &[f64; 3]) -> f64 {
+    dot(a, a).sqrt()
+}
+
+fn identity_minus(e: &[f64; 3]) -> crate::linalg3::Mat3 {
+    std::array::from_fn(|i| std::array::from_fn(|j| if i == j { 1.0 } else { 0.0 } - e[i] * e[j]))
+}
+
+impl MeshObstacle {
+    /// Read and validate the mesh of `spec` (a relative `file` is taken from `base_dir`),
+    /// placed by its scale, rotation and translation.
+    ///
+    /// # Errors
+    /// The readers' `Io` and `Parse` errors (a PLY without faces is a `Parse` error);
+    /// [`GeometryError::DegenerateTriangle`], [`GeometryError::ColliderNotClosed`],
+    /// [`GeometryError::ColliderSurface`] and [`GeometryError::Degenerate`] as in
+    /// [`MeshObstacle::from_triangles`]; a bad scale or rotation.
+    pub fn load(spec: &MeshCollider, base_dir: &Path) -> Result<MeshObstacle> {
+        ColliderShape::Mesh(spec.clone()).validate()?;
+        let path = base_dir.join(&spec.file);
+        let (vertices, triangles) = read_triangles(&path)?;
+        let (scale, pose) = spec.placement()?;
+        let vertices = vertices
+            .iter()
+            .map(|p| pose.apply(&p.map(|c| c * scale)))
+            .collect();
+        Ok(MeshObstacle::from_triangles(
+            &path, vertices, triangles, spec.sided,
+        )?)
+    }
+
+    /// Validate a mesh (`vertices` V x 3, metres; `triangles` F x 3 zero-based) and build its
+    /// BVH; `path` labels the errors.
+    ///
+    /// # Errors
+    /// - [`GeometryError::Parse`]: no triangles, or an index out of range.
+    /// - [`GeometryError::Degenerate`]: a non-finite vertex; a solid that encloses no volume.
+    /// - [`GeometryError::DegenerateTriangle`]: a triangle of (near-)zero area.
+    /// - [`GeometryError::ColliderNotClosed`]: a solid that is open, non-manifold or
+    ///   inconsistently oriented.
+    /// - [`GeometryError::ColliderSurface`]: a surface with non-manifold or inconsistently
+    ///   oriented edges.
+    pub fn from_triangles(
+        path: &Path,
+        vertices: Vec<Point3>,
+        triangles: Vec<[u32; 3]>,
+        sided: Sided,
+    ) -> std::result::Result<MeshObstacle, GeometryError> {
+        let parse = |reason: String| GeometryError::Parse {
+            path: path.to_path_buf(),
+            reason,
+        };
+        if triangles.is_empty() {
+            return Err(parse(
+                "a collider mesh needs triangles, and the file has none".into(),
+            ));
+        }
+        if let Some(i) = vertices
+            .iter()
+            .position(|p| !p.iter().all(|c| c.is_finite()))
+        {
+            return Err(GeometryError::Degenerate(format!(
+                "{}: vertex {i} has a non-finite coordinate {:?}",
+                path.display(),
+                vertices[i]
+            )));
+        }
+        let nv = vertices.len();
+        if let Some((f, t)) = triangles
+            .iter()
+            .enumerate()
+            .find(|(_, t)| t.iter().any(|&i| i as usize >= nv))
+        {
+            return Err(parse(format!(
+                "triangle {f} = {t:?} refers past the {nv} vertices"
+            )));
+        }
+        let degenerate: Vec<usize> = triangles
+            .iter()
+            .enumerate()
+            .filter(|(_, t)| {
+                let [a, b, c] = t.map(|i| vertices[i as usize]);
+                let (ab, ac, bc) = (sub(&b, &a), sub(&c, &a), sub(&c, &b));
+                let longest = norm(&ab).max(norm(&ac)).max(norm(&bc));
+                norm(&cross(&ab, &ac)).partial_cmp(&(DEGENERATE_AREA * longest * longest))
+                    != Some(std::cmp::Ordering::Greater)
+            })
+            .map(|(f, _)| f)
+            .collect();
+        if let Some(&first) = degenerate.first() {
+            return Err(GeometryError::DegenerateTriangle {
+                path: path.to_path_buf(),
+                triangle: first,
+                count: degenerate.len(),
+                total: triangles.len(),
+            });
+        }
+        let (vertices, triangles) = weld_exact(&vertices, &triangles);
+        let edges = EdgeReport::of(&triangles);
+        let (vertices, triangles) = match sided {
+            Sided::Solid => {
+                if !edges.is_closed() || edges.misoriented_edges > 0 {
+                    return Err(GeometryError::ColliderNotClosed {
+                        path: path.to_path_buf(),
+                        boundary_edges: edges.boundary_edges,
+                        nonmanifold_edges: edges.nonmanifold_edges,
+                        misoriented_edges: edges.misoriented_edges,
+                    });
+                }
+                // Orientation (an inward-facing file is flipped) and the volume check.
+                crate::geometry::TriMesh::new(vertices, triangles, &ShapeOptions::default())
+                    .map_err(|e| e.with_path(path))?
+                    .into_parts()
+            }
+            Sided::Outside => {
+                if edges.nonmanifold_edges > 0 || edges.misoriented_edges > 0 {
+                    return Err(GeometryError::ColliderSurface {
+                        path: path.to_path_buf(),
+                        nonmanifold_edges: edges.nonmanifold_edges,
+                        misoriented_edges: edges.misoriented_edges,
+                    });
+                }
+                (vertices, triangles)
+            }
+        };
+        let used: Vec<Point3> = triangles
+            .iter()
+            .flat_map(|t| t.map(|i| vertices[i as usize]))
+            .collect();
+        let aabb = Aabb::from_points(&used).expect("at least one triangle");
+        let bvh = ParryMesh::with_flags(
+            vertices.iter().map(to_vec).collect(),
+            triangles.clone(),
+            TriMeshFlags::ORIENTED,
+        )
+        .map_err(|e| parse(format!("parry could not build the mesh: {e:?}")))?;
+        Ok(MeshObstacle {
+            path: path.to_path_buf(),
+            sided,
+            vertices,
+            triangles,
+            aabb,
+            bvh,
+        })
+    }
+
+    /// The file it was read from (or the label given).
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Solid or one-sided surface.
+    pub fn sided(&self) -> Sided {
+        self.sided
+    }
+
+    /// Vertices after welding and placement, V x 3, metres.
+    pub fn vertices(&self) -> &[Point3] {
+        &self.vertices
+    }
+
+    /// Triangles, F x 3 zero-based, oriented with normals towards the free side.
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.triangles
+    }
+
+    /// Bounding box of the triangles, metres.
+    pub fn bounding_box(&self) -> Aabb {
+        self.aabb
+    }
+
+    /// A sphere holding every point that can penetrate (solids: the bounding box's), None
+    /// for a one-sided surface (unbounded behind).
+    pub fn bounding_sphere(&self) -> Option<(Point3, f64)> {
+        match self.sided {
+            Sided::Solid => Some((self.aabb.center(), 0.5 * self.aabb.diagonal())),
+            Sided::Outside => None,
+        }
+    }
+
+    /// The penetration of the point `y` (rest frame, metres), through parry's BVH.
+    pub fn penetration_local(&self, y: &Point3) -> Option<Penetration> {
+        if self.sided == Sided::Solid && !self.aabb.contains(y) {
+            return None;
+        }
+        let (proj, (tri, location)) = self
+            .bvh
+            .project_local_point_and_get_location(to_vec(y), false);
+        if !proj.is_inside {
+            return None;
+        }
+        let c = from_vec(proj.point);
+        let feature = match location {
+            TrianglePointLocation::OnVertex(_) => Feature::Vertex,
+            TrianglePointLocation::OnEdge(i, _) => {
+                // Parry numbers the edges AB, BC, AC.
+                let t = self.triangles[tri as usize];
+                let (a, b) = match i {
+                    0 => (t[0], t[1]),
+                    1 => (t[1], t[2]),
+                    _ => (t[0], t[2]),
+                };
+                Feature::Edge(a, b)
+            }
+            TrianglePointLocation::OnFace(..) | TrianglePointLocation::OnSolid => {
+                Feature::Face(tri)
+            }
+        };
+        self.penetration_at(y, &c, feature)
+    }
+
+    /// The penetration of `y` from its closest surface point `c` on `feature`.
+    fn penetration_at(&self, y: &Point3, c: &Point3, feature: Feature) -> Option<Penetration> {
+        let v = sub(c, y);
+        let depth = norm(&v);
+        // Zero (on the surface) or NaN: no penetration.
+        if depth.is_nan() || depth <= 0.0 {
+            return None;
+        }
+        let normal = v.map(|x| x / depth);
+        let hessian = match feature {
+            Feature::Face(t) => {
+                let n = self.face_normal(t as usize);
+                super::outer(&n)
+            }
+            Feature::Edge(a, b) => {
+                let e = sub(&self.vertices[b as usize], &self.vertices[a as usize]);
+                let l = norm(&e);
+                identity_minus(&e.map(|x| x / l))
+            }
+            Feature::Vertex => identity_minus(&[0.0; 3]),
+        };
+        Some(Penetration {
+            depth,
+            normal,
+            hessian,
+            hessian_psd: hessian,
+        })
+    }
+
+    fn face_normal(&self, t: usize) -> [f64; 3] {
+        let [a, b, c] = self.triangles[t].map(|i| self.vertices[i as usize]);
+        let n = cross(&sub(&b, &a), &sub(&c, &a));
+        let l = norm(&n);
+        n.map(|x| x / l)
+    }
+
+    /// Signed distance of `y` (rest frame, metres) through the BVH: positive on the free
+    /// side, negative inside (solid) or behind (surface).
+    pub fn signed_distance(&self, y: &Point3) -> f64 {
+        let proj = self
+            .bvh
+            .project_local_point_and_get_location(to_vec(y), false)
+            .0;
+        let d = norm(&sub(&from_vec(proj.point), y));
+        if proj.is_inside {
+            -d
+        } else {
+            d
+        }
+    }
+
+    /// [`MeshObstacle::signed_distance`] by brute force, O(F): the closest point over every
+    /// triangle; the sign from the generalized winding number (solids: inside where it is at
+    /// least 1/2) or from the angle-weighted pseudo-normal of the closest feature (surfaces),
+    /// computed here independently of parry.
+    pub fn signed_distance_brute_force(&self, y: &Point3) -> f64 {
+        let (c, feature) = self.closest_brute_force(y);
+        let d = norm(&sub(&c, y));
+        if self.inside_brute_force(y, &c, feature) {
+            -d
+        } else {
+            d
+        }
+    }
+
+    /// [`MeshObstacle::penetration_local`] by brute force (see
+    /// [`MeshObstacle::signed_distance_brute_force`]).
+    pub fn penetration_brute_force(&self, y: &Point3) -> Option<Penetration> {
+        let (c, feature) = self.closest_brute_force(y);
+        if !self.inside_brute_force(y, &c, feature) {
+            return None;
+        }
+        self.penetration_at(y, &c, feature)
+    }
+
+    fn inside_brute_force(&self, y: &Point3, c: &Point3, feature: Feature) -> bool {
+        match self.sided {
+            Sided::Solid => {
+                crate::geometry::winding::winding_numbers_exact(
+                    &self.vertices,
+                    &self.triangles,
+                    &[*y],
+                )[0] >= 0.5
+            }
+            Sided::Outside => dot(&sub(y, c), &self.pseudo_normal(feature, c)) <= 0.0,
+        }
+    }
+
+    /// The angle-weighted pseudo-normal of a feature (not normalized), by scanning every
+    /// triangle; `c` locates the vertex of a vertex feature.
+    fn pseudo_normal(&self, feature: Feature, c: &Point3) -> [f64; 3] {
+        match feature {
+            Feature::Face(t) => self.face_normal(t as usize),
+            Feature::Edge(a, b) => {
+                let mut n = [0.0; 3];
+                for (t, tri) in self.triangles.iter().enumerate() {
+                    if tri.contains(&a) && tri.contains(&b) {
+                        let f = self.face_normal(t);
+                        n = std::array::from_fn(|d| n[d] + f[d]);
+                    }
+                }
+                n
+            }
+            Feature::Vertex => {
+                let mut n = [0.0; 3];
+                for (t, tri) in self.triangles.iter().enumerate() {
+                    for k in 0..3 {
+                        let p = self.vertices[tri[k] as usize];
+                        if p != *c {
+                            continue;
+                        }
+                        let e1 = sub(&self.vertices[tri[(k + 1) % 3] as usize], &p);
+                        let e2 = sub(&self.vertices[tri[(k + 2) % 3] as usize], &p);
+                        let cos = (dot(&e1, &e2) / (norm(&e1) * norm(&e2))).clamp(-1.0, 1.0);
+                        let f = self.face_normal(t);
+                        n = std::array::from_fn(|d| n[d] + cos.acos() * f[d]);
+                    }
+                }
+                n
+            }
+        }
+    }
+
+    /// The closest surface point to `y` over every triangle, and its feature.
+    fn closest_brute_force(&self, y: &Point3) -> (Point3, Feature) {
+        let mut best = (f64::INFINITY, [0.0; 3], Feature::Vertex);
+        for (t, tri) in self.triangles.iter().enumerate() {
+            let [a, b, c] = tri.map(|i| self.vertices[i as usize]);
+            let (p, region) = closest_on_triangle(y, &a, &b, &c);
+            let d2 = dot(&sub(&p, y), &sub(&p, y));
+            if d2 < best.0 {
+                let feature = match region {
+                    Region::Face => Feature::Face(t as u32),
+                    Region::Edge(i, j) => Feature::Edge(tri[i], tri[j]),
+                    Region::Vertex(_) => Feature::Vertex,
+                };
+                best = (d2, p, feature);
+            }
+        }
+        (best.1, best.2)
+    }
+}
+
+/// The feature of the mesh a closest point lies on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Feature {
+    /// Inside triangle t.
+    Face(u32),
+    /// On the edge between two vertices.
+    Edge(u32, u32),
+    /// On a vertex (located by the closest point itself).
+    Vertex,
+}
+
+/// Where the closest point of a triangle lies: its face, an edge (corner indices), a corner.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Region {
+    Face,
+    Edge(usize, usize),
+    Vertex(usize),
+}
+
+/// The closest point of triangle abc to p (Ericson, Real-Time Collision Detection, 5.1.5).
+fn closest_on_triangle(p: &Point3, a: &Point3, b: &Point3, c: &Point3) -> (Point3, Region) {
+    let ab = sub(b, a);
+    let ac = sub(c, a);
+    let ap = sub(p, a);
+    let d1 = dot(&ab, &ap);
+    let d2 = dot(&ac, &ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return (*a, Region::Vertex(0));
+    }
+    let bp = sub(p, b);
+    let d3 = dot(&ab, &bp);
+    let d4 = dot(&ac, &bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return (*b, Region::Vertex(1));
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return (
+            std::array::from_fn(|i| a[i] + v * ab[i]),
+            Region::Edge(0, 1),
+        );
+    }
+    let cp = sub(p, c);
+    let d5 = dot(&ab, &cp);
+    let d6 = dot(&ac, &cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return (*c, Region::Vertex(2));
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return (
+            std::array::from_fn(|i| a[i] + w * ac[i]),
+            Region::Edge(0, 2),
+        );
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return (
+            std::array::from_fn(|i| b[i] + w * (c[i] - b[i])),
+            Region::Edge(1, 2),
+        );
+    }
+    let denom = 1.0 / (va + vb + vc);
+    let v = vb * denom;
+    let w = vc * denom;
+    (
+        std::array::from_fn(|i| a[i] + ab[i] * v + ac[i] * w),
+        Region::Face,
+    )
+}
+
+/// Vertices (V x 3, metres) and triangles (F x 3, file order) of a mesh file, by extension.
+fn read_triangles(path: &Path) -> Result<(Vec<Point3>, Vec<[u32; 3]>)> {
+    let spec = ShapeSpec::parse(&path.to_string_lossy())?;
+    let ShapeSpec::File { format, .. } = spec else {
+        return Err(Error::param(
+            "file",
+            path.display(),
+            "a mesh collider needs a .obj, .stl or .ply file",
+        ));
+    };
+    Ok(match format {
+        ShapeFileFormat::Obj => crate::io::obj::read_obj_raw(path)?,
+        ShapeFileFormat::Stl => crate::io::stl::read_stl_soup(path)?,
+        ShapeFileFormat::Ply => {
+            let data = crate::io::ply::read_ply_data(path)?;
+            let triangles = data.triangles.ok_or_else(|| GeometryError::Parse {
+                path: path.to_path_buf(),
+                reason: "the PLY file has no faces (a point cloud); a collider mesh needs \
+                         triangles"
+                    .into(),
+            })?;
+            (data.points, triangles)
+        }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::generate::{box_mesh, icosphere};
+
+    fn solid(v: Vec<Point3>, t: Vec<[u32; 3]>) -> MeshObstacle {
+        MeshObstacle::from_triangles(Path::new("test.obj"), v, t, Sided::Solid).unwrap()
+    }
+
+    /// Deterministic points in [-s, s]^3 (a fixed linear congruential sequence).
+    fn points(n: usize, s: f64) -> Vec<Point3> {
+        let mut state: u64 = 12345;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        (0..n)
+            .map(|_| std::array::from_fn(|_| s * (2.0 * next() - 1.0)))
+            .collect()
+    }
+
+    #[test]
+    fn bvh_matches_brute_force_on_a_sphere_and_a_box() {
+        let (v, t) = icosphere(0.5, 2);
+        let sphere = solid(v, t);
+        let (mut v, t) = box_mesh([1.0, 0.6, 0.8]);
+        for p in &mut v {
+            *p = [p[0] - 0.5, p[1] - 0.3, p[2] - 0.4];
+        }
+        let cube = solid(v, t);
+        for mesh in [&sphere, &cube] {
+            let mut inside = 0;
+            for y in points(400, 0.7) {
+                let (fast, slow) = (
+                    mesh.signed_distance(&y),
+                    mesh.signed_distance_brute_force(&y),
+                );
+                // Same closest distance to round-off (1e-12 m on a unit mesh), same sign.
+                assert!((fast - slow).abs() < 1e-12, "{y:?}: {fast} vs {slow}");
+                let (p, q) = (mesh.penetration_local(&y), mesh.penetration_brute_force(&y));
+                assert_eq!(p.is_some(), q.is_some(), "{y:?}");
+                if let (Some(p), Some(q)) = (p, q) {
+                    inside += 1;
+                    assert!((p.depth - q.depth).abs() < 1e-12);
+                    for d in 0..3 {
+                        assert!((p.normal[d] - q.normal[d]).abs() < 1e-9, "{y:?}");
+                    }
+                }
+            }
+            assert!(inside > 50, "{inside}");
+        }
+    }
+}
