@@ -66,6 +66,15 @@ pub fn build_basis_mpi(
     progress: &dyn Progress,
 ) -> Result<(BasisRun, DistributedReport)> {
     opts.validate()?;
+    if !opts.boundary_regions.is_empty() {
+        // Every rank returns the same error: the call stays collective.
+        return Err(crate::Error::param(
+            "region",
+            opts.boundary_regions.len(),
+            "boundary-aware bases are not built on the MPI path yet; build it in one process \
+             (SLEPc works there too: --solver slepc) or leave out the regions",
+        ));
+    }
     let (rank, size) = world_rank()?;
     let mut timings = Timings::default();
     let total = Stopwatch::start();
