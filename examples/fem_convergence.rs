@@ -71,7 +71,7 @@ impl Progress for Log {
         eprintln!("{stage}: {total:?} steps");
     }
     fn set_position(&self, done: u64) {
-        if done % 20 == 0 {
+        if done.is_multiple_of(20) {
             eprintln!("  step {done}");
         }
     }

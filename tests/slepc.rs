@@ -562,3 +562,52 @@ fn slepc_lobpcg_stop_on_its_own_breakdown_is_named_with_the_ways_out() {
     }
     advised_solvers_agree_with_dense(&h, &m, &req, &[], 27);
 }
+
+#[test]
+fn an_aware_basis_through_slepc_equals_the_native_one() {
+    use freeform::geometry::ShapeOptions;
+    use freeform::io::read_shape;
+    use freeform::material::Region;
+    use freeform::precompute::{build_basis, BasisOptions, SolverConfig};
+    // The grounded restricted pencil (precompute::boundary_modes) goes to SLEPc unchanged.
+    let shape = read_shape("box:2,0.5,0.5", &ShapeOptions::default()).unwrap();
+    let regions = vec![
+        Region::HalfSpace {
+            point: [0.5, 0.0, 0.0],
+            normal: [-1.0, 0.0, 0.0],
+        },
+        Region::HalfSpace {
+            point: [1.5, 0.0, 0.0],
+            normal: [1.0, 0.0, 0.0],
+        },
+    ];
+    let opts = |solver| BasisOptions {
+        kernels: 200,
+        modes: 6,
+        boundary_regions: regions.clone(),
+        solver,
+        ..BasisOptions::default()
+    };
+    let native = build_basis(&shape, &opts(SolverConfig::lobpcg()), &Silent).unwrap();
+    let slepc = build_basis(
+        &shape,
+        &opts(SolverConfig::slepc("ks-sinvert", "").unwrap()),
+        &Silent,
+    )
+    .unwrap();
+    assert_eq!(slepc.basis.modes(), 7);
+    // Lifts do not depend on the eigensolver (one sparse solve on the same H_w; 1e-12 allows
+    // for a different summation order); eigenvalues at tol 1e-8 agree to ~1e-12 relative
+    // (they converge with the squared residual): 1e-8 is loose.
+    let (a, b) = (&slepc.basis.coefficients, &native.basis.coefficients);
+    for j in 0..2 {
+        for i in 0..a.nrows() {
+            assert!(
+                (a[(i, j)] - b[(i, j)]).abs() < 1e-12,
+                "lift {j}, kernel {i}"
+            );
+        }
+    }
+    let diff = max_rel_diff(&slepc.basis.eigenvalues, &native.basis.eigenvalues);
+    assert!(diff < 1e-8, "eigenvalue diff {diff:e}");
+}
