@@ -207,7 +207,7 @@ pub fn check_finite_points(what: &'static str, points: &[[f64; 3]]) -> Result<()
 pub enum GeometryError {
     /// The shape spec is neither a primitive nor a supported file.
     #[error(
-        "unknown shape `{0}`: use box:LX,LY,LZ, sphere:R, or a path to a .obj, .stl or .ply file"
+        "unknown shape `{0}`: use box:LX,LY,LZ, sphere:R, or a path to a .obj, .stl, .off or .ply file"
     )]
     UnknownSpec(String),
     /// A primitive spec has bad numbers.

@@ -48,7 +48,7 @@ class Basis:
         regions: Optional[list[str]] = None,
         progress: bool = False,
     ) -> Basis:
-        """A basis from a shape spec ("box:2,1,1", "sphere:0.5") or an OBJ/STL/PLY file.
+        """A basis from a shape spec ("box:2,1,1", "sphere:0.5") or an OBJ/STL/OFF/PLY file.
         Material: Young's modulus (Pa), Poisson ratio, density (kg/m^3). points: integration
         point count (default 50 K, in [20,000, 2,000,000]); spacing: grid spacing, metres."""
     @staticmethod

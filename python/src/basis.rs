@@ -203,7 +203,7 @@ impl PyBasis {
 #[pymethods]
 impl PyBasis {
     /// Build a basis from a shape: a spec (``"box:2,1,1"``, ``"sphere:0.5"``) or a mesh /
-    /// point-cloud file (OBJ, STL, PLY). Options as keywords, with the library's defaults
+    /// point-cloud file (OBJ, STL, OFF, PLY). Options as keywords, with the library's defaults
     /// (docs/python.md lists them). Releases the GIL; Ctrl-C interrupts.
     #[staticmethod]
     #[pyo3(signature = (shape, **options))]

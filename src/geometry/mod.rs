@@ -1,5 +1,5 @@
-//! Shapes that can be sampled: primitives, watertight triangle meshes (OBJ, STL, PLY) and point
-//! clouds (PLY, including 3D Gaussian splat files).
+//! Shapes that can be sampled: primitives, watertight triangle meshes (OBJ, STL, OFF, PLY) and
+//! point clouds (PLY, including 3D Gaussian splat files).
 //!
 //! A shape answers three questions for the sampling stage: its bounding box, its volume (when
 //! it has a well-defined one) and, for solids, whether points are inside.

@@ -34,6 +34,8 @@ pub enum ShapeFileFormat {
     Obj,
     /// `.stl`: an ASCII or binary STL triangle mesh ([`crate::io::stl`]).
     Stl,
+    /// `.off`: an ASCII OFF (Object File Format) polygon mesh ([`crate::io::off`]).
+    Off,
     /// `.ply`: a PLY mesh (non-empty `face` element) or point cloud, Gaussian splat files
     /// included ([`crate::io::ply`]).
     Ply,
@@ -41,8 +43,8 @@ pub enum ShapeFileFormat {
 
 impl ShapeSpec {
     /// Parse a shape spec without reading any file: `box:LX,LY,LZ` or `sphere:R` (positive
-    /// finite numbers, metres; prefix case-insensitive), or a path to a `.obj`, `.stl` or `.ply`
-    /// file (extension case-insensitive).
+    /// finite numbers, metres; prefix case-insensitive), or a path to a `.obj`, `.stl`, `.off` or
+    /// `.ply` file (extension case-insensitive).
     ///
     /// # Errors
     /// [`GeometryError::BadPrimitive`] for missing, extra, non-numeric, non-finite, zero or
@@ -75,6 +77,7 @@ impl ShapeSpec {
         let format = match ext.as_deref() {
             Some("obj") => ShapeFileFormat::Obj,
             Some("stl") => ShapeFileFormat::Stl,
+            Some("off") => ShapeFileFormat::Off,
             Some("ply") => ShapeFileFormat::Ply,
             _ => return Err(GeometryError::UnknownSpec(spec.to_string())),
         };

@@ -1,4 +1,4 @@
-//! File formats: shape inputs (OBJ, STL, PLY meshes and point clouds), 3D Gaussian splat PLY
+//! File formats: shape inputs (OBJ, STL, OFF, PLY meshes and point clouds), 3D Gaussian splat PLY
 //! files ([`splat`]), the basis file (.npz)
 //! and matrix exchange (MatrixMarket, PETSc binary).
 //!
@@ -8,6 +8,7 @@
 pub mod basis;
 pub mod matrix_market;
 pub mod obj;
+pub mod off;
 pub mod ply;
 mod shape;
 pub mod splat;

@@ -1,7 +1,7 @@
 //! Shape files: [`read_shape`] turns a shape spec into a [`Shape`], reading the file it names
 //! with the reader of its format; and the helpers the shape file readers and writers share.
 
-use super::{obj, ply, stl};
+use super::{obj, off, ply, stl};
 use crate::geometry::{
     weld_exact, GeometryError, Shape, ShapeFileFormat, ShapeOptions, ShapeSpec, TriMesh,
 };
@@ -11,9 +11,9 @@ use std::io::{BufWriter, Write};
 use std::path::Path;
 
 /// The shape a spec names: `box:LX,LY,LZ` or `sphere:R` (positive finite numbers, metres;
-/// prefix case-insensitive), or a path to a `.obj`, `.stl` (ASCII or binary) or `.ply` file
-/// (extension case-insensitive), read with [`obj::read_obj`], [`stl::read_stl`] or
-/// [`ply::read_ply`]. A PLY with a non-empty `face` element is a mesh, otherwise a point cloud
+/// prefix case-insensitive), or a path to a `.obj`, `.stl` (ASCII or binary), `.off` or `.ply`
+/// file (extension case-insensitive), read with [`obj::read_obj`], [`stl::read_stl`],
+/// [`off::read_off`] or [`ply::read_ply`]. A PLY with a non-empty `face` element is a mesh, otherwise a point cloud
 /// (Gaussian splat files included: only x, y, z are read; a scene reads a 3DGS file whole with
 /// [`super::splat::read_splats`] and writes 3DGS frames).
 ///
@@ -44,6 +44,7 @@ pub fn read_shape_spec(spec: &ShapeSpec, opts: &ShapeOptions) -> Result<Shape, G
         ShapeSpec::File { path, format } => match format {
             ShapeFileFormat::Obj => Ok(Shape::Mesh(obj::read_obj(path, opts)?)),
             ShapeFileFormat::Stl => Ok(Shape::Mesh(stl::read_stl(path, opts)?)),
+            ShapeFileFormat::Off => Ok(Shape::Mesh(off::read_off(path, opts)?)),
             ShapeFileFormat::Ply => ply::read_ply(path, opts),
         },
     }

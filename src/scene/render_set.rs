@@ -51,7 +51,7 @@ pub fn set_name(file: &Path) -> String {
 }
 
 impl RenderSet {
-    /// Read `file` (OBJ, STL or PLY mesh, PLY point cloud, or 3DGS splat PLY; meshes need not
+    /// Read `file` (OBJ, STL, OFF or PLY mesh, PLY point cloud, or 3DGS splat PLY; meshes need not
     /// be closed) and evaluate `basis` at its points.
     ///
     /// # Errors
@@ -73,6 +73,10 @@ impl RenderSet {
                 let (v, t) = crate::io::stl::read_stl_soup(file)?;
                 (v, Some(t), None)
             }
+            "off" => {
+                let (v, t) = crate::io::off::read_off_raw(file)?;
+                (v, Some(t), None)
+            }
             "ply" if crate::io::splat::is_splat_ply(file)? => {
                 let s = crate::io::splat::read_splats(file)?;
                 (s.means.clone(), None, Some(s))
@@ -83,7 +87,7 @@ impl RenderSet {
             }
             _ => {
                 return Err(GeometryError::InvalidInput(format!(
-                    "{}: a render input must be an .obj, .stl or .ply file",
+                    "{}: a render input must be an .obj, .stl, .off or .ply file",
                     file.display()
                 ))
                 .into())

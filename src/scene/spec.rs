@@ -202,7 +202,7 @@ pub struct ObjectSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cubature: Option<usize>,
     /// Render inputs drawn with the object's deformation map and written next to its own
-    /// frames: meshes (OBJ, STL, PLY; every vertex kept, need not be closed), point clouds or
+    /// frames: meshes (OBJ, STL, OFF, PLY; every vertex kept, need not be closed), point clouds or
     /// 3DGS splat PLYs, in the object's rest frame (relative to the scene file).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub render: Vec<String>,

@@ -66,6 +66,13 @@ const MODES_FILES: &[Case] = &[
     (&["@obj/misoriented.obj"], "orientation is inconsistent"),
     (&["@obj/flat.obj"], "encloses no volume"),
     (&["@obj/huge_coordinates.obj"], "coordinates are too large"),
+    // OFF
+    (&["@off/garbled_header.off"], "garbled_header.off: OFF line 1: missing or garbled header"),
+    (&["@off/too_few_faces.off"], "the file ends after 12 of the 14 faces the counts line (line 2) declares"),
+    (&["@off/face_out_of_range.off"], "OFF line 22: face 11 refers to vertex 8, but the file has 8 vertices"),
+    (&["@off/nan_vertex.off"], "OFF line 10: vertex 7 has a non-finite coordinate y = `nan`"),
+    (&["@off/trailing_garbage.off"], "OFF line 23: unexpected content `3 0 1 2`"),
+    (&["@off/open_box.off"], "not watertight"),
     // STL
     (&["@stl/empty.stl"], "empty.stl: empty file"),
     (&["@stl/short.stl"], "too short for a binary STL"),
@@ -155,6 +162,7 @@ const RUN_SCENES: &[Case] = &[
     (&["@scene/huge_youngs.toml"], "non-finite value"),
     (&["@scene/zero_normal_collider.toml"], "a plane needs a finite point and a non-zero normal"),
     (&["@scene/collider_open_solid.toml"], "open_box.obj: a solid collider mesh must be closed"),
+    (&["@scene/collider_open_off.toml"], "open_box.off: a solid collider mesh must be closed"),
     (&["@scene/collider_degenerate.toml"], "collider_flat.obj: triangle 1 (0-based, in the file's triangle order) has zero area"),
     (&["@scene/collider_point_cloud.toml"], "collider_points.ply: the PLY file has no faces"),
     (&["@scene/collider_missing_mesh.toml"], "nowhere_collider.stl"),

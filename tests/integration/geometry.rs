@@ -1,12 +1,13 @@
 //! Geometry stage, end to end: shape specs, primitives, mesh volumes, the inside test against
 //! analytic answers and the exact winding number, open and inverted meshes, and the OBJ / STL /
-//! PLY readers and writers on good, bad and hostile files.
+//! OFF / PLY readers and writers on good, bad and hostile files.
 
 use freeform::geometry::winding::winding_numbers_exact;
 use freeform::geometry::{
     generate, Aabb, GeometryError, Shape, ShapeOptions, TriMesh, WindingParams, WindingTree,
 };
 use freeform::io::obj::{read_obj, write_obj};
+use freeform::io::off::{read_off, read_off_raw, write_off};
 use freeform::io::ply::{
     read_ply, read_ply_points, write_ply_mesh, write_ply_points, write_ply_points_with, PlyFormat,
     PlyScalar, PlyWriteOptions,
@@ -612,6 +613,35 @@ fn misoriented_and_nonmanifold_meshes() {
 
 // ---------------------------------------------------------------------------------------------
 // readers: good files
+
+/// The OFF cube of quads is the OBJ cube of quads: same vertices, same fan triangles, same
+/// volume, through the spec dispatch (`read_shape`) and the raw reader colliders use.
+#[test]
+fn off_cube_matches_the_obj_cube() {
+    let (Shape::Mesh(off), Shape::Mesh(obj)) = (
+        parse(&data("cube_quads.off")).unwrap(),
+        parse(&data("cube_quads.obj")).unwrap(),
+    ) else {
+        panic!("not meshes")
+    };
+    assert_eq!(off.vertices(), obj.vertices());
+    assert_eq!(off.triangles(), obj.triangles());
+    assert_eq!(off.volume(), Some(1.0));
+    assert_eq!(off.volume(), obj.volume());
+    let (v, t) = read_off_raw(&data("cube_quads.off")).unwrap();
+    assert_eq!((v.len(), t.len()), (8, 12));
+    // Upper-case extension, and a write / read round trip of an icosphere.
+    let dir = tmp();
+    let upper = dir.path().join("CUBE.OFF");
+    std::fs::copy(data("cube_quads.off"), &upper).unwrap();
+    assert_eq!(parse(&upper).unwrap().volume(), Some(1.0));
+    let (v, t) = generate::icosphere(0.7, 2);
+    let p = dir.path().join("ico.off");
+    write_off(&p, &v, &t).unwrap();
+    let m = read_off(&p, &closed()).unwrap();
+    assert_eq!(m.vertices(), &v[..]);
+    assert!((m.volume().unwrap() - mesh((v, t)).volume().unwrap()).abs() < 1e-15);
+}
 
 #[test]
 fn obj_quads_groups_and_relative_indices() {
@@ -1251,6 +1281,7 @@ fn hostile_files_never_panic() {
     }
     seeds.push(("ply", splat_bytes(&[[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]])));
     seeds.push(("obj", std::fs::read(data("cube_quads.obj")).unwrap()));
+    seeds.push(("off", std::fs::read(data("cube_quads.off")).unwrap()));
     let tokens: [&[u8]; 10] = [
         b"-1",
         b"0",

@@ -24,7 +24,7 @@ pub enum SolverArg {
 #[command(allow_negative_numbers = true)]
 pub struct ModesArgs {
     /// The shape: box:LX,LY,LZ (corner at the origin), sphere:R (centred at the origin), or a
-    /// .obj / .stl / .ply file (a PLY without faces is a point cloud, e.g. Gaussian splats).
+    /// .obj / .stl / .off / .ply file (a PLY without faces is a point cloud, e.g. Gaussian splats).
     #[arg(required_unless_present = "from_matrices")]
     shape: Option<String>,
     /// Discretization, material and tolerance (shared with `export` and `compare`).

@@ -125,7 +125,7 @@ impl BasisArgs {
 /// A shape and its [`BasisArgs`] (`export`, `compare`).
 #[derive(Args)]
 pub struct ShapeArgs {
-    /// The shape: box:LX,LY,LZ, sphere:R, or a .obj / .stl / .ply file (see `modes --help`).
+    /// The shape: box:LX,LY,LZ, sphere:R, or a .obj / .stl / .off / .ply file (see `modes --help`).
     pub shape: String,
     /// Discretization, material and tolerance.
     #[command(flatten)]

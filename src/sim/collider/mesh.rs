@@ -1,5 +1,5 @@
-//! Triangle-mesh obstacles: a closed solid or a one-sided surface, read from OBJ, STL or PLY
-//! with the readers of [`crate::io`], validated, and queried through parry's BVH.
+//! Triangle-mesh obstacles: a closed solid or a one-sided surface, read from OBJ, STL, OFF or
+//! PLY with the readers of [`crate::io`], validated, and queried through parry's BVH.
 //!
 //! **Queries.** [`MeshObstacle::penetration_local`] asks parry (`TriMesh` with the `ORIENTED`
 //! flag, `project_local_point_and_get_location` with `solid = false`) for the closest surface
@@ -537,12 +537,13 @@ fn read_triangles(path: &Path) -> Result<(Vec<Point3>, Vec<[u32; 3]>)> {
         return Err(Error::param(
             "file",
             path.display(),
-            "a mesh collider needs a .obj, .stl or .ply file",
+            "a mesh collider needs a .obj, .stl, .off or .ply file",
         ));
     };
     Ok(match format {
         ShapeFileFormat::Obj => crate::io::obj::read_obj_raw(path)?,
         ShapeFileFormat::Stl => crate::io::stl::read_stl_soup(path)?,
+        ShapeFileFormat::Off => crate::io::off::read_off_raw(path)?,
         ShapeFileFormat::Ply => {
             let data = crate::io::ply::read_ply_data(path)?;
             let triangles = data.triangles.ok_or_else(|| GeometryError::Parse {

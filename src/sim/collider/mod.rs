@@ -235,7 +235,7 @@ pub enum ColliderShape {
         /// Radius, metres (> 0).
         radius: f64,
     },
-    /// A triangle mesh read from a file (OBJ, STL, PLY): a closed solid or a one-sided
+    /// A triangle mesh read from a file (OBJ, STL, OFF, PLY): a closed solid or a one-sided
     /// surface ([`MeshCollider`]).
     Mesh(MeshCollider),
 }
@@ -246,7 +246,7 @@ pub enum ColliderShape {
 #[derive(Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MeshCollider {
-    /// The mesh file, OBJ, STL or PLY with faces (relative paths: to the scene file).
+    /// The mesh file, OBJ, STL, OFF or PLY with faces (relative paths: to the scene file).
     pub file: PathBuf,
     /// `solid` (default): a closed, consistently oriented mesh whose inside is the obstacle;
     /// `outside`: a one-sided surface (may be open) whose triangle normals point to the free
@@ -432,7 +432,7 @@ impl ColliderShape {
                     return Err(Error::param(
                         "file",
                         "\"\"",
-                        "a mesh collider needs a file (OBJ, STL or PLY)",
+                        "a mesh collider needs a file (OBJ, STL, OFF or PLY)",
                     ));
                 }
             }

@@ -48,6 +48,14 @@ def obj(vertices, faces):
             + "".join("f %s\n" % " ".join(str(i + 1) for i in f) for f in faces))
 
 
+def off(vertices, faces, nv=None, nf=None, header="OFF\n"):
+    nv = len(vertices) if nv is None else nv
+    nf = len(faces) if nf is None else nf
+    return (header + "%d %d 0\n" % (nv, nf)
+            + "".join("%s %s %s\n" % v for v in vertices)
+            + "".join("%d %s\n" % (len(f), " ".join(str(i) for i in f)) for f in faces))
+
+
 def stl_binary(tris, declared=None):
     n = len(tris) if declared is None else declared
     out = b"freeform bad-input corpus".ljust(80, b" ") + struct.pack("<I", n)
@@ -105,6 +113,15 @@ write("obj/open_box.obj", obj(CUBE_V, CUBE_F[:-2]))
 write("obj/misoriented.obj", obj(CUBE_V, CUBE_F[:-1] + [(1, 5, 7)]))
 write("obj/flat.obj", obj([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [(0, 1, 2), (0, 2, 1)]))
 write("obj/huge_coordinates.obj", obj([tuple(1e300 * c for c in v) for v in CUBE_V], CUBE_F))
+
+# --- OFF -------------------------------------------------------------------------------
+# Line 1 is the header, line 2 the counts, lines 3-10 the vertices, 11-22 the faces.
+write("off/garbled_header.off", off(CUBE_V, CUBE_F, header="OFX\n"))
+write("off/too_few_faces.off", off(CUBE_V, CUBE_F, nf=14))
+write("off/face_out_of_range.off", off(CUBE_V, CUBE_F[:-1] + [(1, 7, 8)]))
+write("off/nan_vertex.off", off(CUBE_V[:-1] + [(1, "nan", 1)], CUBE_F))
+write("off/trailing_garbage.off", off(CUBE_V, CUBE_F) + "3 0 1 2\n")
+write("off/open_box.off", off(CUBE_V, CUBE_F[:-2]))
 
 # --- STL -------------------------------------------------------------------------------
 cube_tris = [tuple(CUBE_V[i] for i in f) for f in CUBE_F]
@@ -175,6 +192,8 @@ write("scene/zero_normal_collider.toml", GOOD + "[[collider]]\n"
 # Colliders of issue 15: meshes that cannot be obstacles, bad numbers, bad kinematics.
 write("scene/collider_open_solid.toml", GOOD + "[[collider]]\nname = \"lid\"\n"
       "shape = { mesh = { file = \"../obj/open_box.obj\" } }\n")
+write("scene/collider_open_off.toml", GOOD + "[[collider]]\nname = \"lid\"\n"
+      "shape = { mesh = { file = \"../off/open_box.off\" } }\n")
 # Triangle 1 of a tetrahedron collapsed onto a line (its third corner between the others).
 write("scene/collider_flat.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0.5 0 0\n"
       "f 1 3 2\nf 1 2 4\nf 2 3 4\nf 1 4 3\n")
