@@ -61,10 +61,19 @@ impl PyProgress {
         // Through Python's sys.stderr, so notebooks show it; a failed write is not worth an
         // error in the middle of a computation.
         Python::attach(|py| {
-            let _ = py
+            let written = py
                 .import("sys")
                 .and_then(|sys| sys.getattr("stderr"))
                 .and_then(|err| err.call_method1("write", (format!("freeform: {line}\n"),)));
+            // Python runs pending signal handlers while it runs the write, so a Ctrl-C can
+            // surface here: keep it, or `cancelled` would never see it.
+            if let Err(e) = written {
+                if e.is_instance_of::<pyo3::exceptions::PyKeyboardInterrupt>(py) {
+                    if let Ok(mut s) = self.state.lock() {
+                        s.interrupt = Some(e);
+                    }
+                }
+            }
         });
     }
 }
