@@ -164,7 +164,10 @@ def test_bad_files_and_uncovered_points(tmp_path):
 
 
 CTRL_C = """
-import sys, time, freeform
+import signal, sys, time, freeform
+# A child of a background job inherits SIGINT ignored (and Python then installs no handler):
+# the test needs Python's own Ctrl-C handling whatever launched it.
+signal.signal(signal.SIGINT, signal.default_int_handler)
 t = time.time()
 try:
     freeform.Basis.from_shape("box:2,1,1", kernels=20000, modes=32, progress=True)
