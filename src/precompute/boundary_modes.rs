@@ -221,9 +221,21 @@ fn free_index(part: &RegionPartition) -> Vec<usize> {
     idx
 }
 
-/// The principal submatrix A_FF (n x n), or with `ground = Some(alpha)` the grounded
-/// (n + 1) x (n + 1) matrix Q^T A_FF Q + alpha e_g e_g^T with Q [y; g] = y - g 1.
-fn restricted(a: &SparseMatrix, part: &RegionPartition, ground: Option<f64>) -> SparseMatrix {
+/// How [`restricted`] grounds its matrix.
+#[derive(Clone, Copy, PartialEq)]
+enum Ground {
+    /// The principal submatrix A_FF alone.
+    None,
+    /// Q^T A_FF Q (for H_FF).
+    Plain,
+    /// Q^T A_FF Q + alpha e_g e_g^T with alpha the mean row sum of A_FF (for M_FF: a kernel's
+    /// volume, so the extra direction is scaled like the others).
+    WithMeanRowSum,
+}
+
+/// The principal submatrix A_FF (n x n), or the grounded (n + 1) x (n + 1) matrix with
+/// Q [y; g] = y - g 1 (see [`Ground`]).
+fn restricted(a: &SparseMatrix, part: &RegionPartition, ground: Ground) -> SparseMatrix {
     let map = free_index(part);
     let n = part.free.len();
     let (ptr, idx, val) = (a.col_ptr(), a.row_idx(), a.val());
@@ -244,16 +256,20 @@ fn restricted(a: &SparseMatrix, part: &RegionPartition, ground: Option<f64>) -> 
             }
         }
         sums[j] = s;
-        if ground.is_some() {
+        if ground != Ground::None {
             out_idx.push(n);
             out_val.push(-s);
         }
         out_ptr.push(out_idx.len());
     }
-    let Some(alpha) = ground else {
+    if ground == Ground::None {
         return sparse::from_compressed(n, out_ptr, out_idx, out_val);
-    };
+    }
     let total: f64 = sums.iter().sum();
+    let alpha = match ground {
+        Ground::WithMeanRowSum => (total / n.max(1) as f64).max(f64::MIN_POSITIVE),
+        _ => 0.0,
+    };
     for (j, s) in sums.iter().enumerate() {
         out_idx.push(j);
         out_val.push(-s);
@@ -271,26 +287,9 @@ pub fn grounded_problem(
     m: &SparseMatrix,
     part: &RegionPartition,
 ) -> (SparseMatrix, SparseMatrix) {
-    // alpha: the mean row sum of M_FF (a kernel's volume), so the extra direction is scaled
-    // like the others and M' is no worse conditioned than M_FF.
-    let n = part.free.len().max(1) as f64;
-    let mff_total: f64 = {
-        let map = free_index(part);
-        let (ptr, idx, val) = (m.col_ptr(), m.row_idx(), m.val());
-        part.free
-            .iter()
-            .map(|&kj| {
-                (ptr[kj]..ptr[kj + 1])
-                    .filter(|&e| map[idx[e]] != usize::MAX)
-                    .map(|e| val[e])
-                    .sum::<f64>()
-            })
-            .sum()
-    };
-    let alpha = (mff_total / n).max(f64::MIN_POSITIVE);
     (
-        restricted(h, part, Some(0.0)),
-        restricted(m, part, Some(alpha)),
+        restricted(h, part, Ground::Plain),
+        restricted(m, part, Ground::WithMeanRowSum),
     )
 }
 
@@ -360,7 +359,7 @@ fn lifts(h: &SparseMatrix, part: &RegionPartition) -> Result<Mat<f64>> {
         return Ok(out);
     }
     if b > 1 {
-        let hff = restricted(h, part, None);
+        let hff = restricted(h, part, Ground::None);
         let map = free_index(part);
         let n = part.free.len();
         let mut rhs = Mat::<f64>::zeros(n, b - 1);
