@@ -49,6 +49,10 @@ pub struct SolverResult {
 pub struct SolverComparison {
     /// The reference's label (empty when every solver failed).
     pub reference: String,
+    /// The iteration cap every solver was given (`EigenRequest::max_iter`; a SLEPc
+    /// configuration's own `-eps_max_it` overrides it for that solver): a solver that reaches
+    /// it reports "not converged" in its entry.
+    pub max_iter: usize,
     /// One entry per solver, in the order given.
     pub solvers: Vec<SolverResult>,
     /// Largest `eigenvalue_rel_diff` over the solvers that succeeded.
@@ -151,6 +155,7 @@ pub fn compare_solvers(
     }
     Ok(SolverComparison {
         reference: reference.map_or(String::new(), |r| results[r].0.solver.clone()),
+        max_iter: request.max_iter,
         solvers: results.into_iter().map(|(e, _)| e).collect(),
         max_eigenvalue_rel_diff: max_diff,
         max_subspace_angle: max_angle,
@@ -262,6 +267,7 @@ mod tests {
         )
         .unwrap();
         assert_eq!(c.reference, "lobpcg");
+        assert_eq!(c.max_iter, 1000);
         assert_eq!(c.solvers.len(), 2);
         assert_eq!(c.solvers[1].solver, "dense");
         assert!(!c.any_failed());
