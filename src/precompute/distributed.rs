@@ -79,8 +79,11 @@ pub fn build_basis_mpi(
     let (rank, size) = world_rank()?;
     // Every rank samples all points and holds its rows of H_w and M (and, for the checks,
     // its block of the full matrices): the one-process estimate is an upper bound per rank.
-    let mut memory = super::MemoryEstimate::new(opts, super::memory::expected_points(shape, opts));
-    memory.check()?;
+    let expected = super::memory::expected_points(shape, opts);
+    let mut memory = super::MemoryEstimate::new(opts, expected);
+    if expected as u128 <= super::sampling::MAX_GRID_CELLS {
+        memory.check()?;
+    }
     let mut timings = Timings::default();
     let total = Stopwatch::start();
     let mut clock = Stopwatch::start();

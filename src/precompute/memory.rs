@@ -28,7 +28,7 @@ pub const MEMORY_LIMIT_ENV: &str = "FREEFORM_MEMORY_LIMIT";
 
 /// Bytes per integration point held through the run (positions 24, volume 8, material 24,
 /// Morton order and sorted copies 56, FPS distances and cells ~40, sampling slack).
-const BYTES_PER_POINT: u64 = 200;
+const BYTES_PER_POINT: f64 = 200.0;
 
 /// Kernels covering a point at the default support (factor 2 x the 4th-neighbour distance):
 /// measured 32-37 on the beam at K = 1,000 to 100,000.
@@ -36,7 +36,7 @@ const COVER_AT_DEFAULT: f64 = 36.0;
 
 /// Bytes per (point, kernel) pair of one chunk: phi 8, grad 24, kernel index 4, local index 4,
 /// transpose 8, neighbour lists 4.
-const BYTES_PER_PAIR: u64 = 52;
+const BYTES_PER_PAIR: f64 = 52.0;
 
 /// Peak memory of a precomputation, estimated before it runs, by part (bytes).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
@@ -65,38 +65,39 @@ pub struct MemoryEstimate {
 impl MemoryEstimate {
     /// The estimate for `opts` with `points` integration points.
     pub fn new(opts: &BasisOptions, points: usize) -> Self {
-        let k = opts.kernels as u64;
-        let n = points as u64;
+        let k = opts.kernels as f64;
+        let n = points as f64;
         let s = &opts.support;
         // Cover grows with the support volume: factor^3, and the n-th neighbour distance^3 ~ n.
         let cover = COVER_AT_DEFAULT * (s.factor / 2.0).powi(3) * (s.neighbor as f64 / 4.0);
-        let cover = cover.clamp(1.0, opts.kernels as f64);
-        let nnz = ((8.0 * cover).min(opts.kernels as f64) * opts.kernels as f64) as u64;
+        let cover = cover.clamp(1.0, k.max(1.0));
+        // Sums in f64 (requests far beyond any machine must not overflow), then bytes.
+        let nnz = (8.0 * cover).min(k) * k;
         let points_bytes = BYTES_PER_POINT * n;
-        let chunk = n.min(CHUNK_POINTS as u64);
-        let stream_bytes = (chunk as f64 * cover) as u64 * BYTES_PER_PAIR + 16 * k;
+        let chunk = n.min(CHUNK_POINTS as f64);
+        let stream_bytes = chunk * cover * BYTES_PER_PAIR + 16.0 * k;
         // Two CSC matrices with their own row indices (8 + 8 bytes per entry each); while
         // mirroring, the upper triangle (u32 + 2 f64 per entry, half the entries) as well.
-        let matrices = 32 * nnz + 16 * k;
-        let mirroring = 10 * nnz + 24 * nnz;
-        let nev = opts.modes as u64 + 1;
-        let eigensolver_bytes = match opts.solver {
-            SolverConfig::Dense => 5 * 8 * k * k,
+        let matrices = 32.0 * nnz + 16.0 * k;
+        let mirroring = 10.0 * nnz + 24.0 * nnz;
+        let nev = opts.modes as f64 + 1.0;
+        let eigensolver = match opts.solver {
+            SolverConfig::Dense => 5.0 * 8.0 * k * k,
             // H + sigma M (16 bytes per entry), its IC(0) factor (lower triangle, 12 bytes per
             // entry), S, H S, M S and two temporaries of K x 3 (m + 1).
-            _ => 16 * nnz + 6 * nnz + 5 * 8 * k * 3 * nev,
+            _ => 16.0 * nnz + 6.0 * nnz + 5.0 * 8.0 * k * 3.0 * nev,
         };
-        let total_bytes =
-            points_bytes + (stream_bytes + mirroring).max(matrices + eigensolver_bytes);
+        let total = points_bytes + (stream_bytes + mirroring).max(matrices + eigensolver);
+        // `as u64` saturates.
         Self {
             points,
             kernels: opts.kernels,
-            nnz,
-            points_bytes,
-            stream_bytes,
-            matrices_bytes: matrices,
-            eigensolver_bytes,
-            total_bytes,
+            nnz: nnz as u64,
+            points_bytes: points_bytes as u64,
+            stream_bytes: stream_bytes as u64,
+            matrices_bytes: matrices as u64,
+            eigensolver_bytes: eigensolver as u64,
+            total_bytes: total as u64,
             available_bytes: 0,
         }
     }

@@ -9,6 +9,7 @@ use super::memory::{expected_points, MemoryEstimate};
 use super::options::BasisOptions;
 use super::quality::{CoverageReport, ModesReport, SolveFacts};
 use super::rkpm::{self, support_radii, Kernels, ReproducingError};
+use super::sampling::MAX_GRID_CELLS;
 use super::sampling::{sample_with_material, IntegrationPoints};
 use super::skinning::Basis;
 use super::stream::{assemble_streamed, Streamed, StreamedAssembly};
@@ -116,16 +117,24 @@ impl Problem {
     /// `opts.overrides`) and assemble its eigenproblem.
     pub fn from_shape(shape: &Shape, opts: &BasisOptions, progress: &dyn Progress) -> Result<Self> {
         opts.validate()?;
-        // Refuse a run that would not fit before anything is allocated.
-        let mut memory = MemoryEstimate::new(opts, expected_points(shape, opts));
-        memory.check()?;
+        // Refuse a run that would not fit before anything is allocated. A grid of more cells
+        // than sampling allows is refused by sampling's own guard, with its message; the
+        // estimate is then checked after sampling, with the exact count.
+        let expected = expected_points(shape, opts);
+        let mut memory = MemoryEstimate::new(opts, expected);
+        let checked = if expected as u128 <= MAX_GRID_CELLS {
+            memory.check()?;
+            Some(memory)
+        } else {
+            None
+        };
         let clock = Stopwatch::start();
         progress.begin("sampling", None);
         let (points, material) = sample_with_material(shape, opts)?;
         progress.finish();
         check_cancelled(progress, "sampling")?;
         let sampling = clock.elapsed();
-        let mut problem = Self::assemble(points, material, opts, progress, Some(memory))?;
+        let mut problem = Self::assemble(points, material, opts, progress, checked)?;
         problem.timings.sampling = sampling;
         problem.timings.total += sampling;
         Ok(problem)

@@ -87,7 +87,8 @@ pub fn assemble_streamed(
     let (mut neighbors_s, mut shape_functions_s, mut assembly_s) = (0.0, 0.0, 0.0);
     progress.begin("shape functions + assembly", Some(n as u64));
     for start in (0..n).step_by(chunk) {
-        check_cancelled(progress, "shape functions + assembly")?;
+        // A cancelled run stops before a chunk's shape functions.
+        check_cancelled(progress, "shape functions")?;
         let end = (start + chunk).min(n);
         let clock = Stopwatch::start();
         let (sf, st, neighbors) = evaluate_chunk(kernels, &points[start..end], opts);
