@@ -236,8 +236,8 @@ fn chunked_skinning_weights_equal_one_shot_evaluation() {
             for j in 0..modes {
                 let c = basis.coefficients[(k, j)];
                 v[j] += sf.phi[e] * c;
-                for d in 0..3 {
-                    g[j][d] += sf.grad[e][d] * c;
+                for (gd, dd) in g[j].iter_mut().zip(sf.grad[e]) {
+                    *gd += dd * c;
                 }
             }
         }
