@@ -141,6 +141,26 @@ pub enum Error {
         /// hostile archive may understate it).
         declared: u64,
     },
+    /// The precomputation would not fit in memory: refused before it starts
+    /// ([`crate::precompute::memory`]).
+    #[error(
+        "the precomputation would need about {:.1} GB ({breakdown}) but {:.1} GB is available \
+         ({limit_from}); {advice}",
+        *estimate_bytes as f64 / 1e9,
+        *available_bytes as f64 / 1e9
+    )]
+    OutOfMemory {
+        /// Estimated peak resident memory, bytes.
+        estimate_bytes: u64,
+        /// Memory available to the run, bytes.
+        available_bytes: u64,
+        /// Where the available figure comes from (MemAvailable, or the limit set).
+        limit_from: String,
+        /// The estimate by part, formatted.
+        breakdown: String,
+        /// How to make the run smaller.
+        advice: String,
+    },
     /// The caller's [`crate::progress::Progress::cancelled`] asked the work to stop.
     #[error("cancelled by the caller during {stage}")]
     Cancelled {

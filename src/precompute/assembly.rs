@@ -1,14 +1,19 @@
-//! Sparse assembly of the weight-space Hessian (Prop. 1) and the consistent RKPM mass matrix:
+//! Sparse assembly of the weight-space Hessian (Prop. 1) and the consistent RKPM mass matrix,
+//! streamed over chunks of integration points:
 //!
 //! ```text
 //! (H_w)_kl = sum_i v_i (lambda_i + 4 mu_i) grad phi_k(X_i) . grad phi_l(X_i)     [Pa m]
 //! M_kl     = sum_i v_i phi_k(X_i) phi_l(X_i)                                    [m^3]
 //! ```
 //!
-//! Row-parallel Gustavson product over the kernel-to-point transpose of the shape functions,
-//! computing the upper triangle only and mirroring it: each entry's sum runs over points in
-//! ascending order, so the result is the same bit for bit for any thread count, and exactly
-//! symmetric. Memory is proportional to the non-zeros.
+//! An [`Accumulator`] holds the upper triangle (columns l >= k) of both matrices, row by row,
+//! and takes the shape functions of one chunk of points at a time ([`Accumulator::add`]), so
+//! memory is O(nnz(H_w)) plus one chunk, whatever the number of points. Each entry is one
+//! running sum over the points in the order they are added: for a chunk, the rows are
+//! updated in parallel (a row belongs to one task), and a row's sums continue from where the
+//! previous chunk left them. The result is therefore the same bit for bit for any chunk size
+//! and thread count, and [`Accumulator::finish`] mirrors the upper triangle, so it is exactly
+//! symmetric.
 
 use super::rkpm::ShapeFunctions;
 use crate::sparse::{from_compressed, SparseMatrix};
@@ -24,199 +29,349 @@ pub struct Assembled {
     pub mass: SparseMatrix,
 }
 
-/// Upper-triangle rows (columns j >= i) of a block of rows: per-row counts, then the
-/// concatenated column indices and H and M values.
-#[derive(Default)]
-struct UpperRows {
-    counts: Vec<usize>,
-    cols: Vec<usize>,
-    h: Vec<f64>,
-    m: Vec<f64>,
+/// One upper-triangle row: columns ascending, with the H and M sums.
+#[derive(Debug, Clone, Default)]
+struct Row {
+    cols: Box<[u32]>,
+    h: Box<[f64]>,
+    m: Box<[f64]>,
 }
 
-/// Gustavson product for rows `rows` of the upper triangle: row i sums, over the points p in
-/// kernel i's support (ascending), the contributions of the kernels j >= i covering p. Each
-/// point's kernel list is sorted, so those start right at kernel i's own entry.
-#[inline(never)]
-#[allow(clippy::too_many_arguments)]
-fn upper_rows(
-    sf: &ShapeFunctions,
-    volumes: &[f64],
-    weights: &[f64],
-    tptr: &[usize],
-    tpoint: &[u32],
-    tentry: &[u32],
-    rows: std::ops::Range<usize>,
-    k: usize,
-) -> UpperRows {
-    let mut acc_h = vec![0.0f64; k];
-    let mut acc_m = vec![0.0f64; k];
-    let mut seen = vec![false; k];
-    let mut touched: Vec<usize> = Vec::new();
-    let mut out = UpperRows::default();
-    for row in rows {
-        for s in tptr[row]..tptr[row + 1] {
-            let p = tpoint[s] as usize;
-            let ei = tentry[s] as usize;
-            let (gi, fi) = (sf.grad[ei], sf.phi[ei]);
-            let wh = volumes[p] * weights[p];
-            let wm = volumes[p];
-            let end = sf.pattern.ptr[p + 1];
-            for ((&j, gj), &fj) in sf.pattern.kernels[ei..end]
-                .iter()
-                .zip(&sf.grad[ei..end])
-                .zip(&sf.phi[ei..end])
-            {
-                let j = j as usize;
-                if !seen[j] {
-                    seen[j] = true;
-                    touched.push(j);
-                }
-                acc_h[j] += wh * (gi[0] * gj[0] + gi[1] * gj[1] + gi[2] * gj[2]);
-                acc_m[j] += wm * (fi * fj);
-            }
-        }
-        touched.sort_unstable();
-        out.counts.push(touched.len());
-        for &j in &touched {
-            out.cols.push(j);
-            out.h.push(acc_h[j]);
-            out.m.push(acc_m[j]);
-            acc_h[j] = 0.0;
-            acc_m[j] = 0.0;
-            seen[j] = false;
-        }
-        touched.clear();
-    }
-    out
+/// Running sums of H_w and M over the chunks of points added so far.
+#[derive(Debug, Clone)]
+pub struct Accumulator {
+    rows: Vec<Row>,
+    /// Scratch: kernel -> index among the current chunk's kernels (`NONE` outside a chunk).
+    local: Vec<u32>,
 }
 
-/// Full symmetric CSR (= CSC) arrays from upper-triangle rows: entry (i, j) with j > i is
-/// also stored as (j, i) with the identical value, so the result is exactly symmetric.
-/// Lower entries of a row come first (rows ascending), then its upper entries: columns stay
-/// sorted.
-#[inline(never)]
-fn mirror(upper: &[UpperRows], k: usize) -> (Vec<usize>, Vec<usize>, Vec<f64>, Vec<f64>) {
-    let mut count = vec![0usize; k];
-    let mut row = 0;
-    for block in upper {
-        let mut at = 0;
-        for &c in &block.counts {
-            count[row] += c;
-            for &j in &block.cols[at..at + c] {
-                if j != row {
-                    count[j] += 1;
-                }
+const NONE: u32 = u32::MAX;
+
+/// Rows per parallel task within a chunk.
+const ROWS_PER_TASK: usize = 64;
+
+impl Accumulator {
+    /// Empty sums for `k` kernels.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] when `k` does not fit the u32 kernel indices.
+    pub fn new(k: usize) -> Result<Self> {
+        if k >= NONE as usize {
+            return Err(Error::param(
+                "kernels",
+                k,
+                "too many kernels for u32 indices",
+            ));
+        }
+        Ok(Self {
+            rows: vec![Row::default(); k],
+            local: vec![NONE; k],
+        })
+    }
+
+    /// Number of kernels K.
+    pub fn kernels(&self) -> usize {
+        self.rows.len()
+    }
+
+    /// Stored upper-triangle entries so far (diagonal included).
+    pub fn upper_nnz(&self) -> usize {
+        self.rows.iter().map(|r| r.cols.len()).sum()
+    }
+
+    /// Add the contributions of the points of `sf` (one chunk, after every chunk added
+    /// before it), with volumes `volumes` (m^3) and Hessian weights `weights`
+    /// (lambda + 4 mu, Pa), one per point.
+    ///
+    /// # Errors
+    /// [`Error::LengthMismatch`] when `volumes` or `weights` do not have one entry per point,
+    /// [`Error::InvalidParameter`] when a kernel index is out of range.
+    pub fn add(&mut self, sf: &ShapeFunctions, volumes: &[f64], weights: &[f64]) -> Result<()> {
+        let n = sf.rows();
+        for (what, got) in [
+            ("volumes", volumes.len()),
+            ("hessian weights", weights.len()),
+        ] {
+            if got != n {
+                return Err(Error::LengthMismatch {
+                    what,
+                    expected: n,
+                    got,
+                });
             }
-            at += c;
-            row += 1;
         }
-    }
-    let mut ptr = vec![0usize; k + 1];
-    for i in 0..k {
-        ptr[i + 1] = ptr[i] + count[i];
-    }
-    let nnz = ptr[k];
-    let (mut idx, mut hv, mut mv) = (vec![0usize; nnz], vec![0.0; nnz], vec![0.0; nnz]);
-    // Lower parts are filled from the front as rows are visited in ascending order, so each
-    // row's lower entries end up sorted; its own upper entries go after them.
-    let mut next = ptr.clone();
-    let mut row = 0;
-    for block in upper {
-        let mut at = 0;
-        for &c in &block.counts {
-            for e in at..at + c {
-                let j = block.cols[e];
-                if j != row {
-                    let d = next[j];
-                    idx[d] = row;
-                    hv[d] = block.h[e];
-                    mv[d] = block.m[e];
-                    next[j] += 1;
-                }
+        let k = self.rows.len();
+        if let Some(&bad) = sf.pattern.kernels.iter().find(|&&j| j as usize >= k) {
+            return Err(Error::param(
+                "kernels",
+                bad,
+                format!("kernel index out of range (K = {k})"),
+            ));
+        }
+        // The chunk's kernels, ascending, and its pattern in their local numbering (the
+        // order is the same, so each point's local row stays sorted).
+        let mut present: Vec<u32> = Vec::new();
+        for &j in &sf.pattern.kernels {
+            if self.local[j as usize] == NONE {
+                self.local[j as usize] = 0;
+                present.push(j);
             }
-            at += c;
-            row += 1;
         }
-    }
-    let mut row = 0;
-    for block in upper {
-        let mut at = 0;
-        for &c in &block.counts {
-            let d = next[row];
-            idx[d..d + c].copy_from_slice(&block.cols[at..at + c]);
-            hv[d..d + c].copy_from_slice(&block.h[at..at + c]);
-            mv[d..d + c].copy_from_slice(&block.m[at..at + c]);
-            at += c;
-            row += 1;
+        present.sort_unstable();
+        for (l, &j) in present.iter().enumerate() {
+            self.local[j as usize] = l as u32;
         }
+        let kl = present.len();
+        let lpat: Vec<u32> = sf
+            .pattern
+            .kernels
+            .iter()
+            .map(|&j| self.local[j as usize])
+            .collect();
+        // Transpose: for each local kernel, the (point, entry) pairs it covers, points
+        // ascending.
+        let mut tptr = vec![0usize; kl + 1];
+        for &l in &lpat {
+            tptr[l as usize + 1] += 1;
+        }
+        for i in 0..kl {
+            tptr[i + 1] += tptr[i];
+        }
+        let mut fill = tptr.clone();
+        let mut tpoint = vec![0u32; lpat.len()];
+        let mut tentry = vec![0u32; lpat.len()];
+        for p in 0..n {
+            for e in sf.pattern.ptr[p]..sf.pattern.ptr[p + 1] {
+                let l = lpat[e] as usize;
+                tpoint[fill[l]] = p as u32;
+                tentry[fill[l]] = e as u32;
+                fill[l] += 1;
+            }
+        }
+        drop(fill);
+        // Move the chunk's rows out, update them in parallel, put them back.
+        let mut work: Vec<Row> = present
+            .iter()
+            .map(|&j| std::mem::take(&mut self.rows[j as usize]))
+            .collect();
+        let chunk = ChunkView {
+            sf,
+            lpat: &lpat,
+            local: &self.local,
+            present: &present,
+            volumes,
+            weights,
+            tptr: &tptr,
+            tpoint: &tpoint,
+            tentry: &tentry,
+        };
+        work.par_chunks_mut(ROWS_PER_TASK)
+            .enumerate()
+            .for_each(|(t, rows)| chunk.update(t * ROWS_PER_TASK, rows));
+        for (&j, row) in present.iter().zip(work) {
+            self.rows[j as usize] = row;
+            self.local[j as usize] = NONE;
+        }
+        Ok(())
     }
-    (ptr, idx, hv, mv)
+
+    /// Mirror the upper triangle into H_w and M (full symmetric CSC, K x K).
+    ///
+    /// # Errors
+    /// [`Error::NonFinite`] when a sum is not finite (bad volumes or material values).
+    pub fn finish(self) -> Result<Assembled> {
+        let k = self.rows.len();
+        let mut rows = self.rows;
+        let (ptr, idx, hval, mval) = mirror(&mut rows, k);
+        drop(rows);
+        if let Some(bad) = hval.iter().chain(&mval).position(|v| !v.is_finite()) {
+            return Err(Error::NonFinite {
+                what: "assembled matrices (check volumes and material values)",
+                index: bad,
+            });
+        }
+        Ok(Assembled {
+            hessian: from_compressed(k, ptr.clone(), idx.clone(), hval),
+            mass: from_compressed(k, ptr, idx, mval),
+        })
+    }
 }
 
-/// Rows per parallel task: large enough to amortize the O(K) scratch, small enough to balance.
-const ROWS_PER_TASK: usize = 128;
-
-/// Assemble H_w and M from shape functions at N integration points with volumes `volumes`
-/// (N, m^3) and Hessian weights `weights` (N, lambda + 4 mu, Pa). `k` is the kernel count.
+/// Assemble H_w and M from shape functions at all N integration points at once (one chunk
+/// of an [`Accumulator`]), with volumes `volumes` (N, m^3) and Hessian weights `weights`
+/// (N, lambda + 4 mu, Pa). `k` is the kernel count. For more points than fit in memory as
+/// shape functions, stream them instead ([`super::stream::assemble_streamed`]).
+///
+/// # Errors
+/// As [`Accumulator::add`] and [`Accumulator::finish`].
 pub fn assemble(
     sf: &ShapeFunctions,
     volumes: &[f64],
     weights: &[f64],
     k: usize,
 ) -> Result<Assembled> {
-    let n = sf.rows();
-    if volumes.len() != n {
-        return Err(Error::LengthMismatch {
-            what: "volumes",
-            expected: n,
-            got: volumes.len(),
-        });
-    }
-    if weights.len() != n {
-        return Err(Error::LengthMismatch {
-            what: "hessian weights",
-            expected: n,
-            got: weights.len(),
-        });
-    }
-    // Transpose: for each kernel, the (point, entry) pairs it covers, points ascending.
-    let mut tptr = vec![0usize; k + 1];
-    for &kk in &sf.pattern.kernels {
-        tptr[kk as usize + 1] += 1;
-    }
-    for i in 0..k {
-        tptr[i + 1] += tptr[i];
-    }
-    let mut fill = tptr.clone();
-    let mut tpoint = vec![0u32; sf.nnz()];
-    let mut tentry = vec![0u32; sf.nnz()];
-    for p in 0..n {
-        for e in sf.pattern.ptr[p]..sf.pattern.ptr[p + 1] {
-            let kk = sf.pattern.kernels[e] as usize;
-            tpoint[fill[kk]] = p as u32;
-            tentry[fill[kk]] = e as u32;
-            fill[kk] += 1;
+    let mut acc = Accumulator::new(k)?;
+    acc.add(sf, volumes, weights)?;
+    acc.finish()
+}
+
+/// One chunk's shape functions seen from its kernels.
+struct ChunkView<'a> {
+    sf: &'a ShapeFunctions,
+    /// `sf.pattern.kernels` in local numbering.
+    lpat: &'a [u32],
+    /// Global kernel -> local index (NONE when not in the chunk).
+    local: &'a [u32],
+    /// Local index -> global kernel, ascending.
+    present: &'a [u32],
+    volumes: &'a [f64],
+    weights: &'a [f64],
+    tptr: &'a [usize],
+    tpoint: &'a [u32],
+    tentry: &'a [u32],
+}
+
+impl ChunkView<'_> {
+    /// Continue the sums of rows `first..first + rows.len()` (local numbering) over the
+    /// chunk's points: row i adds, point by point (ascending), the contributions of the
+    /// kernels j >= i covering the point. Each point's kernel list is sorted, so those start
+    /// right at kernel i's own entry.
+    #[inline(never)]
+    fn update(&self, first: usize, rows: &mut [Row]) {
+        let kl = self.present.len();
+        let sf = self.sf;
+        let mut acc_h = vec![0.0f64; kl];
+        let mut acc_m = vec![0.0f64; kl];
+        let mut seen = vec![false; kl];
+        let mut touched: Vec<usize> = Vec::new();
+        for (r, row) in rows.iter_mut().enumerate() {
+            let li = first + r;
+            // Resume the sums of the columns this chunk touches; the others stay as they are.
+            for (c, &j) in row.cols.iter().enumerate() {
+                let l = self.local[j as usize];
+                if l != NONE {
+                    let l = l as usize;
+                    acc_h[l] = row.h[c];
+                    acc_m[l] = row.m[c];
+                    seen[l] = true;
+                    touched.push(l);
+                }
+            }
+            for s in self.tptr[li]..self.tptr[li + 1] {
+                let p = self.tpoint[s] as usize;
+                let ei = self.tentry[s] as usize;
+                let (gi, fi) = (sf.grad[ei], sf.phi[ei]);
+                let wh = self.volumes[p] * self.weights[p];
+                let wm = self.volumes[p];
+                let end = sf.pattern.ptr[p + 1];
+                for ((&j, gj), &fj) in self.lpat[ei..end]
+                    .iter()
+                    .zip(&sf.grad[ei..end])
+                    .zip(&sf.phi[ei..end])
+                {
+                    let j = j as usize;
+                    if !seen[j] {
+                        seen[j] = true;
+                        touched.push(j);
+                    }
+                    acc_h[j] += wh * (gi[0] * gj[0] + gi[1] * gj[1] + gi[2] * gj[2]);
+                    acc_m[j] += wm * (fi * fj);
+                }
+            }
+            touched.sort_unstable();
+            // Merge the untouched old columns with the chunk's (both ascending globally).
+            let len = row
+                .cols
+                .iter()
+                .filter(|&&j| self.local[j as usize] == NONE)
+                .count()
+                + touched.len();
+            let (mut cols, mut h, mut m) = (
+                Vec::with_capacity(len),
+                Vec::with_capacity(len),
+                Vec::with_capacity(len),
+            );
+            let mut old = 0;
+            for &l in &touched {
+                let j = self.present[l];
+                while old < row.cols.len() && row.cols[old] < j {
+                    if self.local[row.cols[old] as usize] == NONE {
+                        cols.push(row.cols[old]);
+                        h.push(row.h[old]);
+                        m.push(row.m[old]);
+                    }
+                    old += 1;
+                }
+                cols.push(j);
+                h.push(acc_h[l]);
+                m.push(acc_m[l]);
+                acc_h[l] = 0.0;
+                acc_m[l] = 0.0;
+                seen[l] = false;
+            }
+            for c in old..row.cols.len() {
+                if self.local[row.cols[c] as usize] == NONE {
+                    cols.push(row.cols[c]);
+                    h.push(row.h[c]);
+                    m.push(row.m[c]);
+                }
+            }
+            touched.clear();
+            *row = Row {
+                cols: cols.into_boxed_slice(),
+                h: h.into_boxed_slice(),
+                m: m.into_boxed_slice(),
+            };
         }
     }
-    drop(fill);
+}
 
-    let upper: Vec<UpperRows> = (0..k.div_ceil(ROWS_PER_TASK))
-        .into_par_iter()
-        .map(|t| {
-            let rows = t * ROWS_PER_TASK..((t + 1) * ROWS_PER_TASK).min(k);
-            upper_rows(sf, volumes, weights, &tptr, &tpoint, &tentry, rows, k)
-        })
-        .collect();
-    let (ptr, idx, hval, mval) = mirror(&upper, k);
-    if let Some(bad) = hval.iter().chain(&mval).position(|v| !v.is_finite()) {
-        return Err(Error::NonFinite {
-            what: "assembled matrices (check volumes and material values)",
-            index: bad,
-        });
+/// Full symmetric CSR (= CSC) arrays from the upper-triangle rows: entry (i, j) with j > i is
+/// also stored as (j, i) with the identical value, so the result is exactly symmetric.
+/// Lower entries of a row come first (rows ascending), then its upper entries: columns stay
+/// sorted. Each row's storage is released once it is copied.
+#[inline(never)]
+fn mirror(rows: &mut [Row], k: usize) -> (Vec<usize>, Vec<usize>, Vec<f64>, Vec<f64>) {
+    let mut count = vec![0usize; k];
+    for (i, r) in rows.iter().enumerate() {
+        count[i] += r.cols.len();
+        for &j in r.cols.iter() {
+            if j as usize != i {
+                count[j as usize] += 1;
+            }
+        }
     }
-    Ok(Assembled {
-        hessian: from_compressed(k, ptr.clone(), idx.clone(), hval),
-        mass: from_compressed(k, ptr, idx, mval),
-    })
+    let mut ptr = vec![0usize; k + 1];
+    for i in 0..k {
+        ptr[i + 1] = ptr[i] + count[i];
+    }
+    drop(count);
+    let nnz = ptr[k];
+    let (mut idx, mut hv, mut mv) = (vec![0usize; nnz], vec![0.0; nnz], vec![0.0; nnz]);
+    // Lower parts are filled from the front as rows are visited in ascending order, so each
+    // row's lower entries end up sorted; its own upper entries go after them.
+    let mut next = ptr.clone();
+    for (i, r) in rows.iter().enumerate() {
+        for (e, &j) in r.cols.iter().enumerate() {
+            let j = j as usize;
+            if j != i {
+                let d = next[j];
+                idx[d] = i;
+                hv[d] = r.h[e];
+                mv[d] = r.m[e];
+                next[j] += 1;
+            }
+        }
+    }
+    for (i, r) in rows.iter_mut().enumerate() {
+        let d = next[i];
+        let c = r.cols.len();
+        for (slot, &j) in idx[d..d + c].iter_mut().zip(r.cols.iter()) {
+            *slot = j as usize;
+        }
+        hv[d..d + c].copy_from_slice(&r.h);
+        mv[d..d + c].copy_from_slice(&r.m);
+        *r = Row::default();
+    }
+    (ptr, idx, hv, mv)
 }

@@ -8,10 +8,11 @@
 //!    block is spatially compact);
 //! 3. its integration points: those inside the support of one of its kernels (a bounding-box
 //!    filter, then the exact cover test against its kernels only);
-//! 4. shape functions at those points (with all kernels covering them), and assembly: the rows
-//!    of its kernels are complete, because every point of their supports is local, and are
-//!    bit-identical to a one-process assembly (each entry sums the same points in the same
-//!    Morton order);
+//! 4. shape functions at those points (with all kernels covering them) and assembly, streamed
+//!    over chunks of the local points ([`super::stream`]: one chunk's shape functions in
+//!    memory at a time): the rows of its kernels are complete, because every point of their
+//!    supports is local, and are bit-identical to a one-process assembly (each entry sums the
+//!    same points in the same Morton order);
 //! 5. SLEPc on the row blocks (MPIAIJ), eigenvectors gathered on every rank;
 //! 6. residuals and M-orthonormality recomputed from the local rows and reduced over ranks.
 //!
@@ -20,10 +21,10 @@
 //! failure on any rank is an error on all ranks (run without MPI, or raise
 //! [`BasisOptions::support`](super::BasisOptions::support)'s factor).
 
-use super::assembly::assemble;
 use super::centers::morton_order;
-use super::rkpm::{covering_kernels, evaluate_on, reproducing_error, Kernels, ReproducingError};
+use super::rkpm::{covering_kernels, Kernels, ReproducingError, CHUNK_POINTS};
 use super::skinning::Basis;
+use super::stream::{assemble_streamed, Streamed, StreamedAssembly};
 use super::{
     place_kernels, sample_with_material, BasisOptions, BasisRun, CoverageReport, ModesReport,
 };
@@ -76,6 +77,13 @@ pub fn build_basis_mpi(
         ));
     }
     let (rank, size) = world_rank()?;
+    // Every rank samples all points and holds its rows of H_w and M (and, for the checks,
+    // its block of the full matrices): the one-process estimate is an upper bound per rank.
+    let expected = super::memory::expected_points(shape, opts);
+    let mut memory = super::MemoryEstimate::new(opts, expected);
+    if expected as u128 <= super::sampling::MAX_GRID_CELLS {
+        memory.check()?;
+    }
     let mut timings = Timings::default();
     let total = Stopwatch::start();
     let mut clock = Stopwatch::start();
@@ -118,42 +126,66 @@ pub fn build_basis_mpi(
         .collect();
     drop((own_cover, cand_points, candidates));
     let local_points: Vec<Point3> = local.iter().map(|&i| points.points[i]).collect();
-    let pattern = covering_kernels(&kernels, &local_points);
-    timings.neighbors = clock.lap();
-
-    progress.begin("shape functions", None);
-    let (sf, stats) = evaluate_on(&kernels, &local_points, pattern, &opts.shape_functions);
-    progress.finish();
-    // Every rank must agree before the collective solve: reduce the failure count first.
-    let mut failed = [stats.failed.len() as f64];
-    allreduce_sum(&mut failed)?;
-    if failed[0] > 0.0 {
-        super::rkpm::coverage_error(&local_points, &sf, &stats, opts.shape_functions.min_rcond)?;
-        return Err(crate::Error::param(
-            "support",
-            opts.support.factor,
-            format!(
-                "{} point(s) on other MPI ranks are not covered by enough kernels; the \
-                 distributed run does not repair coverage: raise \
-                 BasisOptions::support.factor or run without MPI",
-                failed[0]
-            ),
-        ));
-    }
-    timings.shape_functions = clock.lap();
-    let repro = reproducing_error(&kernels, &local_points, &sf);
-
-    progress.begin("assembly", None);
     let all_weights = material.hessian_weights();
     let volumes: Vec<f64> = local.iter().map(|&i| points.volumes[i]).collect();
     let weights: Vec<f64> = local.iter().map(|&i| all_weights[i]).collect();
-    let assembled = assemble(&sf, &volumes, &weights, k)?;
+    drop(all_weights);
+    timings.neighbors = clock.lap();
+
+    // Shape functions and assembly streamed over chunks of the local points.
+    let streamed = assemble_streamed(
+        &kernels,
+        &local_points,
+        &volumes,
+        &weights,
+        &opts.shape_functions,
+        CHUNK_POINTS,
+        progress,
+    )?;
+    drop((volumes, weights));
+    // Every rank must agree before the collective solve: reduce the failure count first.
+    let local_failed = match &streamed {
+        Streamed::Assembled(_) => 0,
+        Streamed::Uncovered(stats) => stats.stats().failed.len(),
+    };
+    let mut failed = [local_failed as f64];
+    allreduce_sum(&mut failed)?;
+    let done = match streamed {
+        Streamed::Assembled(done) if failed[0] == 0.0 => done,
+        other => {
+            if let Streamed::Uncovered(stats) = other {
+                stats.coverage_error(|i| local_points[i], opts.shape_functions.min_rcond)?;
+            }
+            return Err(crate::Error::param(
+                "support",
+                opts.support.factor,
+                format!(
+                    "{} point(s) on other MPI ranks are not covered by enough kernels; the \
+                     distributed run does not repair coverage: raise \
+                     BasisOptions::support.factor or run without MPI",
+                    failed[0]
+                ),
+            ));
+        }
+    };
+    let StreamedAssembly {
+        assembled,
+        stats,
+        reproducing: repro,
+        largest_chunk_bytes: sf_bytes,
+        neighbors_s,
+        shape_functions_s,
+        assembly_s,
+    } = *done;
+    timings.neighbors += neighbors_s;
+    timings.shape_functions = shape_functions_s;
+    timings.assembly = assembly_s;
+    progress.begin("assembly", None);
     let h_rows = RowBlock::from_symmetric(&assembled.hessian, mine.clone());
     let m_rows = RowBlock::from_symmetric(&assembled.mass, mine.clone());
-    let sf_bytes = sf.memory_bytes();
-    drop((assembled, sf, volumes, weights, all_weights));
+    drop(assembled);
     progress.finish();
-    timings.assembly = clock.lap();
+    timings.assembly += clock.lap() - neighbors_s - shape_functions_s - assembly_s;
 
     let request = EigenRequest {
         nev: opts.modes + 1,
@@ -246,6 +278,7 @@ pub fn build_basis_mpi(
             shape_function_bytes: sf_bytes,
         },
         warnings: Vec::new(),
+        memory,
     };
     let report = ModesReport::of_solve(opts, k, &points, &solution, repro, facts);
     let basis = Basis {

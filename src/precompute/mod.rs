@@ -21,6 +21,7 @@ pub mod centers;
 mod compare;
 #[cfg(feature = "slepc")]
 pub mod distributed;
+pub mod memory;
 mod options;
 mod problem;
 mod quality;
@@ -28,9 +29,11 @@ pub mod rkpm;
 pub mod sampling;
 pub mod skinning;
 mod solver;
+pub mod stream;
 
 pub use boundary_modes::BoundaryModes;
 pub use compare::{compare_solvers, ProblemComparison, SolverComparison, SolverResult};
+pub use memory::MemoryEstimate;
 pub use options::{default_points, BasisOptions, MAX_KERNELS, MAX_POINTS};
 pub use problem::{build_basis, place_kernels, BasisRun, Problem};
 pub use quality::{

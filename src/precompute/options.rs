@@ -68,21 +68,29 @@ impl Default for BasisOptions {
     }
 }
 
-/// Default integration point count for K kernels: 50 K, clamped to [20,000, 2,000,000].
-/// 50 points per kernel resolves each support (~30 kernels overlap a point, ~1,500 points lie
-/// in a support) so quadrature error stays below the kernel approximation error; the cap keeps
-/// K = 100,000 within memory (the 2M-point sizing).
+/// Default integration point count for K kernels: 50 K, at least 20,000; above 40,000
+/// kernels 2,000,000 until 10 per kernel is more (K > 200,000), then 10 K (at most
+/// [`MAX_POINTS`]). 50 points per kernel resolves each support (~30 kernels overlap a point,
+/// ~1,500 points lie in a support) so quadrature error stays below the kernel approximation
+/// error; at large K the streamed assembly holds only O(N) per point, and 10 per kernel
+/// (~350 points in a support) keeps the point count, and the time of the shape-function
+/// stage, proportional to K (docs/performance.md: K = 1,000,000 with 10M points).
 pub fn default_points(kernels: usize) -> usize {
-    kernels.saturating_mul(50).clamp(20_000, 2_000_000)
+    kernels
+        .saturating_mul(50)
+        .clamp(20_000, 2_000_000)
+        .max(kernels.saturating_mul(10))
+        .min(MAX_POINTS)
 }
 
-/// Most kernels [`BasisOptions::validate`] accepts: 10 million. K = 100,000 peaks at 4.75 GB
-/// (docs/performance.md), so 10 million would need ~500 GB; a larger request is a typo (or a
-/// unit mistake) and is rejected before anything is allocated.
+/// Most kernels [`BasisOptions::validate`] accepts: 10 million, a typo guard (or a unit
+/// mistake): H_w and M alone would need ~90 GB there (about 9 KB per kernel,
+/// [`super::memory`]). Whether a run fits is decided by the memory estimate.
 pub const MAX_KERNELS: usize = 10_000_000;
 
-/// Most integration points [`BasisOptions::validate`] accepts: 100 million (each point holds
-/// ~30 shape-function values and gradients, so this is already ~100 GB).
+/// Most integration points [`BasisOptions::validate`] accepts: 100 million, a typo guard.
+/// The shape functions are streamed, so points cost ~200 bytes each (20 GB here); whether a
+/// run fits is decided by the memory estimate ([`super::memory`]).
 pub const MAX_POINTS: usize = 100_000_000;
 
 impl BasisOptions {

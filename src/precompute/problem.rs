@@ -2,14 +2,17 @@
 //! (sampled, kernels placed, shape functions evaluated, H_w and M assembled), then solved with
 //! a chosen eigensolver into a [`BasisRun`] (the basis and its report).
 
-use super::assembly::{assemble, Assembled};
+use super::assembly::Assembled;
 use super::boundary_modes;
 use super::centers::{farthest_point_sampling, morton_order};
+use super::memory::{expected_points, MemoryEstimate};
 use super::options::BasisOptions;
 use super::quality::{CoverageReport, ModesReport, SolveFacts};
-use super::rkpm::{self, support_radii, Kernels, ReproducingError, ShapeFunctions, ShapeStats};
+use super::rkpm::{self, support_radii, Kernels, ReproducingError};
+use super::sampling::MAX_GRID_CELLS;
 use super::sampling::{sample_with_material, IntegrationPoints};
 use super::skinning::Basis;
+use super::stream::{assemble_streamed, Streamed, StreamedAssembly};
 use crate::eigen::{EigenError, EigenRequest, Eigensolver};
 use crate::error::check_cancelled;
 use crate::geometry::Shape;
@@ -83,6 +86,7 @@ pub struct Problem {
     reproducing: ReproducingError,
     coverage: CoverageReport,
     warnings: Vec<String>,
+    memory: MemoryEstimate,
 }
 
 /// Kernel centres by farthest point sampling of `points` (N x 3, metres), in Morton order
@@ -113,13 +117,24 @@ impl Problem {
     /// `opts.overrides`) and assemble its eigenproblem.
     pub fn from_shape(shape: &Shape, opts: &BasisOptions, progress: &dyn Progress) -> Result<Self> {
         opts.validate()?;
+        // Refuse a run that would not fit before anything is allocated. A grid of more cells
+        // than sampling allows is refused by sampling's own guard, with its message; the
+        // estimate is then checked after sampling, with the exact count.
+        let expected = expected_points(shape, opts);
+        let mut memory = MemoryEstimate::new(opts, expected);
+        let checked = if expected as u128 <= MAX_GRID_CELLS {
+            memory.check()?;
+            Some(memory)
+        } else {
+            None
+        };
         let clock = Stopwatch::start();
         progress.begin("sampling", None);
         let (points, material) = sample_with_material(shape, opts)?;
         progress.finish();
         check_cancelled(progress, "sampling")?;
         let sampling = clock.elapsed();
-        let mut problem = Self::from_points(points, material, opts, progress)?;
+        let mut problem = Self::assemble(points, material, opts, progress, checked)?;
         problem.timings.sampling = sampling;
         problem.timings.total += sampling;
         Ok(problem)
@@ -134,9 +149,29 @@ impl Problem {
         opts: &BasisOptions,
         progress: &dyn Progress,
     ) -> Result<Self> {
+        Self::assemble(points, material, opts, progress, None)
+    }
+
+    /// [`Problem::from_points`] with the memory estimate already checked (`memory`), or
+    /// checked here (None).
+    fn assemble(
+        points: IntegrationPoints,
+        material: MaterialField,
+        opts: &BasisOptions,
+        progress: &dyn Progress,
+        memory: Option<MemoryEstimate>,
+    ) -> Result<Self> {
         opts.validate()?;
         points.check(&material)?;
         let n = points.len();
+        let memory = match memory {
+            Some(m) => m,
+            None => {
+                let mut m = MemoryEstimate::new(opts, n);
+                m.check()?;
+                m
+            }
+        };
         let mut timings = Timings::default();
         let mut clock = Stopwatch::start();
         let total_clock = Stopwatch::start();
@@ -149,53 +184,57 @@ impl Problem {
         timings.centers = clock.lap();
 
         // Shape functions and assembly run on the points in Morton order: the points of one
-        // kernel's support are then close in memory, which speeds assembly up severalfold at
-        // large N. Only the order of the sums changes; the caller's point order is untouched.
+        // kernel's support are then close in memory (and a chunk of points is compact), which
+        // speeds assembly up severalfold at large N. Only the order of the sums changes; the
+        // caller's point order is untouched.
         let mut order: Vec<usize> = (0..n).collect();
         morton_order(&points.points, &mut order);
         let sorted: Vec<Point3> = order.iter().map(|&i| points.points[i]).collect();
-        progress.begin("shape functions", None);
-        let (sf, stats, enlarged, neighbor_time) =
-            shape_functions_with_repair(&mut kernels, &sorted, opts).map_err(|e| match e {
-                // Report the caller's point index, not the sorted one.
-                Error::Coverage {
-                    count,
-                    index,
-                    position,
-                    covering,
-                    rcond,
-                    min_rcond,
-                } => Error::Coverage {
-                    count,
-                    index: order[index],
-                    position,
-                    covering,
-                    rcond,
-                    min_rcond,
+        let all_weights = material.hessian_weights();
+        let volumes: Vec<f64> = order.iter().map(|&i| points.volumes[i]).collect();
+        let weights: Vec<f64> = order.iter().map(|&i| all_weights[i]).collect();
+        drop(all_weights);
+        let (streamed, enlarged) =
+            stream_with_repair(&mut kernels, &sorted, &volumes, &weights, opts, progress).map_err(
+                |e| match e {
+                    // Report the caller's point index, not the sorted one.
+                    Error::Coverage {
+                        count,
+                        index,
+                        position,
+                        covering,
+                        rcond,
+                        min_rcond,
+                    } => Error::Coverage {
+                        count,
+                        index: order[index],
+                        position,
+                        covering,
+                        rcond,
+                        min_rcond,
+                    },
+                    other => other,
                 },
-                other => other,
-            })?;
-        progress.finish();
-        check_cancelled(progress, "shape functions")?;
-        timings.neighbors = neighbor_time;
-        timings.shape_functions = clock.lap() - neighbor_time;
-        let reproducing = rkpm::reproducing_error(&kernels, &sorted, &sf);
+            )?;
+        drop((sorted, volumes, weights, order));
+        check_cancelled(progress, "assembly")?;
+        let StreamedAssembly {
+            assembled,
+            stats,
+            reproducing,
+            largest_chunk_bytes,
+            neighbors_s,
+            shape_functions_s,
+            assembly_s,
+        } = *streamed;
+        timings.neighbors = neighbors_s;
+        timings.shape_functions = shape_functions_s;
+        timings.assembly = assembly_s;
         if enlarged > 0 {
             warnings.push(format!(
                 "{enlarged} kernel supports were enlarged to cover badly conditioned points"
             ));
         }
-
-        progress.begin("assembly", None);
-        let all_weights = material.hessian_weights();
-        let volumes: Vec<f64> = order.iter().map(|&i| points.volumes[i]).collect();
-        let weights: Vec<f64> = order.iter().map(|&i| all_weights[i]).collect();
-        let assembled = assemble(&sf, &volumes, &weights, kernels.len())?;
-        let sf_bytes = sf.memory_bytes();
-        drop((sf, sorted, volumes, weights, all_weights));
-        progress.finish();
-        check_cancelled(progress, "assembly")?;
-        timings.assembly = clock.lap();
 
         timings.total = total_clock.elapsed();
         Ok(Self {
@@ -212,9 +251,10 @@ impl Problem {
                 mean_cover: stats.mean_cover,
                 max_cover: stats.max_cover,
                 enlarged_kernels: enlarged,
-                shape_function_bytes: sf_bytes,
+                shape_function_bytes: largest_chunk_bytes,
             },
             warnings,
+            memory,
         })
     }
 
@@ -307,6 +347,7 @@ impl Problem {
             reproducing: repro,
             coverage,
             warnings,
+            memory,
         } = self;
         let clock = Stopwatch::start();
         check_cancelled(progress, "eigensolve")?;
@@ -376,6 +417,7 @@ impl Problem {
             timings,
             coverage,
             warnings,
+            memory,
         };
         let mut report =
             ModesReport::of_solve(&opts, kernels.len(), &points, &solution, repro, facts);
@@ -394,35 +436,52 @@ impl Problem {
     }
 }
 
-/// Shape functions at the integration points, enlarging the supports of kernels near badly
-/// covered points for up to `opts.coverage_repair_rounds` rounds. Returns the shape functions,
-/// their stats, the number of enlarged kernels and the neighbour-search time (s).
-fn shape_functions_with_repair(
+/// Points per chunk of the streamed assembly in the pipeline.
+const CHUNK: usize = rkpm::CHUNK_POINTS;
+
+/// The streamed shape functions and assembly ([`assemble_streamed`]) on the points (Morton
+/// order), enlarging the supports of kernels near badly covered points for up to
+/// `opts.coverage_repair_rounds` rounds (each round streams again). Returns the assembly and
+/// the number of enlarged kernels; the stage times of failed rounds are counted in.
+fn stream_with_repair(
     kernels: &mut Kernels,
     points: &[Point3],
+    volumes: &[f64],
+    weights: &[f64],
     opts: &BasisOptions,
-) -> Result<(ShapeFunctions, ShapeStats, usize, f64)> {
+    progress: &dyn Progress,
+) -> Result<(Box<StreamedAssembly>, usize)> {
     use kiddo::{ImmutableKdTree, SquaredEuclidean};
     let mut enlarged = std::collections::BTreeSet::new();
-    let mut neighbor_time = 0.0;
     let mut round = 0;
+    let mut lost = 0.0;
     loop {
-        let t = Stopwatch::start();
-        let pattern = rkpm::covering_kernels(kernels, points);
-        neighbor_time += t.elapsed();
-        let (sf, stats) = rkpm::evaluate_on(kernels, points, pattern, &opts.shape_functions);
-        if stats.failed.is_empty() {
-            return Ok((sf, stats, enlarged.len(), neighbor_time));
-        }
+        let clock = Stopwatch::start();
+        let chunked = match assemble_streamed(
+            kernels,
+            points,
+            volumes,
+            weights,
+            &opts.shape_functions,
+            CHUNK,
+            progress,
+        )? {
+            Streamed::Assembled(mut done) => {
+                done.shape_functions_s += lost;
+                return Ok((done, enlarged.len()));
+            }
+            Streamed::Uncovered(chunked) => chunked,
+        };
+        lost += clock.elapsed();
         if round == opts.coverage_repair_rounds {
-            rkpm::coverage_error(points, &sf, &stats, opts.shape_functions.min_rcond)?;
+            chunked.coverage_error(|i| points[i], opts.shape_functions.min_rcond)?;
         }
         round += 1;
         let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(&kernels.centers)
             .map_err(|e| Error::param("kernels", kernels.len(), format!("k-d tree: {e:?}")))?;
         let four = std::num::NonZero::new(4).expect("4 > 0");
         let mut grow = std::collections::BTreeSet::new();
-        for &i in &stats.failed {
+        for &i in &chunked.stats().failed {
             for r in tree
                 .query(&points[i])
                 .nearest_n::<SquaredEuclidean<f64>>(four)

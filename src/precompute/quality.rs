@@ -2,6 +2,7 @@
 //! figures, and the warnings raised when a monitor leaves its healthy range.
 
 use super::boundary_modes::BoundaryRegionReport;
+use super::memory::MemoryEstimate;
 use super::options::BasisOptions;
 use super::rkpm::{KernelType, ReproducingError, SupportOptions};
 use super::sampling::IntegrationPoints;
@@ -78,6 +79,10 @@ pub struct ModesReport {
     /// Boundary regions of a boundary-aware basis, one per lift (empty for a free basis).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub boundaries: Vec<BoundaryRegionReport>,
+    /// The peak memory estimated before the run and the memory available then (compare with
+    /// `peak_memory_bytes`).
+    #[serde(default)]
+    pub memory_estimate: MemoryEstimate,
 }
 
 /// A moment matrix with a reciprocal condition number below this is reported: 100 times
@@ -105,6 +110,8 @@ pub struct SolveFacts {
     pub coverage: CoverageReport,
     /// Warnings raised before the solve (e.g. enlarged supports).
     pub warnings: Vec<String>,
+    /// The memory estimate made before the run.
+    pub memory: MemoryEstimate,
 }
 
 impl ModesReport {
@@ -142,6 +149,7 @@ impl ModesReport {
             warnings: facts.warnings,
             monitors: Monitors::default(),
             boundaries: Vec::new(),
+            memory_estimate: facts.memory,
         };
         check_quality(&mut report);
         report

@@ -468,7 +468,10 @@ fn library_constructors_reject_bad_arrays() {
         let err = opts.validate().expect_err(needle).to_string();
         assert!(err.contains(needle), "{err}");
     }
-    assert_eq!(freeform::precompute::default_points(usize::MAX), 2_000_000);
+    assert_eq!(
+        freeform::precompute::default_points(usize::MAX),
+        freeform::precompute::MAX_POINTS
+    );
     let text = "%%MatrixMarket matrix coordinate real general\n\
                 18446744073709551615 18446744073709551615 18446744073709551615\n1 1 1\n";
     let err = read_matrix_market_from(Path::new("m.mtx"), text.as_bytes()).unwrap_err();

@@ -66,6 +66,11 @@ fn modes_json_report_has_every_key() {
     // Converged: no status key (it appears only when the solver stopped short).
     assert!(r["eigen"].get("status").is_none(), "{}", r["eigen"]);
     assert!(r["peak_memory_bytes"].as_u64().unwrap() > 0);
+    // The estimate made before the run, and the memory it was checked against.
+    let est = &r["memory_estimate"];
+    assert_eq!(est["points"], 10_000);
+    assert!(est["total_bytes"].as_u64().unwrap() > 0, "{est}");
+    assert!(est["available_bytes"].as_u64().unwrap() > 0, "{est}");
     assert!(out.exists());
     let back = freeform::io::basis::load(&out).unwrap();
     assert_eq!(back.basis.modes(), 7);
@@ -321,4 +326,55 @@ fn beam_reports_every_key_and_caches_the_fem_reference() {
     );
     let o = freeform(&[&args[..], &["--frames", "0"]].concat());
     assert_eq!(o.status.code(), Some(1));
+}
+
+#[test]
+fn a_run_that_would_not_fit_is_refused_before_it_starts() {
+    // An artificial limit of 10 MB: K = 2,000 with 100,000 points needs ~100 MB.
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("b.npz");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_freeform"))
+        .args([
+            "modes",
+            "box:2,1,1",
+            "--kernels",
+            "2000",
+            "--points",
+            "100000",
+        ])
+        .args(["--out", out.to_str().unwrap()])
+        .env(freeform::precompute::memory::MEMORY_LIMIT_ENV, "0.01")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    for needle in [
+        "GB",
+        "0.0 GB is available",
+        "FREEFORM_MEMORY_LIMIT=0.01",
+        "fewer",
+    ] {
+        assert!(err.contains(needle), "missing {needle:?}: {err}");
+    }
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(!out.exists());
+    // An unreadable limit is a clear error too.
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_freeform"))
+        .args([
+            "modes",
+            "box:2,1,1",
+            "--kernels",
+            "50",
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .env(freeform::precompute::memory::MEMORY_LIMIT_ENV, "lots")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        err.contains("FREEFORM_MEMORY_LIMIT") && err.contains("GB"),
+        "{err}"
+    );
 }

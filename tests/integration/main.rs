@@ -30,6 +30,7 @@ mod rkpm;
 mod scene;
 mod sim;
 mod splats;
+mod streaming;
 mod strict;
 mod sweep_cli;
 mod world;

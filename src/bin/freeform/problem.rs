@@ -26,7 +26,8 @@ pub struct BasisArgs {
     /// Number of non-constant modes m (m + 1 handles are computed).
     #[arg(long, default_value_t = 16)]
     pub modes: usize,
-    /// Target number of integration points [default: 50 K, clamped to 20,000..2,000,000].
+    /// Target number of integration points [default: 50 K, clamped to 20,000..2,000,000, and
+    /// 10 K above K = 200,000].
     #[arg(long, conflicts_with = "spacing")]
     points: Option<usize>,
     /// Integration grid spacing, metres (instead of --points).

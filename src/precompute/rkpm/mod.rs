@@ -1,13 +1,15 @@
 //! Reproducing Kernel Particle Method: kernel centres with support radii, and linear-reproducing
 //! shape functions phi_k(X) with analytic gradients (design.md section 2, "RKPM").
 
+mod chunks;
 mod kernel;
 mod neighbors;
 mod shape_functions;
 mod support;
 
+pub use chunks::{evaluate_chunk, ChunkedStats, CHUNK_POINTS};
 pub use kernel::{KernelType, GAUSSIAN_ALPHA};
-pub use neighbors::{covering_kernels, CoverPattern};
+pub use neighbors::{covering_kernels, covering_kernels_among, kernels_near_box, CoverPattern};
 pub use shape_functions::{
     evaluate, evaluate_on, reproducing_error, ReproducingError, ShapeFunctionOptions,
     ShapeFunctions, ShapeStats,
@@ -39,4 +41,3 @@ impl Kernels {
         self.centers.is_empty()
     }
 }
-pub(crate) use shape_functions::coverage_error;

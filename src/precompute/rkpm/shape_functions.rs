@@ -10,7 +10,7 @@
 //! 4 x 4 moment matrix well scaled for objects of any size or unit.
 
 use super::{covering_kernels, CoverPattern, Kernels};
-use crate::{Error, Point3, Result};
+use crate::Point3;
 use rayon::prelude::*;
 
 /// Settings of the shape-function evaluation.
@@ -413,25 +413,4 @@ pub fn reproducing_error(
             gradient_sum: a.gradient_sum.max(b.gradient_sum),
             gradient_linear: a.gradient_linear.max(b.gradient_linear),
         })
-}
-
-/// Turn failed points into a [`Error::Coverage`] naming the worst one.
-pub(crate) fn coverage_error(
-    queries: &[Point3],
-    sf: &ShapeFunctions,
-    stats: &ShapeStats,
-    min_rcond: f64,
-) -> Result<()> {
-    if stats.failed.is_empty() {
-        return Ok(());
-    }
-    let worst = stats.min_rcond_point;
-    Err(Error::Coverage {
-        count: stats.failed.len(),
-        index: worst,
-        position: queries[worst],
-        covering: sf.pattern.ptr[worst + 1] - sf.pattern.ptr[worst],
-        rcond: stats.min_rcond,
-        min_rcond,
-    })
 }

@@ -1,0 +1,211 @@
+//! Peak memory of a precomputation, estimated before it runs, and the check that refuses a
+//! run that would not fit ([`Error::OutOfMemory`]) instead of letting it be killed halfway.
+//!
+//! The estimate adds the parts that live at the peak (see docs/performance.md, "Memory", for
+//! the figures measured against it):
+//! - per integration point: positions, volumes, materials, the Morton-ordered copies and the
+//!   farthest-point-sampling distances (~200 bytes);
+//! - the stream: one chunk's shape functions and their transpose;
+//! - H_w and M: nnz ~ 8 x the kernels covering a point (the pairs of kernels whose supports
+//!   overlap), ~280 per row at the default support, scaling with the support volume; both
+//!   matrices with their own indices, 32 bytes per non-zero, plus the upper triangle they are
+//!   mirrored from;
+//! - the eigensolve (while H_w and M are held): LOBPCG's shifted matrix, its preconditioner
+//!   and its dense K x 3 (m + 1) blocks; the dense solver's K x K matrices.
+
+use super::options::{default_points, BasisOptions};
+use super::rkpm::CHUNK_POINTS;
+use super::sampling::Resolution;
+use super::solver::SolverConfig;
+use crate::geometry::Shape;
+use crate::{Error, Result};
+use serde::{Deserialize, Serialize};
+
+/// Environment variable that sets the memory available to a precomputation, in GB (10^9
+/// bytes), instead of the system's MemAvailable: to refuse earlier on a shared machine, or to
+/// test the refusal.
+pub const MEMORY_LIMIT_ENV: &str = "FREEFORM_MEMORY_LIMIT";
+
+/// Bytes per integration point held through the run (positions 24, volume 8, material 24,
+/// Morton order and sorted copies 56, FPS distances and cells ~40, sampling slack).
+const BYTES_PER_POINT: f64 = 200.0;
+
+/// Kernels covering a point at the default support (factor 2 x the 4th-neighbour distance):
+/// measured 32-37 on the beam at K = 1,000 to 100,000.
+const COVER_AT_DEFAULT: f64 = 36.0;
+
+/// Bytes per (point, kernel) pair of one chunk: phi 8, grad 24, kernel index 4, local index 4,
+/// transpose 8, neighbour lists 4.
+const BYTES_PER_PAIR: f64 = 52.0;
+
+/// Peak memory of a precomputation, estimated before it runs, by part (bytes).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct MemoryEstimate {
+    /// Integration points N the estimate is for.
+    pub points: usize,
+    /// Kernels K.
+    pub kernels: usize,
+    /// Expected non-zeros of H_w (and of M).
+    pub nnz: u64,
+    /// Integration points, materials and their sorted copies.
+    pub points_bytes: u64,
+    /// One chunk of the streamed shape functions.
+    pub stream_bytes: u64,
+    /// H_w and M (and the upper triangle while they are mirrored).
+    pub matrices_bytes: u64,
+    /// The eigensolver's own storage.
+    pub eigensolver_bytes: u64,
+    /// Estimated peak, bytes.
+    pub total_bytes: u64,
+    /// Memory available at the check (MemAvailable or the [`MEMORY_LIMIT_ENV`] limit), bytes;
+    /// 0 when unknown (no check was made).
+    pub available_bytes: u64,
+}
+
+impl MemoryEstimate {
+    /// The estimate for `opts` with `points` integration points.
+    pub fn new(opts: &BasisOptions, points: usize) -> Self {
+        let k = opts.kernels as f64;
+        let n = points as f64;
+        let s = &opts.support;
+        // Cover grows with the support volume: factor^3, and the n-th neighbour distance^3 ~ n.
+        let cover = COVER_AT_DEFAULT * (s.factor / 2.0).powi(3) * (s.neighbor as f64 / 4.0);
+        let cover = cover.clamp(1.0, k.max(1.0));
+        // Sums in f64 (requests far beyond any machine must not overflow), then bytes.
+        let nnz = (8.0 * cover).min(k) * k;
+        let points_bytes = BYTES_PER_POINT * n;
+        let chunk = n.min(CHUNK_POINTS as f64);
+        let stream_bytes = chunk * cover * BYTES_PER_PAIR + 16.0 * k;
+        // Two CSC matrices with their own row indices (8 + 8 bytes per entry each); while
+        // mirroring, the upper triangle (u32 + 2 f64 per entry, half the entries) as well.
+        let matrices = 32.0 * nnz + 16.0 * k;
+        let mirroring = 10.0 * nnz + 24.0 * nnz;
+        let nev = opts.modes as f64 + 1.0;
+        let eigensolver = match opts.solver {
+            SolverConfig::Dense => 5.0 * 8.0 * k * k,
+            // H + sigma M (16 bytes per entry), its IC(0) factor (lower triangle, 12 bytes per
+            // entry), S, H S, M S and two temporaries of K x 3 (m + 1).
+            _ => 16.0 * nnz + 6.0 * nnz + 5.0 * 8.0 * k * 3.0 * nev,
+        };
+        let total = points_bytes + (stream_bytes + mirroring).max(matrices + eigensolver);
+        // `as u64` saturates.
+        Self {
+            points,
+            kernels: opts.kernels,
+            nnz: nnz as u64,
+            points_bytes: points_bytes as u64,
+            stream_bytes: stream_bytes as u64,
+            matrices_bytes: matrices as u64,
+            eigensolver_bytes: eigensolver as u64,
+            total_bytes: total as u64,
+            available_bytes: 0,
+        }
+    }
+
+    /// The parts, formatted in GB.
+    pub fn breakdown(&self) -> String {
+        let gb = |b: u64| b as f64 / 1e9;
+        format!(
+            "{:.2} GB for {} points, {:.2} GB for H_w and M with ~{} non-zeros, {:.2} GB for \
+             the eigensolver, {:.2} GB per streamed chunk",
+            gb(self.points_bytes),
+            self.points,
+            gb(self.matrices_bytes),
+            self.nnz,
+            gb(self.eigensolver_bytes),
+            gb(self.stream_bytes)
+        )
+    }
+
+    /// Compare with the memory available (the [`MEMORY_LIMIT_ENV`] limit if set, else the
+    /// system's MemAvailable) and record it; a run that would not fit is an error.
+    ///
+    /// # Errors
+    /// [`Error::OutOfMemory`] with the estimate, the memory available and what to reduce;
+    /// [`Error::InvalidParameter`] for an unreadable [`MEMORY_LIMIT_ENV`].
+    pub fn check(&mut self) -> Result<()> {
+        match available_memory()? {
+            Some((available, source)) => self.check_against(available, &source),
+            None => Ok(()),
+        }
+    }
+
+    /// [`MemoryEstimate::check`] against `available` bytes (described by `source`).
+    ///
+    /// # Errors
+    /// [`Error::OutOfMemory`] when the estimate exceeds `available`.
+    pub fn check_against(&mut self, available: u64, source: &str) -> Result<()> {
+        self.available_bytes = available;
+        if self.total_bytes <= available {
+            return Ok(());
+        }
+        let advice = format!(
+            "use fewer integration points (--points; {} now), fewer kernels (--kernels; {} \
+             now), fewer modes, or a smaller support factor (H_w's non-zeros grow as its cube)",
+            self.points, self.kernels
+        );
+        Err(Error::OutOfMemory {
+            estimate_bytes: self.total_bytes,
+            available_bytes: available,
+            limit_from: source.to_string(),
+            breakdown: self.breakdown(),
+            advice,
+        })
+    }
+}
+
+/// The memory a run may use, bytes, and where the figure comes from: the
+/// [`MEMORY_LIMIT_ENV`] limit (GB) if set, else MemAvailable of /proc/meminfo; None when
+/// neither is known.
+///
+/// # Errors
+/// [`Error::InvalidParameter`] when the variable is set but is not a positive number.
+pub fn available_memory() -> Result<Option<(u64, String)>> {
+    if let Ok(v) = std::env::var(MEMORY_LIMIT_ENV) {
+        let gb: f64 = v.trim().parse().unwrap_or(f64::NAN);
+        if !(gb.is_finite() && gb > 0.0) {
+            return Err(Error::param(
+                "FREEFORM_MEMORY_LIMIT",
+                v,
+                "must be a positive number of GB (e.g. 16), or unset to use MemAvailable",
+            ));
+        }
+        return Ok(Some((
+            (gb * 1e9) as u64,
+            format!("{MEMORY_LIMIT_ENV}={}", v.trim()),
+        )));
+    }
+    let Ok(info) = std::fs::read_to_string("/proc/meminfo") else {
+        return Ok(None);
+    };
+    let kb = info
+        .lines()
+        .find(|l| l.starts_with("MemAvailable:"))
+        .and_then(|l| l.split_whitespace().nth(1))
+        .and_then(|v| v.parse::<u64>().ok());
+    Ok(kb.map(|kb| (kb * 1024, "MemAvailable of /proc/meminfo".to_string())))
+}
+
+/// The number of integration points [`super::sample_with_material`] will give `shape` with
+/// `opts` (approximately for a grid: the cells inside), without sampling.
+pub fn expected_points(shape: &Shape, opts: &BasisOptions) -> usize {
+    let resolution = opts
+        .resolution
+        .unwrap_or(Resolution::Count(default_points(opts.kernels)));
+    match (shape, resolution) {
+        (Shape::PointCloud(pc), Resolution::Count(n)) => n.min(pc.points().len()),
+        (Shape::PointCloud(pc), Resolution::Spacing(_)) => pc.points().len(),
+        (_, Resolution::Count(n)) => n,
+        (solid, Resolution::Spacing(h)) => {
+            let b = solid.bounding_box();
+            let size = b.size();
+            let volume = solid.volume().unwrap_or(size[0] * size[1] * size[2]);
+            let n = volume / (h * h * h);
+            if n.is_finite() && n >= 0.0 {
+                n.min(usize::MAX as f64) as usize
+            } else {
+                0
+            }
+        }
+    }
+}
