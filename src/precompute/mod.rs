@@ -21,6 +21,7 @@ pub mod centers;
 mod compare;
 #[cfg(feature = "slepc")]
 pub mod distributed;
+pub mod image_material;
 mod options;
 mod problem;
 mod quality;
@@ -30,6 +31,7 @@ pub mod skinning;
 mod solver;
 
 pub use boundary_modes::BoundaryModes;
+pub use image_material::{GapPolicy, ImageMaterial};
 pub use compare::{compare_solvers, ProblemComparison, SolverComparison, SolverResult};
 pub use options::{default_points, BasisOptions, MAX_KERNELS, MAX_POINTS};
 pub use problem::{build_basis, place_kernels, BasisRun, Problem};
