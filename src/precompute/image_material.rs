@@ -234,7 +234,9 @@ mod tests {
             .unwrap();
         assert_eq!(f.youngs, vec![1e9, 1e5]);
         // Outside the image: a named gap, or the base material under GapPolicy::Material.
-        let e = im.field(&[[0.5; 3], [2.5, 0.5, 0.5]], &mat(7.0)).unwrap_err();
+        let e = im
+            .field(&[[0.5; 3], [2.5, 0.5, 0.5]], &mat(7.0))
+            .unwrap_err();
         assert!(e.to_string().contains("integration point 1"), "{e}");
         assert!(e.to_string().contains("outside the image"), "{e}");
         let f = im
@@ -249,7 +251,10 @@ mod tests {
             GapPolicy::Error,
         )
         .unwrap_err();
-        assert!(e.to_string().contains("label 2 (first at voxel [1, 0, 0])"), "{e}");
+        assert!(
+            e.to_string().contains("label 2 (first at voxel [1, 0, 0])"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -273,8 +278,6 @@ mod tests {
         assert_eq!((f.youngs[0], f.poisson[0], f.density[0]), (3e4, 0.3, 500.0));
         let e = im.field(&[[0.0; 3]], &base).unwrap_err();
         assert!(e.to_string().contains("empty voxel [0, 0, 0]"), "{e}");
-        assert!(
-            ImageMaterial::new(img, BTreeMap::from([(1, base)]), GapPolicy::Error).is_err()
-        );
+        assert!(ImageMaterial::new(img, BTreeMap::from([(1, base)]), GapPolicy::Error).is_err());
     }
 }

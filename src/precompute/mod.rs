@@ -31,8 +31,8 @@ pub mod skinning;
 mod solver;
 
 pub use boundary_modes::BoundaryModes;
-pub use image_material::{GapPolicy, ImageMaterial};
 pub use compare::{compare_solvers, ProblemComparison, SolverComparison, SolverResult};
+pub use image_material::{GapPolicy, ImageMaterial};
 pub use options::{default_points, BasisOptions, MAX_KERNELS, MAX_POINTS};
 pub use problem::{build_basis, place_kernels, BasisRun, Problem};
 pub use quality::{

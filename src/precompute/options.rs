@@ -1,9 +1,9 @@
 //! Every knob of the precomputation ([`BasisOptions`]) with its default and its valid range.
 
+use super::image_material::{GapPolicy, ImageMaterial};
 use super::rkpm::{KernelType, ShapeFunctionOptions, SupportOptions};
 use super::sampling::{CloudVolumeOptions, Resolution};
 use super::solver::SolverConfig;
-use super::image_material::{GapPolicy, ImageMaterial};
 use crate::geometry::{Shape, VoxelValues};
 use crate::material::{Material, MaterialField, MaterialOverride, Region};
 use crate::{Error, Point3, Result};

@@ -6,20 +6,20 @@ use super::cache;
 use super::run::RunSettings;
 use super::spec::{ObjectSpec, Scene};
 use crate::geometry::Shape;
-use crate::io::basis::BasisMetadata;
 use crate::geometry::VoxelValues;
+use crate::io::basis::BasisMetadata;
 use crate::io::image::{read_image, ImageReadOptions};
 use crate::material::MaterialField;
-use crate::precompute::{GapPolicy, ImageMaterial};
-use crate::Point3;
-use std::sync::Arc;
 use crate::precompute::sampling::IntegrationPoints;
 use crate::precompute::skinning::Basis;
 use crate::precompute::{build_basis, sample_with_material, BasisOptions};
+use crate::precompute::{GapPolicy, ImageMaterial};
 use crate::progress::Progress;
 use crate::report::Monitors;
+use crate::Point3;
 use crate::Result;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 fn is_primitive(spec: &str) -> bool {
     let t = spec.trim().to_ascii_lowercase();

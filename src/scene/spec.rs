@@ -4,9 +4,9 @@
 
 use crate::io::image::ImageValueKind;
 use crate::material::{Material, MaterialOverride};
-use crate::precompute::GapPolicy;
 use crate::precompute::rkpm::{KernelType, SupportOptions};
 use crate::precompute::sampling::{CloudVolumeOptions, Resolution};
+use crate::precompute::GapPolicy;
 use crate::precompute::{BasisOptions, BoundaryModes, SolverConfig};
 use crate::sim::newton::{HessianStrategy, InitialGuess, Precision};
 use crate::sim::{Boundary, Collider, NewtonOptions, Placement};

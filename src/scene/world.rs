@@ -5,7 +5,6 @@ use super::run::{ObjectSummary, RunSettings, StepRow};
 use super::setup::{
     material_at, object_basis, object_image, resolve_shape, ObjectBasis, ResolvedShape,
 };
-use crate::precompute::ImageMaterial;
 use super::spec::{ObjectSpec, Scene};
 use crate::error::check_strict;
 use crate::geometry::{PointCloud, Shape, ShapeOptions};
@@ -14,6 +13,7 @@ use crate::linalg3::Mat3;
 use crate::material::MaterialField;
 use crate::precompute::sampling::IntegrationPoints;
 use crate::precompute::skinning::{Basis, SkinningWeights};
+use crate::precompute::ImageMaterial;
 use crate::progress::Progress;
 use crate::report::{Monitors, Stopwatch};
 use crate::sim::collider::{self, Collider, Kinematics};
