@@ -53,14 +53,23 @@ pub fn is_image_file(path: &Path) -> bool {
 ///
 /// # Errors
 /// [`GeometryError::Io`] when the file cannot be read; [`GeometryError::Parse`] naming the file
-/// for malformed, truncated or unsupported content (wrong dimensionality, rotated grids,
-/// complex data); the [`VoxelImage::new`] errors (spacing, bad moduli, empty image).
+/// for everything else: malformed, truncated or unsupported content (wrong dimensionality,
+/// rotated grids, complex data) and the [`VoxelImage::new`] errors (spacing, bad moduli, empty
+/// image) as their messages.
 pub fn read_image(path: &Path, opts: &ImageReadOptions) -> Result<VoxelImage, GeometryError> {
     let name = path.to_string_lossy().to_ascii_lowercase();
     if name.ends_with(".npy") {
         read_npy(path, opts)
     } else {
         read_nifti(path, opts)
+    }
+}
+
+/// Errors about the image's content name the file (as a [`GeometryError::Parse`]).
+fn in_file(path: &Path, e: GeometryError) -> GeometryError {
+    match e {
+        e @ (GeometryError::Io { .. } | GeometryError::Parse { .. }) => e,
+        other => parse_error(path, other.to_string()),
     }
 }
 
@@ -93,7 +102,7 @@ pub fn read_nifti(path: &Path, opts: &ImageReadOptions) -> Result<VoxelImage, Ge
             meta.len()
         )));
     }
-    let (spacing, origin, flips) = nifti_geometry(&header).map_err(&bad)?;
+    let (spacing, origin, flips) = nifti_geometry(&header, &bad).map_err(|e| in_file(path, e))?;
     let object = nifti::ReaderOptions::new()
         .read_file(path)
         .map_err(|e| bad(nifti_message(e)))?;
@@ -112,7 +121,7 @@ pub fn read_nifti(path: &Path, opts: &ImageReadOptions) -> Result<VoxelImage, Ge
     flip(&mut values, dims, flips);
     let spacing = opts.spacing.unwrap_or(spacing);
     let origin = opts.origin.unwrap_or(origin);
-    VoxelImage::new(dims, spacing, origin, values)
+    VoxelImage::new(dims, spacing, origin, values).map_err(|e| in_file(path, e))
 }
 
 /// The nifti crate's error as text (its `Display` names the problem; a short read is the
@@ -161,7 +170,12 @@ fn spatial_dims(dim: &[u16; 8]) -> Result<[usize; 3], String> {
 
 /// Spacing (metres, > 0), origin (metres, the centre of the first stored voxel after flips)
 /// and the axes to reverse, from the header's sform, qform or pixdim.
-fn nifti_geometry(h: &nifti::NiftiHeader) -> Result<([f64; 3], Point3, [bool; 3]), String> {
+/// The qform and pixdim methods need pixdim[1..3] > 0 (the standard's requirement; an
+/// orientation flip belongs in the quaternion, qfac or sform).
+fn nifti_geometry(
+    h: &nifti::NiftiHeader,
+    bad: &dyn Fn(String) -> GeometryError,
+) -> Result<([f64; 3], Point3, [bool; 3]), GeometryError> {
     let unit = match h.xyzt_units & 0x07 {
         1 => 1.0,
         2 => 1e-3,
@@ -169,6 +183,18 @@ fn nifti_geometry(h: &nifti::NiftiHeader) -> Result<([f64; 3], Point3, [bool; 3]
         _ => 1.0,
     };
     let f = |v: f32| f64::from(v);
+    let pixdim = [1, 2, 3].map(|i| f(h.pixdim[i]) * unit);
+    if h.sform_code <= 0 && !pixdim.iter().all(|p| p.is_finite() && *p > 0.0) {
+        let origin = if h.qform_code > 0 {
+            [h.quatern_x, h.quatern_y, h.quatern_z].map(|v| f(v) * unit)
+        } else {
+            [0.0; 3]
+        };
+        return Err(GeometryError::ImageSpacing {
+            spacing: pixdim,
+            origin,
+        });
+    }
     // Rows of the 3 x 4 voxel-to-world map.
     let rows: [[f64; 4]; 3] = if h.sform_code > 0 {
         [h.srow_x, h.srow_y, h.srow_z].map(|r| r.map(f))
@@ -209,15 +235,15 @@ fn nifti_geometry(h: &nifti::NiftiHeader) -> Result<([f64; 3], Point3, [bool; 3]
         for (j, &v) in row.iter().take(3).enumerate() {
             // Round-off of a float32 quaternion is ~1e-7 of the scale.
             if i != j && v.abs() > 1e-5 * scale {
-                return Err(format!(
+                return Err(bad(format!(
                     "the voxel-to-world map {rows:?} rotates or shears the grid; only \
                      axis-aligned images are supported: resample the image onto an axis-aligned \
                      grid"
-                ));
+                )));
             }
         }
     }
-    let dims = spatial_dims(&h.dim)?;
+    let dims = spatial_dims(&h.dim).map_err(bad)?;
     let mut spacing = [0.0; 3];
     let mut origin = [0.0; 3];
     let mut flips = [false; 3];
@@ -431,4 +457,5 @@ pub fn read_npy(path: &Path, opts: &ImageReadOptions) -> Result<VoxelImage, Geom
     };
     let values = to_values(raw, opts.values).map_err(&bad)?;
     VoxelImage::new(dims, spacing, opts.origin.unwrap_or([0.0; 3]), values)
+        .map_err(|e| in_file(path, e))
 }
