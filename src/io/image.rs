@@ -87,6 +87,13 @@ pub fn read_nifti(path: &Path, opts: &ImageReadOptions) -> Result<VoxelImage, Ge
     let bad = |why: String| parse_error(path, format!("NIfTI: {why}"));
     let meta = std::fs::metadata(path).map_err(|e| super::shape::io_error(path, e))?;
     let header = nifti::NiftiHeader::from_file(path).map_err(|e| bad(nifti_message(e)))?;
+    if &header.magic != b"n+1\0" {
+        return Err(bad(format!(
+            "magic {:?} is not a single-file NIfTI-1 image (\"n+1\"); .hdr/.img pairs and \
+             NIfTI-2 are not read: convert to a .nii file",
+            String::from_utf8_lossy(&header.magic)
+        )));
+    }
     let dims = spatial_dims(&header.dim).map_err(&bad)?;
     let count: usize = dims.iter().product();
     let dtype = header

@@ -48,7 +48,7 @@ impl Default for Header {
 
 /// A single-file NIfTI-1 image at the offsets of the NIfTI-1 standard (nifti1.h), little
 /// endian: 348-byte header, 4-byte extension flag, data from byte 352.
-pub fn nifti_bytes(h: &Header, data: &[u8]) -> Vec<u8> {
+fn nifti_bytes(h: &Header, data: &[u8]) -> Vec<u8> {
     let mut b = vec![0u8; 352];
     let put =
         |b: &mut Vec<u8>, at: usize, bytes: &[u8]| b[at..at + bytes.len()].copy_from_slice(bytes);
