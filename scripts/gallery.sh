@@ -136,5 +136,10 @@ $FF run "$WORK/bend_stress.toml" --out "$WORK/bend" > /dev/null
 $FF render "$WORK/bend" --color von_mises --every 50 --size 800x450 --out "$WORK/bend_png" > /dev/null
 cp "$WORK/bend_png/frame_000050.png" docs/img/stress_bend.png
 
-ls -l docs/img/modes_torus.png docs/img/modes_box.png docs/img/drop_*.png docs/img/splat_*.png \
+# The CT-like voxel phantom (label image, contrast 1e4) held at one end, last frame.
+$FF run examples/ct_phantom.toml --out "$WORK/ct" > /dev/null
+$FF render "$WORK/ct" --every 20 --size 800x450 --azimuth 20 --elevation 15 --out "$WORK/ct_png" > /dev/null
+cp "$WORK/ct_png/frame_000020.png" docs/img/ct_phantom.png
+
+ls -l docs/img/ct_phantom.png docs/img/modes_torus.png docs/img/modes_box.png docs/img/drop_*.png docs/img/splat_*.png \
     docs/img/modes_pig.png docs/img/stress_bend.png

@@ -227,7 +227,8 @@ pub fn check_finite_points(what: &'static str, points: &[[f64; 3]]) -> Result<()
 pub enum GeometryError {
     /// The shape spec is neither a primitive nor a supported file.
     #[error(
-        "unknown shape `{0}`: use box:LX,LY,LZ, sphere:R, or a path to a .obj, .stl, .off or .ply file"
+        "unknown shape `{0}`: use box:LX,LY,LZ, sphere:R, or a path to a .obj, .stl, .off, .ply, \
+         .nii or .nii.gz file"
     )]
     UnknownSpec(String),
     /// A primitive spec has bad numbers.
@@ -286,6 +287,59 @@ pub enum GeometryError {
     /// The shape encloses no volume or has no points.
     #[error("{0}")]
     Degenerate(String),
+    /// A voxel image's spacing is zero, negative or not finite, or its origin is not finite.
+    #[error(
+        "voxel spacing {spacing:?} m and origin {origin:?} m: the spacing must be finite and > 0 \
+         on every axis and the origin finite (check the file's pixdim / sform, or give spacing \
+         and origin in the scene's [object.image] table)"
+    )]
+    ImageSpacing {
+        /// Voxel edge per axis, metres, as found.
+        spacing: [f64; 3],
+        /// Centre of voxel [0, 0, 0], metres, as found.
+        origin: [f64; 3],
+    },
+    /// A voxel of a modulus image holds NaN, an infinity or a negative value.
+    #[error(
+        "voxel {voxel:?} has Young's modulus {value} Pa: moduli must be finite and >= 0 \
+         (0 marks empty voxels); fix the image"
+    )]
+    ImageVoxel {
+        /// The voxel's [i, j, k] (0-based).
+        voxel: [usize; 3],
+        /// Its value.
+        value: f64,
+    },
+    /// A voxel image is unusable (no voxels, no filled voxel, wrong dimensionality or length,
+    /// too large, unsupported orientation or data type).
+    #[error("voxel image: {0}")]
+    BadImage(String),
+    /// A filled voxel holds a label the label map does not name.
+    #[error(
+        "voxel image label {label} (first at voxel {voxel:?}) has no material: add it to the \
+         object's image.labels (label = \"material name\")"
+    )]
+    UnknownLabel {
+        /// The label.
+        label: i64,
+        /// The first voxel holding it, [i, j, k] (0-based).
+        voxel: [usize; 3],
+    },
+    /// An integration point inside the object (a mesh or primitive whose materials come from
+    /// an image) falls outside the image or in an empty voxel, so it has no material.
+    #[error(
+        "material gap: integration point {point} at {position:?} m {where_}; extend the image \
+         to cover the shape, map label 0 in image.labels, or set image.gaps = \"material\" to \
+         give such points the object's material"
+    )]
+    MaterialGap {
+        /// Index of the first such point.
+        point: usize,
+        /// Its position, metres.
+        position: [f64; 3],
+        /// Where it fell ("is outside the image" or "falls in empty voxel [i, j, k]").
+        where_: String,
+    },
     /// A collider mesh has a triangle of (near-)zero area, whose normal is undefined.
     #[error(
         "{path}: triangle {triangle} (0-based, in the file's triangle order) has zero area \

@@ -248,17 +248,34 @@ impl MaterialField {
         overrides: &[MaterialOverride],
     ) -> Result<Self> {
         let mut f = Self::homogeneous(points.len(), base)?;
+        f.apply_overrides(points, overrides)?;
+        Ok(f)
+    }
+
+    /// Each override in order on the points (N x 3, metres, one per entry) inside its region.
+    pub fn apply_overrides(
+        &mut self,
+        points: &[Point3],
+        overrides: &[MaterialOverride],
+    ) -> Result<()> {
+        if points.len() != self.len() {
+            return Err(Error::LengthMismatch {
+                what: "material override points",
+                expected: self.len(),
+                got: points.len(),
+            });
+        }
         for o in overrides {
             o.material.validate()?;
             for (i, x) in points.iter().enumerate() {
                 if o.region.contains(x) {
-                    f.youngs[i] = o.material.youngs;
-                    f.poisson[i] = o.material.poisson;
-                    f.density[i] = o.material.density;
+                    self.youngs[i] = o.material.youngs;
+                    self.poisson[i] = o.material.poisson;
+                    self.density[i] = o.material.density;
                 }
             }
         }
-        Ok(f)
+        Ok(())
     }
 
     /// Per-point arrays from code (each of length n); every entry is validated.

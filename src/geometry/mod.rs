@@ -10,6 +10,7 @@
 //! - [`TriMesh`] is a validated, outward-oriented triangle mesh whose inside test is the
 //!   generalized winding number, evaluated hierarchically by a [`WindingTree`].
 //! - [`PointCloud`] is a validated set of points (no inside test).
+//! - [`VoxelImage`] is a label or Young's-modulus image; its filled voxels can be the shape.
 //! - [`generate`] builds simple meshes (box, icosphere) for tests and examples.
 
 pub mod generate;
@@ -18,6 +19,7 @@ mod pointcloud;
 mod shape;
 mod spec;
 mod topology;
+mod voxels;
 pub mod winding;
 
 pub use mesh::TriMesh;
@@ -25,6 +27,7 @@ pub use pointcloud::PointCloud;
 pub use shape::Shape;
 pub use spec::{ShapeFileFormat, ShapeSpec};
 pub use topology::{weld_exact, EdgeReport};
+pub use voxels::{VoxelImage, VoxelValues, MAX_VOXELS};
 pub use winding::{WindingParams, WindingTree};
 
 pub use crate::error::GeometryError;

@@ -25,6 +25,13 @@ pub enum ShapeSpec {
         /// The format its extension names.
         format: ShapeFileFormat,
     },
+    /// A path to a voxel image (`.nii`, `.nii.gz` or `.npy`) whose filled voxels are the shape
+    /// ([`crate::io::image`]); a `.npy` has no spacing, so only a scene's `[object.image]`
+    /// table (which gives it) can use one.
+    Image {
+        /// The path as given (surrounding whitespace removed).
+        path: PathBuf,
+    },
 }
 
 /// The shape file formats a spec may name, by extension (case-insensitive).
@@ -43,8 +50,8 @@ pub enum ShapeFileFormat {
 
 impl ShapeSpec {
     /// Parse a shape spec without reading any file: `box:LX,LY,LZ` or `sphere:R` (positive
-    /// finite numbers, metres; prefix case-insensitive), or a path to a `.obj`, `.stl`, `.off` or
-    /// `.ply` file (extension case-insensitive).
+    /// finite numbers, metres; prefix case-insensitive), or a path to a `.obj`, `.stl`, `.off`,
+    /// `.ply`, `.nii`, `.nii.gz` or `.npy` file (extension case-insensitive).
     ///
     /// # Errors
     /// [`GeometryError::BadPrimitive`] for missing, extra, non-numeric, non-finite, zero or
@@ -79,6 +86,16 @@ impl ShapeSpec {
             Some("stl") => ShapeFileFormat::Stl,
             Some("off") => ShapeFileFormat::Off,
             Some("ply") => ShapeFileFormat::Ply,
+            Some("nii" | "npy") => {
+                return Ok(ShapeSpec::Image {
+                    path: path.to_path_buf(),
+                })
+            }
+            Some("gz") if lower.ends_with(".nii.gz") => {
+                return Ok(ShapeSpec::Image {
+                    path: path.to_path_buf(),
+                })
+            }
             _ => return Err(GeometryError::UnknownSpec(spec.to_string())),
         };
         Ok(ShapeSpec::File {
@@ -93,7 +110,7 @@ impl ShapeSpec {
         match *self {
             ShapeSpec::Box { size } => Some(Shape::Box { size }),
             ShapeSpec::Sphere { radius } => Some(Shape::Sphere { radius }),
-            ShapeSpec::File { .. } => None,
+            ShapeSpec::File { .. } | ShapeSpec::Image { .. } => None,
         }
     }
 }

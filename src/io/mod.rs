@@ -6,6 +6,7 @@
 //! reads the file it names with the reader of its format.
 
 pub mod basis;
+pub mod image;
 pub mod matrix_market;
 pub mod obj;
 pub mod off;

@@ -1,7 +1,7 @@
 //! Shape files: [`read_shape`] turns a shape spec into a [`Shape`], reading the file it names
 //! with the reader of its format; and the helpers the shape file readers and writers share.
 
-use super::{obj, off, ply, stl};
+use super::{image, obj, off, ply, stl};
 use crate::geometry::{
     weld_exact, GeometryError, Shape, ShapeFileFormat, ShapeOptions, ShapeSpec, TriMesh,
 };
@@ -11,9 +11,11 @@ use std::io::{BufWriter, Write};
 use std::path::Path;
 
 /// The shape a spec names: `box:LX,LY,LZ` or `sphere:R` (positive finite numbers, metres;
-/// prefix case-insensitive), or a path to a `.obj`, `.stl` (ASCII or binary), `.off` or `.ply`
-/// file (extension case-insensitive), read with [`obj::read_obj`], [`stl::read_stl`],
-/// [`off::read_off`] or [`ply::read_ply`]. A PLY with a non-empty `face` element is a mesh, otherwise a point cloud
+/// prefix case-insensitive), or a path to a `.obj`, `.stl` (ASCII or binary), `.off`, `.ply`
+/// or NIfTI (`.nii`, `.nii.gz`) file (extension case-insensitive), read with
+/// [`obj::read_obj`], [`stl::read_stl`], [`off::read_off`], [`ply::read_ply`] or
+/// [`image::read_image`] (an image's filled voxels are the shape; a `.npy` image needs the
+/// spacing a scene gives, so it is refused here). A PLY with a non-empty `face` element is a mesh, otherwise a point cloud
 /// (Gaussian splat files included: only x, y, z are read; a scene reads a 3DGS file whole with
 /// [`super::splat::read_splats`] and writes 3DGS frames).
 ///
@@ -47,6 +49,10 @@ pub fn read_shape_spec(spec: &ShapeSpec, opts: &ShapeOptions) -> Result<Shape, G
             ShapeFileFormat::Off => Ok(Shape::Mesh(off::read_off(path, opts)?)),
             ShapeFileFormat::Ply => ply::read_ply(path, opts),
         },
+        ShapeSpec::Image { path } => Ok(Shape::Image(std::sync::Arc::new(image::read_image(
+            path,
+            &Default::default(),
+        )?))),
     }
 }
 

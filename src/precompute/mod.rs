@@ -21,6 +21,7 @@ pub mod centers;
 mod compare;
 #[cfg(feature = "slepc")]
 pub mod distributed;
+pub mod image_material;
 pub mod memory;
 mod options;
 mod problem;
@@ -33,6 +34,7 @@ pub mod stream;
 
 pub use boundary_modes::BoundaryModes;
 pub use compare::{compare_solvers, ProblemComparison, SolverComparison, SolverResult};
+pub use image_material::{GapPolicy, ImageMaterial};
 pub use memory::MemoryEstimate;
 pub use options::{default_points, BasisOptions, MAX_KERNELS, MAX_POINTS};
 pub use problem::{build_basis, place_kernels, BasisRun, Problem};

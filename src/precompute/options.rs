@@ -1,10 +1,12 @@
 //! Every knob of the precomputation ([`BasisOptions`]) with its default and its valid range.
 
+use super::image_material::{GapPolicy, ImageMaterial};
 use super::rkpm::{KernelType, ShapeFunctionOptions, SupportOptions};
 use super::sampling::{CloudVolumeOptions, Resolution};
 use super::solver::SolverConfig;
-use crate::material::{Material, MaterialOverride, Region};
-use crate::{Error, Result};
+use crate::geometry::{Shape, VoxelValues};
+use crate::material::{Material, MaterialField, MaterialOverride, Region};
+use crate::{Error, Point3, Result};
 use serde::Serialize;
 
 /// Every knob of the precomputation, with documented defaults (see docs/guide.md).
@@ -26,8 +28,13 @@ pub struct BasisOptions {
     pub shape_functions: ShapeFunctionOptions,
     /// Base material. Default: the standard beam's (E = 5e6 Pa, nu = 0.45, rho = 1000).
     pub material: Material,
-    /// Region overrides applied in order on top of `material`.
+    /// Region overrides applied in order on top of `material` (and of `image`).
     pub overrides: Vec<MaterialOverride>,
+    /// Materials from a voxel image (nearest voxel per point), applied before `overrides`.
+    /// Default none. Serialized as the image's SHA-256 and label map, and left out when
+    /// absent (cache keys of other objects are unchanged); not read back from metadata.
+    #[serde(default, skip_deserializing, skip_serializing_if = "Option::is_none")]
+    pub image: Option<ImageMaterial>,
     /// Eigensolver and its settings. Default native LOBPCG at its default settings.
     pub solver: SolverConfig,
     /// Relative eigen-residual tolerance. Default 1e-8.
@@ -58,6 +65,7 @@ impl Default for BasisOptions {
             shape_functions: ShapeFunctionOptions::default(),
             material: Material::default(),
             overrides: Vec::new(),
+            image: None,
             solver: SolverConfig::default(),
             tol: 1e-8,
             max_iter: 1000,
@@ -94,6 +102,25 @@ pub const MAX_KERNELS: usize = 10_000_000;
 pub const MAX_POINTS: usize = 100_000_000;
 
 impl BasisOptions {
+    /// The material at each of `points` (N x 3, metres) of `shape`: `material`, replaced by
+    /// `image`'s where given (or, with no `image`, by a modulus image shape's own moduli), then
+    /// `overrides` in order.
+    ///
+    /// # Errors
+    /// Invalid materials; the [`ImageMaterial::field`] errors (material gaps).
+    pub fn material_field(&self, shape: &Shape, points: &[Point3]) -> Result<MaterialField> {
+        let mut field = match (&self.image, shape) {
+            (Some(image), _) => image.field(points, &self.material)?,
+            (None, Shape::Image(img)) if matches!(img.values(), VoxelValues::Moduli(_)) => {
+                ImageMaterial::new(img.clone(), Default::default(), GapPolicy::Error)?
+                    .field(points, &self.material)?
+            }
+            _ => MaterialField::homogeneous(points.len(), &self.material)?,
+        };
+        field.apply_overrides(points, &self.overrides)?;
+        Ok(field)
+    }
+
     /// Check every parameter's range (before any work is done).
     pub fn validate(&self) -> Result<()> {
         if self.kernels < 10 {

@@ -338,7 +338,8 @@ fn downsample(points: &[Point3], n: usize) -> Vec<Point3> {
 /// The first stage of every precomputation: the integration points (N x 3, metres, with
 /// volumes, m^3) of `shape` at
 /// `opts.resolution` (default [`default_points`] of `opts.kernels`) and the material at each
-/// (`opts.material` with `opts.overrides` applied in order). The pipeline, the MPI path and
+/// ([`BasisOptions::material_field`]: `opts.material`, a voxel image's materials, then
+/// `opts.overrides` in order). The pipeline, the MPI path and
 /// the scene's basis cache all call this, so they sample a shape the same way.
 pub fn sample_with_material(
     shape: &Shape,
@@ -348,7 +349,7 @@ pub fn sample_with_material(
         .resolution
         .unwrap_or(Resolution::Count(default_points(opts.kernels)));
     let points = sample_shape(shape, resolution, &opts.cloud)?;
-    let material = MaterialField::from_regions(&points.points, &opts.material, &opts.overrides)?;
+    let material = opts.material_field(shape, &points.points)?;
     Ok((points, material))
 }
 

@@ -87,6 +87,7 @@ impl SceneBuilder {
                 cache: CacheSettings::default(),
                 objects: Vec::new(),
                 colliders: Vec::new(),
+                materials: Default::default(),
             },
         }
     }
@@ -152,6 +153,7 @@ impl ObjectSpec {
             allow_open_mesh: false,
             material: Material::default(),
             overrides: Vec::new(),
+            image: None,
             basis: BasisSettings::default(),
             boundaries: Vec::new(),
             placement: Placement::default(),

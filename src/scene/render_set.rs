@@ -181,18 +181,18 @@ impl RenderSet {
         ))
     }
 
-    /// Cauchy stress at the points, Pa, with `base` and `overrides` (the object's materials)
-    /// at the rest positions; see [`stress`].
+    /// Cauchy stress at the points, Pa, with the object's materials (`spec`'s, and `image`'s
+    /// where given) at the rest positions; see [`stress`].
     pub fn stress(
         &self,
         sim: &ReducedSim,
-        base: &crate::material::Material,
-        overrides: &[crate::material::MaterialOverride],
+        spec: &super::spec::ObjectSpec,
+        image: Option<&crate::precompute::ImageMaterial>,
     ) -> Result<Vec<Mat3>> {
         let lame = match self.lame.get() {
             Some(l) => l,
             None => {
-                let field = MaterialField::from_regions(&self.rest, base, overrides)?;
+                let field = super::setup::material_at(&self.rest, spec, image)?;
                 self.lame.get_or_init(|| lame_of(&field))
             }
         };

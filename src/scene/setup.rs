@@ -6,19 +6,71 @@ use super::cache;
 use super::run::RunSettings;
 use super::spec::{ObjectSpec, Scene};
 use crate::geometry::Shape;
+use crate::geometry::VoxelValues;
 use crate::io::basis::BasisMetadata;
+use crate::io::image::{read_image, ImageReadOptions};
 use crate::material::MaterialField;
 use crate::precompute::sampling::IntegrationPoints;
 use crate::precompute::skinning::Basis;
 use crate::precompute::{build_basis, sample_with_material, BasisOptions};
+use crate::precompute::{GapPolicy, ImageMaterial};
 use crate::progress::Progress;
 use crate::report::Monitors;
+use crate::Point3;
 use crate::Result;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 fn is_primitive(spec: &str) -> bool {
     let t = spec.trim().to_ascii_lowercase();
-    t.starts_with("box:") || t.starts_with("sphere:")
+    t.starts_with("box:") || t.starts_with("sphere:") || t == "image"
+}
+
+/// The object's image materials: its `[object.image]` table's image (path relative to
+/// `base`) with the label map resolved, or, without a table, a modulus image shape's own
+/// moduli; `None` for other objects.
+pub(super) fn object_image(
+    spec: &ObjectSpec,
+    scene: &Scene,
+    shape: Option<&Shape>,
+    base: &Path,
+) -> Result<Option<ImageMaterial>> {
+    let Some(im) = &spec.image else {
+        return Ok(match shape {
+            Some(Shape::Image(img)) if matches!(img.values(), VoxelValues::Moduli(_)) => Some(
+                ImageMaterial::new(img.clone(), Default::default(), GapPolicy::Error)?,
+            ),
+            _ => None,
+        });
+    };
+    let (_, file) = resolve_shape(&im.file, base);
+    let path = file.unwrap_or_else(|| base.join(&im.file));
+    let opts = ImageReadOptions {
+        spacing: im.spacing,
+        origin: im.origin,
+        values: im.values,
+    };
+    let image = Arc::new(read_image(&path, &opts)?);
+    let labels = im.label_materials(&scene.materials)?;
+    Ok(Some(ImageMaterial::new(image, labels, im.gaps)?))
+}
+
+/// Materials at points other than the integration points (render points, N x 3 metres):
+/// as the basis's, except that points outside the image's filled voxels take the object's
+/// material instead of failing (render inputs may reach past the image).
+pub(super) fn material_at(
+    points: &[Point3],
+    spec: &ObjectSpec,
+    image: Option<&ImageMaterial>,
+) -> Result<MaterialField> {
+    let mut field = match image {
+        Some(im) => im
+            .with_gaps(GapPolicy::Material)
+            .field(points, &spec.material)?,
+        None => MaterialField::homogeneous(points.len(), &spec.material)?,
+    };
+    field.apply_overrides(points, &spec.overrides)?;
+    Ok(field)
 }
 
 /// Resolve a relative shape path against `base`.
@@ -63,10 +115,14 @@ pub(super) fn object_basis(
     shape: &ResolvedShape,
     scene: &Scene,
     settings: &RunSettings,
+    image: Option<&ImageMaterial>,
     progress: &dyn Progress,
     warnings: &mut Vec<String>,
 ) -> Result<ObjectBasis> {
-    let opts: BasisOptions = spec.basis_options()?;
+    let opts = BasisOptions {
+        image: image.cloned(),
+        ..spec.basis_options()?
+    };
     let cache_dir = scene.cache.enabled.then(|| {
         if scene.cache.dir.is_relative() {
             settings.base_dir.join(&scene.cache.dir)

@@ -2,14 +2,17 @@
 //! ([`super::SceneBuilder`]) produces. Unknown keys are errors; every default is stated
 //! here and in docs/scenes.md.
 
+use crate::io::image::ImageValueKind;
 use crate::material::{Material, MaterialOverride};
 use crate::precompute::rkpm::{KernelType, SupportOptions};
 use crate::precompute::sampling::{CloudVolumeOptions, Resolution};
+use crate::precompute::GapPolicy;
 use crate::precompute::{BasisOptions, BoundaryModes, SolverConfig};
 use crate::sim::newton::{HessianStrategy, InitialGuess, Precision};
 use crate::sim::{Boundary, Collider, NewtonOptions, Placement};
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 /// A whole scene.
@@ -33,6 +36,10 @@ pub struct Scene {
     /// Obstacles shared by all objects, static or kinematic (`[[collider]]` tables).
     #[serde(default, rename = "collider", skip_serializing_if = "Vec::is_empty")]
     pub colliders: Vec<Collider>,
+    /// Named materials (`[materials.NAME]` tables) that voxel-image labels refer to
+    /// (`image.labels`).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub materials: BTreeMap<String, Material>,
 }
 
 /// Time stepping.
@@ -173,8 +180,8 @@ impl Default for CacheSettings {
 pub struct ObjectSpec {
     /// Name, used for output file names (letters, digits, '-', '_').
     pub name: String,
-    /// Shape: `box:LX,LY,LZ`, `sphere:R`, or a mesh / point-cloud file (relative to the scene
-    /// file).
+    /// Shape: `box:LX,LY,LZ`, `sphere:R`, a mesh / point-cloud / NIfTI image file (relative to
+    /// the scene file), or `image`: the filled voxels of the `[object.image]` table's image.
     pub shape: String,
     /// Accept a mesh with holes.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
@@ -189,6 +196,10 @@ pub struct ObjectSpec {
         skip_serializing_if = "Vec::is_empty"
     )]
     pub overrides: Vec<MaterialOverride>,
+    /// A voxel image giving the object's materials (and its shape when `shape = "image"`);
+    /// applied before the region overrides.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub image: Option<ImageSpec>,
     /// Basis settings.
     #[serde(default)]
     pub basis: BasisSettings,
@@ -206,6 +217,64 @@ pub struct ObjectSpec {
     /// 3DGS splat PLYs, in the object's rest frame (relative to the scene file).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub render: Vec<String>,
+}
+
+/// An object's voxel image (`[object.image]`): a NIfTI (`.nii`, `.nii.gz`) or NumPy (`.npy`)
+/// image of material labels or Young's moduli; see docs/scenes.md.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImageSpec {
+    /// The image file, relative to the scene file.
+    pub file: String,
+    /// Voxel edge per axis, metres; replaces the file's (required for `.npy`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spacing: Option<[f64; 3]>,
+    /// Centre of voxel [0, 0, 0], metres; replaces the file's (`.npy` default: 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub origin: Option<[f64; 3]>,
+    /// What the voxels hold: `auto` (default: integer data are labels, floating-point data
+    /// moduli), `labels` or `moduli`.
+    #[serde(default)]
+    pub values: ImageValueKind,
+    /// Label value (a whole number, as a TOML key) to material name (a `[materials.NAME]`
+    /// table). Every label of a filled voxel needs one; label 0 may be mapped to fill empty
+    /// voxels inside a mesh shape.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub labels: BTreeMap<String, String>,
+    /// Points inside the shape that fall outside the image or in empty voxels: `error`
+    /// (default) or `material` (the object's own material).
+    #[serde(default)]
+    pub gaps: GapPolicy,
+}
+
+impl ImageSpec {
+    /// The label map with its names resolved in `materials`.
+    ///
+    /// # Errors
+    /// [`Error::Scene`] for a key that is not a whole number or a name with no
+    /// `[materials.NAME]` table.
+    pub fn label_materials(
+        &self,
+        materials: &BTreeMap<String, Material>,
+    ) -> Result<BTreeMap<i64, Material>> {
+        let mut out = BTreeMap::new();
+        for (key, name) in &self.labels {
+            let label: i64 = key.trim().parse().map_err(|_| {
+                scene_err(format!(
+                    "image.labels key '{key}' is not a whole-number label (write labels = {{ 1 = \"bone\" }})"
+                ))
+            })?;
+            let m = materials.get(name).ok_or_else(|| {
+                let known: Vec<&str> = materials.keys().map(String::as_str).collect();
+                scene_err(format!(
+                    "image label {label} maps to material '{name}', but there is no \
+                     [materials.{name}] table (named materials: {known:?})"
+                ))
+            })?;
+            out.insert(label, *m);
+        }
+        Ok(out)
+    }
 }
 
 /// Basis precomputation settings of an object (see `freeform modes --help`).
@@ -411,12 +480,17 @@ impl Scene {
                     .map_err(|e| in_object(&o.name, scene_err(format!("boundary {i}: {e}"))))?;
             }
             let _checked = o.basis_options().map_err(|e| in_object(&o.name, e))?;
+            self.validate_image(o).map_err(|e| in_object(&o.name, e))?;
             if o.cubature == Some(0) {
                 return Err(in_object(
                     &o.name,
                     scene_err("cubature must be at least 1".into()),
                 ));
             }
+        }
+        for (name, m) in &self.materials {
+            m.validate()
+                .map_err(|e| scene_err(format!("material '{name}': {e}")))?;
         }
         crate::sim::collider::validate_colliders(&self.colliders)?;
         for (i, c) in self.colliders.iter().enumerate() {
@@ -428,6 +502,34 @@ impl Scene {
                 )));
             }
         }
+        Ok(())
+    }
+}
+
+impl Scene {
+    /// An object's image table: its numbers and its label map (the file is read later).
+    fn validate_image(&self, o: &ObjectSpec) -> Result<()> {
+        let Some(im) = &o.image else {
+            if o.shape.trim() == "image" {
+                return Err(scene_err(
+                    "shape = \"image\" needs an [object.image] table with the image file".into(),
+                ));
+            }
+            return Ok(());
+        };
+        if let Some(s) = im.spacing {
+            if !s.iter().all(|v| v.is_finite() && *v > 0.0) {
+                return Err(scene_err(format!(
+                    "image.spacing = {s:?} must be finite and > 0 on every axis (metres)"
+                )));
+            }
+        }
+        if let Some(o) = im.origin {
+            if !o.iter().all(|v| v.is_finite()) {
+                return Err(scene_err(format!("image.origin = {o:?} must be finite")));
+            }
+        }
+        im.label_materials(&self.materials)?;
         Ok(())
     }
 }

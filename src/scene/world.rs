@@ -2,7 +2,9 @@
 
 use super::render_set::{self, RenderSet};
 use super::run::{ObjectSummary, RunSettings, StepRow};
-use super::setup::{object_basis, resolve_shape, ObjectBasis, ResolvedShape};
+use super::setup::{
+    material_at, object_basis, object_image, resolve_shape, ObjectBasis, ResolvedShape,
+};
 use super::spec::{ObjectSpec, Scene};
 use crate::error::check_strict;
 use crate::geometry::{PointCloud, Shape, ShapeOptions};
@@ -11,6 +13,7 @@ use crate::linalg3::Mat3;
 use crate::material::MaterialField;
 use crate::precompute::sampling::IntegrationPoints;
 use crate::precompute::skinning::{Basis, SkinningWeights};
+use crate::precompute::ImageMaterial;
 use crate::progress::Progress;
 use crate::report::{Monitors, Stopwatch};
 use crate::sim::collider::{self, Collider, Kinematics};
@@ -66,6 +69,8 @@ pub struct SceneObject {
     render: RenderPoints,
     /// Extra render inputs (`render = [...]`).
     render_sets: Vec<RenderSet>,
+    /// Materials from a voxel image, for stresses at render points.
+    image: Option<ImageMaterial>,
     summary: ObjectSummary,
     /// Whether the inversion warning was given.
     warned_inverted: bool,
@@ -110,6 +115,17 @@ impl SceneObject {
                     .map_err(|e| ctx(e.with_path(path).into()))?;
                 (Shape::PointCloud(cloud), Some(splats))
             }
+            _ if shape_spec.trim() == "image" => {
+                let image = object_image(spec, scene, None, &settings.base_dir).map_err(ctx)?;
+                match image {
+                    Some(im) => (Shape::Image(im.image().clone()), None),
+                    None => {
+                        return Err(ctx(Error::Scene {
+                            message: "shape = \"image\" needs an [object.image] table".into(),
+                        }))
+                    }
+                }
+            }
             _ => {
                 let opts = ShapeOptions {
                     allow_open_mesh: spec.allow_open_mesh,
@@ -118,14 +134,23 @@ impl SceneObject {
                 (shape, None)
             }
         };
+        let image = object_image(spec, scene, Some(&shape), &settings.base_dir).map_err(ctx)?;
         let resolved = ResolvedShape {
             shape,
             spec: shape_spec,
             file,
         };
         let clock = Stopwatch::start();
-        let parts =
-            object_basis(spec, &resolved, scene, settings, progress, warnings).map_err(ctx)?;
+        let parts = object_basis(
+            spec,
+            &resolved,
+            scene,
+            settings,
+            image.as_ref(),
+            progress,
+            warnings,
+        )
+        .map_err(ctx)?;
         let precompute_s = clock.elapsed();
         let mut object = SceneObject::from_parts(
             index,
@@ -137,6 +162,7 @@ impl SceneObject {
             progress,
         )?;
         object.render.splats = splats;
+        object.image = image;
         object.load_render_sets(&settings.base_dir).map_err(ctx)?;
         Ok(object)
     }
@@ -233,6 +259,7 @@ impl SceneObject {
             material,
             render_lame: OnceLock::new(),
             render_sets: Vec::new(),
+            image: None,
             render: RenderPoints {
                 rest,
                 weights: render_weights,
@@ -342,11 +369,7 @@ impl SceneObject {
                 let field = match &self.render.rest {
                     // Prepared objects carry per-point materials no region describes.
                     None => self.material.clone(),
-                    Some(rest) => MaterialField::from_regions(
-                        rest,
-                        &self.spec.material,
-                        &self.spec.overrides,
-                    )?,
+                    Some(rest) => material_at(rest, &self.spec, self.image.as_ref())?,
                 };
                 self.render_lame.get_or_init(|| render_set::lame_of(&field))
             }
@@ -366,7 +389,7 @@ impl SceneObject {
 
     /// Cauchy stress at the points of render set `set` (see [`SceneObject::render_stress`]).
     pub fn render_set_stress(&self, set: &RenderSet) -> Result<Vec<Mat3>> {
-        set.stress(&self.sim, &self.spec.material, &self.spec.overrides)
+        set.stress(&self.sim, &self.spec, self.image.as_ref())
     }
 
     /// Read the render inputs of the spec (relative to `base_dir`) and evaluate the basis at

@@ -23,6 +23,7 @@ mod colliders;
 mod extremes;
 mod fem;
 mod geometry;
+mod images;
 mod pipeline;
 mod properties;
 mod render;

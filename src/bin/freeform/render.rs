@@ -529,7 +529,7 @@ pub fn modes_png(
     let (positions, triangles): (&[[f64; 3]], Option<&[[u32; 3]]>) = match shape {
         Shape::Mesh(m) => (m.vertices(), Some(m.triangles())),
         Shape::PointCloud(c) => (c.points(), None),
-        Shape::Box { .. } | Shape::Sphere { .. } => (&run.points.points, None),
+        Shape::Box { .. } | Shape::Sphere { .. } | Shape::Image(_) => (&run.points.points, None),
     };
     let modes = run.basis.modes();
     let count = count.min(modes.saturating_sub(1));

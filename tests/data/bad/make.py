@@ -268,3 +268,96 @@ for name in ("zero_quat", "nan_scale", "no_rot_2"):
 write("scene/far_render.obj", "v 9 9 9\nv 9 9 10\nv 9 10 9\nf 1 2 3\n")
 write("scene/render_outside.toml", GOOD + 'render = ["far_render.obj"]\n')
 write("scene/render_missing.toml", GOOD + 'render = ["nowhere.obj"]\n')
+
+# Voxel images (issue 19): NIfTI-1 and .npy files with bad geometry, values or layout, and
+# scenes whose label maps leave labels or points without material.
+
+
+def nifti(dims, data, datatype=2, bitpix=8, pixdim=(1.0, 0.1, 0.1, 0.1), sform=None,
+          rank=None):
+    """A single-file NIfTI-1 image (little endian, 348-byte header, data at byte 352)."""
+    h = bytearray(348)
+    struct.pack_into("<i", h, 0, 348)
+    dim = [len(dims) if rank is None else rank] + list(dims)
+    dim += [1] * (8 - len(dim))
+    struct.pack_into("<8h", h, 40, *dim)
+    struct.pack_into("<hh", h, 70, datatype, bitpix)
+    struct.pack_into("<8f", h, 76, *((1.0,) + tuple(pixdim[1:]) + (0.0,) * 4))
+    struct.pack_into("<f", h, 108, 352.0)
+    h[123] = 1  # metres
+    if sform is not None:
+        struct.pack_into("<h", h, 254, 1)
+        struct.pack_into("<12f", h, 280, *[v for row in sform for v in row])
+    h[344:348] = b"n+1\x00"
+    return bytes(h) + b"\x00" * 4 + data
+
+
+def u8(values):
+    return bytes(values)
+
+
+def f32(values):
+    return b"".join(struct.pack("<f", v) for v in values)
+
+
+def npy(descr, shape, data):
+    d = "{'descr': '%s', 'fortran_order': True, 'shape': (%s), }" % (
+        descr, "".join("%d, " % s for s in shape))
+    d += " " * ((64 - (10 + len(d) + 1) % 64) % 64) + "\n"
+    return b"\x93NUMPY\x01\x00" + struct.pack("<H", len(d)) + d.encode() + data
+
+
+LABELS_4 = [1 if i < 2 else 2 for k in range(4) for j in range(4) for i in range(4)]
+with_3 = list(LABELS_4)
+with_3[1 + 4 * (2 + 4 * 3)] = 3  # voxel [1, 2, 3]
+nan_e = [1e5] * 8
+nan_e[1] = float("nan")  # voxel [1, 0, 0]
+neg_e = [1e5] * 8
+neg_e[6] = -2e5  # voxel [0, 1, 1]
+write("image/zero_spacing.nii", nifti((2, 2, 2), u8([1] * 8), pixdim=(1, 0.1, 0.0, 0.1)))
+write("image/negative_spacing.nii", nifti((2, 2, 2), u8([1] * 8), pixdim=(1, 0.1, 0.1, -0.1)))
+write("image/nan_spacing.nii", nifti((2, 2, 2), u8([1] * 8), pixdim=(1, float("nan"), 0.1, 0.1)))
+write("image/zero_sform.nii", nifti((2, 2, 2), u8([1] * 8),
+                                    sform=[(0.1, 0, 0, 0), (0, 0.0, 0, 0), (0, 0, 0.1, 0)]))
+write("image/rotated.nii", nifti((2, 2, 2), u8([1] * 8),
+                                 sform=[(0.07, -0.07, 0, 0), (0.07, 0.07, 0, 0), (0, 0, 0.1, 0)]))
+write("image/nan_modulus.nii", nifti((2, 2, 2), f32(nan_e), 16, 32))
+write("image/negative_modulus.nii", nifti((2, 2, 2), f32(neg_e), 16, 32))
+write("image/two_d.nii", nifti((4, 4), u8([1] * 16)))
+write("image/four_d.nii", nifti((2, 2, 2, 3), u8([1] * 24)))
+write("image/truncated.nii", nifti((4, 4, 4), f32([1e5] * 64))[:352 + 10])
+write("image/truncated_header.nii", nifti((2, 2, 2), u8([1] * 8))[:100])
+write("image/empty.nii", nifti((2, 2, 2), u8([0] * 8)))
+write("image/zero_dims.nii", nifti((2, 0, 2), b""))
+write("image/complex.nii", nifti((2, 2, 2), b"\x00" * 64, 32, 64))
+write("image/labels.npy", npy("|u1", (4, 4, 4), u8(LABELS_4)))
+write("image/two_d.npy", npy("|u1", (4, 16), u8(LABELS_4)))
+write("image/truncated.npy", npy("<f8", (4, 4, 4), f32([1e5] * 20)))
+write("scene/labels_4.nii", nifti((4, 4, 4), u8(LABELS_4), pixdim=(1, 0.25, 0.25, 0.25)))
+write("scene/labels_with_3.nii", nifti((4, 4, 4), u8(with_3), pixdim=(1, 0.25, 0.25, 0.25)))
+write("scene/moduli_2.nii", nifti((2, 2, 2), f32([1e5] * 8), 16, 32, pixdim=(1, 0.5, 0.5, 0.5)))
+write("scene/labels_4.npy", npy("|u1", (4, 4, 4), u8(LABELS_4)))
+MATS = ('[materials.soft]\nyoungs = 1e5\n[materials.stiff]\nyoungs = 1e7\n')
+IMG = GOOD.replace("box:1,0.2,0.2", "image") + '[object.image]\nfile = "%s"\n%s'
+LAB = 'labels = { 1 = "soft", 2 = "stiff" }\n'
+write("scene/image_unknown_label.toml", MATS + IMG % ("labels_with_3.nii", LAB))
+write("scene/image_unknown_material.toml",
+      MATS + IMG % ("labels_4.nii", 'labels = { 1 = "soft", 2 = "bone" }\n'))
+write("scene/image_bad_label_key.toml",
+      MATS + IMG % ("labels_4.nii", 'labels = { one = "soft", 2 = "stiff" }\n'))
+write("scene/image_gap.toml", MATS + (IMG % ("labels_4.nii", LAB)).replace(
+    'shape = "image"', 'shape = "box:2,1,1"'))
+write("scene/image_zero_spacing.toml",
+      MATS + IMG % ("labels_4.nii", LAB + "spacing = [0.0, 0.25, 0.25]\n"))
+write("scene/image_nan_origin.toml",
+      MATS + IMG % ("labels_4.nii", LAB + "origin = [nan, 0.0, 0.0]\n"))
+write("scene/image_npy_no_spacing.toml", MATS + IMG % ("labels_4.npy", LAB))
+write("scene/image_modulus_with_labels.toml", MATS + IMG % ("moduli_2.nii", LAB))
+write("scene/image_no_table.toml", GOOD.replace("box:1,0.2,0.2", "image"))
+write("scene/image_missing_file.toml", MATS + IMG % ("nowhere.nii", LAB))
+write("scene/image_bad_material.toml",
+      MATS.replace("youngs = 1e7", "youngs = -1e7") + IMG % ("labels_4.nii", LAB))
+write("scene/image_npy_two_d.toml",
+      MATS + IMG % ("../image/two_d.npy", LAB + "spacing = [0.25, 0.25, 0.25]\n"))
+write("scene/image_npy_truncated.toml",
+      MATS + IMG % ("../image/truncated.npy", "spacing = [0.25, 0.25, 0.25]\n"))
