@@ -237,6 +237,12 @@ fn nifti_geometry(
             [0.0, 0.0, f(p[3]), 0.0],
         ]
     };
+    if let Some(v) = rows.iter().flatten().find(|v| !v.is_finite()) {
+        return Err(bad(format!(
+            "the voxel-to-world map {rows:?} has a non-finite entry ({v}); fix the header's \
+             sform/qform"
+        )));
+    }
     let scale = (0..3).map(|i| rows[i][i].abs()).fold(0.0, f64::max);
     for (i, row) in rows.iter().enumerate() {
         for (j, &v) in row.iter().take(3).enumerate() {

@@ -258,6 +258,41 @@ mod tests {
     }
 
     #[test]
+    fn serialized_key_follows_the_image_content_and_the_map() {
+        let map = BTreeMap::from([(1, mat(1e9)), (2, mat(1e5))]);
+        let key = |img: Arc<VoxelImage>, map: &BTreeMap<i64, Material>| {
+            serde_json::to_string(&ImageMaterial::new(img, map.clone(), GapPolicy::Error).unwrap())
+                .unwrap()
+        };
+        let a = key(two_labels(), &map);
+        // The same content read again: the same key (the cache is reused).
+        assert_eq!(a, key(two_labels(), &map));
+        // One voxel changed, the grid moved, or the map changed: another key.
+        let swapped = Arc::new(
+            VoxelImage::new(
+                [2, 1, 1],
+                [1.0; 3],
+                [0.5, 0.5, 0.5],
+                VoxelValues::Labels(vec![2, 1]),
+            )
+            .unwrap(),
+        );
+        assert_ne!(a, key(swapped, &map));
+        let moved = Arc::new(
+            VoxelImage::new(
+                [2, 1, 1],
+                [1.0; 3],
+                [0.5, 0.5, 0.75],
+                VoxelValues::Labels(vec![1, 2]),
+            )
+            .unwrap(),
+        );
+        assert_ne!(a, key(moved, &map));
+        let other_map = BTreeMap::from([(1, mat(1e9)), (2, mat(2e5))]);
+        assert_ne!(a, key(two_labels(), &other_map));
+    }
+
+    #[test]
     fn moduli_keep_the_objects_poisson_and_density() {
         let img = Arc::new(
             VoxelImage::new(

@@ -60,6 +60,7 @@ const MODES_FILES: &[Case] = &[
     (&["@image/nan_spacing.nii"], "nan_spacing.nii: voxel spacing [NaN,"),
     (&["@image/zero_sform.nii"], "zero_sform.nii: voxel spacing [0.10000000149011612, 0.0,"),
     (&["@image/rotated.nii"], "rotates or shears the grid"),
+    (&["@image/nan_sform.nii"], "nan_sform.nii: NIfTI: the voxel-to-world map [[0.10000000149011612, NaN, 0.0, 0.0]"),
     (&["@image/nan_modulus.nii"], "nan_modulus.nii: voxel [1, 0, 0] has Young's modulus NaN Pa"),
     (&["@image/negative_modulus.nii"], "negative_modulus.nii: voxel [0, 1, 1] has Young's modulus -200000 Pa"),
     (&["@image/two_d.nii"], "two_d.nii: NIfTI: the image has shape [4, 4] (2D); a material image must be 3D"),

@@ -319,6 +319,8 @@ write("image/negative_spacing.nii", nifti((2, 2, 2), u8([1] * 8), pixdim=(1, 0.1
 write("image/nan_spacing.nii", nifti((2, 2, 2), u8([1] * 8), pixdim=(1, float("nan"), 0.1, 0.1)))
 write("image/zero_sform.nii", nifti((2, 2, 2), u8([1] * 8),
                                     sform=[(0.1, 0, 0, 0), (0, 0.0, 0, 0), (0, 0, 0.1, 0)]))
+write("image/nan_sform.nii", nifti((2, 2, 2), u8([1] * 8),
+                                  sform=[(0.1, float("nan"), 0, 0), (0, 0.1, 0, 0), (0, 0, 0.1, 0)]))
 write("image/rotated.nii", nifti((2, 2, 2), u8([1] * 8),
                                  sform=[(0.07, -0.07, 0, 0), (0.07, 0.07, 0, 0), (0, 0, 0.1, 0)]))
 write("image/nan_modulus.nii", nifti((2, 2, 2), f32(nan_e), 16, 32))
