@@ -15,6 +15,7 @@ use std::path::Path;
 
 pub mod fit;
 pub mod pareto;
+pub mod shapes;
 pub mod sweep;
 
 pub use fit::{fit_residual, fit_residual_from_weights, FitResidual};

@@ -490,6 +490,10 @@ pub enum FemError {
     /// a static solve with too few held nodes).
     #[error("sparse Cholesky failed: {0}")]
     Factorization(String),
+    /// The external tet mesher (TetGen) is missing, failed, or produced no tetrahedra: its
+    /// own message and what to do.
+    #[error("TetGen: {0}")]
+    Mesher(String),
     /// Trajectories handed to the error metric do not fit together.
     #[error("trajectory {what}: {detail}")]
     Trajectory {

@@ -343,7 +343,7 @@ pub fn nested_difference(
     trajectory_error(&coarse.rest, &fine_on_coarse, &coarse.frames)
 }
 
-fn fnv1a(bytes: &[u8]) -> u64 {
+pub(crate) fn fnv1a(bytes: &[u8]) -> u64 {
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
     for &b in bytes {
         h ^= b as u64;
@@ -354,7 +354,7 @@ fn fnv1a(bytes: &[u8]) -> u64 {
 
 const MAGIC: &[u8; 8] = b"FFFEMTRJ";
 
-fn write_cache(path: &Path, key: &str, r: &BeamReference) -> Result<(), FemError> {
+pub(crate) fn write_cache(path: &Path, key: &str, r: &BeamReference) -> Result<(), FemError> {
     let io = |source| FemError::Io {
         path: path.to_path_buf(),
         source,
@@ -394,7 +394,7 @@ fn write_cache(path: &Path, key: &str, r: &BeamReference) -> Result<(), FemError
     std::fs::rename(&tmp, path).map_err(io)
 }
 
-fn read_cache(path: &Path, key: &str) -> Result<BeamReference, String> {
+pub(crate) fn read_cache(path: &Path, key: &str) -> Result<BeamReference, String> {
     let buf = std::fs::read(path).map_err(|e| format!("cannot read: {e}"))?;
     if buf.len() < 8 + 4 + 32 + 8 || &buf[..8] != MAGIC {
         return Err("not a freeform FEM cache file".into());

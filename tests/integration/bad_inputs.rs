@@ -235,6 +235,16 @@ const FROM_MATRICES: &[Case] = &[
     (&["@mtx/indefinite_mass"], "positive definite"),
 ];
 
+/// `freeform eval`: bad folders and flags fail before any work (a bad shape inside a good
+/// folder is listed per shape instead: tests/integration/eval_shapes.rs).
+#[rustfmt::skip]
+const EVAL_CASES: &[Case] = &[
+    (&["@no_such_dir"], "no_such_dir"),
+    (&["@off", "--only", "nothing"], "no shape file"),
+    (&["@off", "--steps", "0"], "at least one step"),
+    (&["@off", "--youngs=-1"], "Young's modulus"),
+];
+
 /// A private copy of the corpus (runs may write caches next to scene files).
 fn corpus() -> tempfile::TempDir {
     let dir = tempfile::tempdir().expect("temp dir");
@@ -351,6 +361,11 @@ fn run_table(prefix: &[&str], extra: &[&str], table: &[Case], out_name: &str) {
 #[test]
 fn modes_rejects_every_bad_shape_file() {
     run_table(&["modes"], SMALL, MODES_FILES, "basis.npz");
+}
+
+#[test]
+fn eval_rejects_bad_folders_and_flags() {
+    run_table(&["eval"], &[], EVAL_CASES, "eval");
 }
 
 #[test]

@@ -77,12 +77,20 @@ fn example_scenes_parse() {
         "beam_twist.toml",
         "drop.toml",
         "heterogeneous.toml",
+        "layered_sphere.toml",
     ] {
         let s = Scene::load(&dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert!(!s.objects.is_empty());
         n += 1;
     }
-    assert_eq!(n, 4);
+    assert_eq!(n, 5);
+    // The layered sphere: shells alternate, stiff innermost (each override wins over the ones
+    // before it, so the smallest ball is the last).
+    let l = Scene::load(&dir.join("layered_sphere.toml")).unwrap();
+    let e: Vec<f64> = std::iter::once(l.objects[0].material.youngs)
+        .chain(l.objects[0].overrides.iter().map(|o| o.material.youngs))
+        .collect();
+    assert_eq!(e, [3e5, 3e7, 3e5, 3e7]);
     // The twist example is the standard twist: 720 degrees after 200 steps.
     let t = Scene::load(&dir.join("beam_twist.toml")).unwrap();
     let Motion::Rotate {

@@ -2,6 +2,7 @@
 
 mod beam;
 mod compare;
+mod eval;
 mod export;
 mod messages;
 mod modes;
@@ -39,6 +40,9 @@ enum Command {
     /// The beam benchmark over m x K plus variations of points, cubature and Hessian
     /// strategy: CSV and PNG plots of error against precompute and step time (Pareto front).
     Sweep(sweep::SweepArgs),
+    /// The real-shape accuracy protocol (paper Table 2) over a folder of closed meshes:
+    /// fix side, pull farthest points, pull ends against TetGen FEM; CSV, JSON and a plot.
+    Eval(eval::EvalArgs),
     /// Build H_w and M once and compare eigensolvers on them (native LOBPCG, SLEPc, dense).
     Compare(compare::CompareArgs),
     /// Write H_w and M of a shape as MatrixMarket and PETSc binary files.
@@ -113,6 +117,7 @@ fn dispatch(command: Command) -> CliResult {
         Command::Beam(args) => beam::run(args),
         Command::Sweep(args) => sweep::run(args),
         Command::Compare(args) => compare::run(args),
+        Command::Eval(args) => eval::run(args),
         Command::Export(args) => export::run(args),
         Command::Render(args) => render::run(args),
     }

@@ -1,0 +1,246 @@
+//! The FEM reference of one shape and boundary condition: the protocol's regions select the
+//! held and moved FE nodes of the TetGen mesh, [`FemSolver`] runs the protocol's steps, and
+//! the trajectory is cached like the beam's (`.freeform-cache/fem`, keyed by the mesh and
+//! every setting).
+
+use super::protocol::{boundary_regions, gravity, NormalizedShape, Protocol, ShapeTest};
+use crate::fem::beam::{fnv1a, read_cache, write_cache, BeamReference, CacheStatus};
+use crate::fem::element::fe_nodes;
+use crate::fem::solver::{FemParams, FemSolver};
+use crate::fem::{FemError, TetMaterials, TetMesh};
+use crate::progress::Progress;
+use crate::{Error, Point3, Result};
+use std::path::Path;
+use std::time::Instant;
+
+/// Cache key of a shape reference: FNV-1a 64 of the canonical JSON of the mesh's hash and
+/// the settings, as 16 hex digits, and the JSON itself.
+pub fn cache_key(
+    mesh: &TetMesh,
+    protocol: &Protocol,
+    shape: &NormalizedShape,
+    test: ShapeTest,
+    params: &FemParams,
+) -> (String, String) {
+    let mut bytes: Vec<u8> = mesh
+        .nodes()
+        .iter()
+        .flatten()
+        .flat_map(|c| c.to_le_bytes())
+        .collect();
+    for t in mesh.tets() {
+        for i in t {
+            bytes.extend_from_slice(&i.to_le_bytes());
+        }
+    }
+    let json = serde_json::json!({
+        "format": crate::fem::beam::CACHE_FORMAT_VERSION,
+        "kind": "shape",
+        "mesh": format!("{:016x}", fnv1a(&bytes)),
+        "nodes": mesh.num_nodes(),
+        "tets": mesh.num_tets(),
+        "protocol": protocol,
+        "test": test,
+        "regions": boundary_regions(protocol, shape, test),
+        "solver": params,
+    })
+    .to_string();
+    (format!("{:016x}", fnv1a(json.as_bytes())), json)
+}
+
+/// The solver settings of `test`: `base` (tolerance, order, ...) with the protocol's time
+/// step and the test's gravity.
+pub fn fem_params(
+    base: &FemParams,
+    protocol: &Protocol,
+    shape: &NormalizedShape,
+    test: ShapeTest,
+) -> FemParams {
+    FemParams {
+        dt: protocol.dt,
+        gravity: gravity(protocol, shape, test),
+        ..base.clone()
+    }
+}
+
+/// Run (or load from `cache_dir`) the FEM reference of `test` on `mesh` (the TetGen mesh of
+/// `shape`). The returned [`BeamReference`]'s `config` field is meaningless here (it is the
+/// beam's type reused for its trajectory and cache).
+///
+/// # Errors
+/// A region that holds no FE node ([`Error::InvalidParameter`]), the solver's errors
+/// ([`FemError::NotConverged`] with the step), cache write failures.
+pub fn run_shape_reference(
+    mesh: &TetMesh,
+    protocol: &Protocol,
+    shape: &NormalizedShape,
+    test: ShapeTest,
+    base: &FemParams,
+    cache_dir: Option<&Path>,
+    progress: &dyn Progress,
+) -> Result<BeamReference> {
+    protocol.validate()?;
+    let params = fem_params(base, protocol, shape, test);
+    let (hash, key) = cache_key(mesh, protocol, shape, test, &params);
+    let path = cache_dir.map(|d| d.join(format!("{hash}.bin")));
+    let mut rejected = None;
+    if let Some(p) = path.as_ref().filter(|p| p.exists()) {
+        match read_cache(p, &key) {
+            Ok(mut r) => {
+                r.cache = CacheStatus::Hit(p.clone());
+                return Ok(r);
+            }
+            Err(reason) => {
+                progress.message(&format!(
+                    "warning: FEM cache {} unusable ({reason}); recomputing",
+                    p.display()
+                ));
+                rejected = Some(reason);
+            }
+        }
+    }
+    let mut r = compute(mesh, protocol, shape, test, params, progress)?;
+    if let Some(p) = path {
+        write_cache(&p, &key, &r)?;
+        r.cache = match rejected {
+            Some(reason) => CacheStatus::Recomputed { path: p, reason },
+            None => CacheStatus::Written(p),
+        };
+    }
+    Ok(r)
+}
+
+fn compute(
+    mesh: &TetMesh,
+    protocol: &Protocol,
+    shape: &NormalizedShape,
+    test: ShapeTest,
+    params: FemParams,
+    progress: &dyn Progress,
+) -> Result<BeamReference> {
+    let materials = TetMaterials::homogeneous(mesh, &protocol.material)?;
+    let (fe, _) = fe_nodes(mesh, params.order);
+    let regions = boundary_regions(protocol, shape, test);
+    // Each FE node follows the first region that contains it.
+    let mut owner: Vec<Option<usize>> = vec![None; fe.len()];
+    for (r, (region, motion)) in regions.iter().enumerate() {
+        region.validate()?;
+        motion.validate()?;
+        let mut any = false;
+        for (o, p) in owner.iter_mut().zip(&fe) {
+            if region.contains(p) {
+                any = true;
+                o.get_or_insert(r);
+            }
+        }
+        if !any {
+            return Err(Error::param(
+                "region",
+                format!("{region:?}"),
+                format!(
+                    "{}: the region holds no FE node of the TetGen mesh; refine the mesh \
+                     (smaller largest tet volume) or enlarge the region",
+                    test.name()
+                ),
+            ));
+        }
+    }
+    let fixed: Vec<usize> = (0..fe.len()).filter(|&i| owner[i].is_some()).collect();
+    let steps = protocol.steps;
+    let mut solver = FemSolver::new(mesh, &materials, &fixed, params)?;
+    let rest = solver.rest_positions().to_vec();
+    let mut frames = Vec::with_capacity(steps);
+    let mut step_seconds = Vec::with_capacity(steps);
+    let mut newton_iterations = Vec::with_capacity(steps);
+    progress.begin(&format!("FEM {}", test.name()), Some(steps as u64));
+    let moving = regions
+        .iter()
+        .any(|(_, m)| *m != crate::sim::motion::Motion::Fixed);
+    for n in 1..=steps {
+        if moving {
+            let t = n as f64 * protocol.dt;
+            let targets: Vec<Point3> = solver
+                .fixed_nodes()
+                .iter()
+                .map(|&i| match owner[i] {
+                    Some(r) => regions[r].1.at(t).apply(&rest[i]),
+                    None => rest[i],
+                })
+                .collect();
+            solver.set_targets(&targets)?;
+        }
+        let t0 = Instant::now();
+        let info = solver.step()?;
+        step_seconds.push(t0.elapsed().as_secs_f64());
+        newton_iterations.push(info.newton_iterations as u32);
+        frames.push(solver.positions().to_vec());
+        progress.set_position(n as u64);
+    }
+    progress.finish();
+    Ok(BeamReference {
+        config: crate::fem::beam::FemBeamConfig::standard(crate::fem::beam::BeamTest::Bend, 1),
+        rest,
+        tets: mesh.tets().to_vec(),
+        frames,
+        step_seconds,
+        newton_iterations,
+        cache: CacheStatus::NotCached,
+    })
+}
+
+/// The trajectory difference between two references of the same shape and test on two
+/// meshes that share nodes (TetGen with `-Y` keeps every surface vertex at every
+/// refinement): [`crate::fem::metric::trajectory_error`] of `coarse` against `fine` over the
+/// nodes present in both (matched by rest position within 1e-9 D). Returns the error and
+/// the number of shared nodes.
+///
+/// # Errors
+/// [`FemError::Trajectory`] when no node is shared or the frame counts differ.
+pub fn shared_node_difference(
+    coarse: &BeamReference,
+    fine: &BeamReference,
+) -> std::result::Result<(crate::fem::metric::TrajectoryError, usize), FemError> {
+    let d = crate::geometry::Aabb::from_points(&fine.rest).map_or(1.0, |b| b.diagonal());
+    let q = |p: &Point3| p.map(|c| (c / (1e-9 * d)).round() as i64);
+    let index: std::collections::HashMap<[i64; 3], usize> = fine
+        .rest
+        .iter()
+        .enumerate()
+        .map(|(i, p)| (q(p), i))
+        .collect();
+    let pairs: Vec<(usize, usize)> = coarse
+        .rest
+        .iter()
+        .enumerate()
+        .filter_map(|(a, p)| index.get(&q(p)).map(|&b| (a, b)))
+        .collect();
+    if pairs.is_empty() || coarse.frames.len() != fine.frames.len() {
+        return Err(FemError::Trajectory {
+            what: "fine",
+            detail: format!(
+                "{} shared nodes, {} and {} frames: nothing to compare",
+                pairs.len(),
+                coarse.frames.len(),
+                fine.frames.len()
+            ),
+        });
+    }
+    let pick = |frames: &[Vec<Point3>], fine_side: bool| -> Vec<Vec<Point3>> {
+        frames
+            .iter()
+            .map(|f| {
+                pairs
+                    .iter()
+                    .map(|&(a, b)| f[if fine_side { b } else { a }])
+                    .collect()
+            })
+            .collect()
+    };
+    let rest: Vec<Point3> = pairs.iter().map(|&(a, _)| coarse.rest[a]).collect();
+    let err = crate::fem::metric::trajectory_error(
+        &rest,
+        &pick(&fine.frames, true),
+        &pick(&coarse.frames, false),
+    )?;
+    Ok((err, pairs.len()))
+}

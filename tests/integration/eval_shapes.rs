@@ -1,0 +1,303 @@
+//! The real-shape protocol (issue 18, `freeform::benchmark::shapes`): normalization, the
+//! regions of the three boundary conditions, TetGen failures, the FEM reference's boundary
+//! values, and one tiny shape end to end. Tests that need the `tetgen` program skip with a
+//! printed reason when it is not installed (.ci/run installs it before the tests).
+
+use freeform::benchmark::shapes::protocol::{
+    boundary_regions, farthest_vertices, normalize, Protocol, ShapeTest,
+};
+use freeform::benchmark::shapes::reference::{run_shape_reference, shared_node_difference};
+use freeform::benchmark::shapes::report::{evaluate_dir, shape_files};
+use freeform::benchmark::shapes::tetgen::{tetrahedralize, TetgenOptions};
+use freeform::benchmark::shapes::EvalOptions;
+use freeform::fem::solver::FemParams;
+use freeform::fem::{ElementOrder, FemError};
+use freeform::geometry::generate::{box_mesh, icosphere};
+use freeform::material::Region;
+use freeform::precompute::sampling::Resolution;
+use freeform::progress::Silent;
+use freeform::sim::motion::Motion;
+use freeform::Point3;
+use std::path::Path;
+
+fn tetgen_installed() -> bool {
+    let ok = std::process::Command::new("tetgen")
+        .arg("-h")
+        .output()
+        .is_ok();
+    if !ok {
+        eprintln!("skipping: the `tetgen` program is not installed (apt-get install tetgen)");
+    }
+    ok
+}
+
+fn dist(a: &Point3, b: &Point3) -> f64 {
+    (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt()
+}
+
+#[test]
+fn normalization_gives_a_unit_bounding_box_on_the_longest_axis() {
+    let (v, t) = box_mesh([2.0, 4.0, 1.0]);
+    let moved: Vec<Point3> = v
+        .iter()
+        .map(|p| [p[0] - 3.0, p[1] + 7.0, p[2] * 1.0])
+        .collect();
+    let s = normalize(&moved, &t).unwrap();
+    assert_eq!(s.longest_axis, 1);
+    assert_eq!(s.scale, 4.0);
+    // Exact: the corners are 0 or the side, divided by a power of two.
+    assert_eq!(s.extent, [0.5, 1.0, 0.25]);
+    for d in 0..3 {
+        let lo = s
+            .vertices
+            .iter()
+            .map(|p| p[d])
+            .fold(f64::INFINITY, f64::min);
+        let hi = s
+            .vertices
+            .iter()
+            .map(|p| p[d])
+            .fold(f64::NEG_INFINITY, f64::max);
+        assert_eq!((lo, hi), (0.0, s.extent[d]));
+    }
+    let flat = vec![[1.0, 1.0, 1.0]; 3];
+    let err = normalize(&flat, &[[0, 1, 2]]).unwrap_err().to_string();
+    assert!(err.contains("all vertices coincide"), "{err}");
+}
+
+#[test]
+fn slabs_sit_at_the_ends_of_the_longest_axis() {
+    let (v, t) = box_mesh([0.3, 0.2, 2.0]);
+    let s = normalize(&v, &t).unwrap();
+    assert_eq!(s.longest_axis, 2);
+    let p = Protocol::default();
+    let at = |z: f64| [0.05, 0.05, z];
+    let fix = boundary_regions(&p, &s, ShapeTest::FixSide);
+    assert_eq!(fix.len(), 1);
+    assert_eq!(fix[0].1, Motion::Fixed);
+    // The slab is exactly `slab` thick (boundary included, a hair beyond excluded).
+    assert!(fix[0].0.contains(&at(0.0)) && fix[0].0.contains(&at(p.slab)));
+    assert!(!fix[0].0.contains(&at(p.slab + 1e-9)));
+    let ends = boundary_regions(&p, &s, ShapeTest::PullEnds);
+    assert_eq!(ends.len(), 2);
+    assert!(ends[0].0.contains(&at(0.0)) && !ends[0].0.contains(&at(p.slab + 1e-9)));
+    assert!(ends[1].0.contains(&at(1.0)) && !ends[1].0.contains(&at(1.0 - p.slab - 1e-9)));
+    // Pulled apart along the axis at the protocol's speed.
+    let v0 = ends[0].1.at(1.0).translation;
+    let v1 = ends[1].1.at(1.0).translation;
+    assert_eq!(v0, [0.0, 0.0, -p.pull_speed]);
+    assert_eq!(v1, [0.0, 0.0, p.pull_speed]);
+}
+
+#[test]
+fn farthest_points_are_spread_surface_vertices_pulled_outwards() {
+    let r = 2.0;
+    let (v, t) = icosphere(r, 2);
+    let s = normalize(&v, &t).unwrap();
+    let picked = farthest_vertices(&s, 4);
+    assert_eq!(picked.len(), 4);
+    // The sphere's centre and radius after normalization (the origin mapped like a vertex).
+    let lo: Vec<f64> = (0..3)
+        .map(|d| v.iter().map(|p| p[d]).fold(f64::INFINITY, f64::min))
+        .collect();
+    let centre = [0, 1, 2].map(|d| -lo[d] / s.scale);
+    let radius = r / s.scale;
+    for &i in &picked {
+        // On the surface: icosphere vertices lie on the sphere up to round-off.
+        assert!((dist(&s.vertices[i], &centre) - radius).abs() < 1e-12 * radius);
+    }
+    // Greedy farthest-point property, checked by brute force: every pick after the first
+    // maximizes the distance to the picks before it.
+    for k in 1..4 {
+        let d_to = |p: &Point3| {
+            picked[..k]
+                .iter()
+                .map(|&j| dist(p, &s.vertices[j]))
+                .fold(f64::INFINITY, f64::min)
+        };
+        let best = s.vertices.iter().map(d_to).fold(0.0, f64::max);
+        assert_eq!(d_to(&s.vertices[picked[k]]), best);
+    }
+    // Far apart: continuous FPS on a sphere gives a pairwise minimum of sqrt(2) R; the
+    // 2-subdivision icosphere's vertices are within half an edge (< 0.17 R) of any surface
+    // point, so at least sqrt(2) R - 2 x 0.17 R > 1.05 R.
+    for a in 0..4 {
+        for b in a + 1..4 {
+            let d = dist(&s.vertices[picked[a]], &s.vertices[picked[b]]);
+            assert!(d > 1.05 * radius, "picks {a}, {b} only {d} apart");
+        }
+    }
+    // Pulled outwards: each ball moves away from the centre, at the protocol's speed.
+    let p = Protocol::default();
+    for (region, motion) in boundary_regions(&p, &s, ShapeTest::PullFarthest) {
+        let Region::Sphere { center, radius: rr } = region else {
+            panic!("expected balls, got {region:?}");
+        };
+        assert_eq!(rr, p.ball_radius);
+        let v = motion.at(1.0).translation;
+        let out = [0, 1, 2].map(|k| center[k] - s.extent[k] / 2.0);
+        assert!((0..3).map(|k| v[k] * out[k]).sum::<f64>() > 0.0);
+        assert!((dist(&v, &[0.0; 3]) - p.pull_speed).abs() < 1e-12);
+    }
+}
+
+#[test]
+fn a_missing_or_failing_tetgen_is_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let (v, t) = box_mesh([1.0; 3]);
+    let missing = TetgenOptions {
+        program: "/nonexistent/tetgen".into(),
+        ..TetgenOptions::default()
+    };
+    let e = tetrahedralize(&v, &t, &missing, dir.path(), "box").unwrap_err();
+    assert!(matches!(e, FemError::Mesher(_)), "{e}");
+    assert!(e.to_string().contains("was not found"), "{e}");
+    // `false` exits 1 without output: reported as a failure with TetGen's (empty) message.
+    let failing = TetgenOptions {
+        program: "false".into(),
+        ..TetgenOptions::default()
+    };
+    let e = tetrahedralize(&v, &t, &failing, dir.path(), "box").unwrap_err();
+    assert!(e.to_string().contains("failed (exit status: 1)"), "{e}");
+    let bad = TetgenOptions {
+        max_volume: -1.0,
+        ..TetgenOptions::default()
+    };
+    let e = tetrahedralize(&v, &t, &bad, dir.path(), "box").unwrap_err();
+    assert!(e.to_string().contains("largest tet volume"), "{e}");
+    if !tetgen_installed() {
+        return;
+    }
+    // An open surface (one face removed): TetGen writes no tetrahedra.
+    let e =
+        tetrahedralize(&v, &t[..10], &TetgenOptions::default(), dir.path(), "open").unwrap_err();
+    assert!(e.to_string().contains("wrote no tetrahedra"), "{e}");
+}
+
+/// The FEM reference holds and moves exactly the nodes of the protocol's regions.
+#[test]
+fn fem_reference_follows_the_regions() {
+    if !tetgen_installed() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (v, t) = box_mesh([1.0, 0.4, 0.3]);
+    let s = normalize(&v, &t).unwrap();
+    let tg = TetgenOptions {
+        max_volume: 0.01,
+        ..TetgenOptions::default()
+    };
+    let mesh = tetrahedralize(&s.vertices, &s.triangles, &tg, dir.path(), "box").unwrap();
+    let p = Protocol {
+        steps: 3,
+        ..Protocol::default()
+    };
+    let fem = FemParams::default();
+    let r = run_shape_reference(&mesh, &p, &s, ShapeTest::PullEnds, &fem, None, &Silent).unwrap();
+    let regions = boundary_regions(&p, &s, ShapeTest::PullEnds);
+    let mut driven = 0;
+    for (a, x0) in r.rest.iter().enumerate() {
+        if let Some((_, m)) = regions.iter().find(|(reg, _)| reg.contains(x0)) {
+            driven += 1;
+            for (n, frame) in r.frames.iter().enumerate() {
+                let want = m.at((n + 1) as f64 * p.dt).apply(x0);
+                // Dirichlet values are set, not solved: exact up to the one addition.
+                assert!(dist(&frame[a], &want) < 1e-14, "node {a} frame {n}");
+            }
+        }
+    }
+    assert!(driven >= 8, "the end slabs hold the box's corners at least");
+    // A reference against itself differs by exactly nothing on every node.
+    let (e, shared) = shared_node_difference(&r, &r).unwrap();
+    assert_eq!((e.normalized_mse, shared), (0.0, r.rest.len()));
+}
+
+#[test]
+fn one_tiny_shape_end_to_end_gives_finite_metrics() {
+    if !tetgen_installed() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (v, t) = box_mesh([1.0, 0.4, 0.3]);
+    freeform::io::off::write_off(&dir.path().join("slab.off"), &v, &t).unwrap();
+    let mut opts = EvalOptions {
+        modes: 4,
+        kernels: 60,
+        resolution: Some(Resolution::Count(3000)),
+        ..EvalOptions::default()
+    };
+    opts.protocol.steps = 3;
+    // Balls larger than the default 0.08 m: a 60-kernel basis has kernels ~0.1 m apart, and
+    // the aware basis needs a kernel centre in every corner ball.
+    opts.protocol.ball_radius = 0.2;
+    opts.tetgen.max_volume = 0.01;
+    opts.fem.order = ElementOrder::Linear;
+    let files = shape_files(dir.path(), &[]).unwrap();
+    let report = evaluate_dir(&files, &opts, None, &dir.path().join("tg"), &Silent);
+    assert!(report.failures.is_empty(), "{:?}", report.failures);
+    let shape = &report.shapes[0];
+    assert!(shape.failures.is_empty(), "{:?}", shape.failures);
+    assert_eq!(shape.runs.len(), 6, "3 tests x 2 bases");
+    for r in &shape.runs {
+        for x in [
+            r.normalized_mse,
+            r.max_error,
+            r.fit_mse,
+            r.fit_max,
+            r.precompute_s,
+        ] {
+            assert!(x.is_finite() && x >= 0.0, "{r:?}");
+        }
+        // The least-squares fit onto the basis is the best the basis can do at the FEM
+        // nodes, so it never exceeds the simulation's error (frame by frame; the means
+        // follow). 1e-12 relative: round-off of the two sums.
+        assert!(r.fit_mse <= r.normalized_mse * (1.0 + 1e-12), "{r:?}");
+    }
+    assert_eq!(report.averages.len(), 6);
+    let csv = report.to_csv();
+    assert_eq!(csv.lines().count(), 1 + 6, "{csv}");
+}
+
+#[test]
+fn bad_shapes_are_listed_with_their_reason_and_the_others_go_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bad");
+    std::fs::copy(
+        data.join("off/open_box.off"),
+        dir.path().join("open_box.off"),
+    )
+    .unwrap();
+    std::fs::copy(data.join("ply/flat_mesh.ply"), dir.path().join("flat.ply")).unwrap();
+    std::fs::copy(
+        data.join("ply/no_vertices.ply"),
+        dir.path().join("cloud.ply"),
+    )
+    .unwrap();
+    let opts = EvalOptions::default();
+    let files = shape_files(dir.path(), &[]).unwrap();
+    assert_eq!(files.len(), 3);
+    let report = evaluate_dir(&files, &opts, None, &dir.path().join("tg"), &Silent);
+    assert!(report.shapes.is_empty());
+    let reason = |n: &str| {
+        report
+            .failures
+            .iter()
+            .find(|f| f.name == n)
+            .map(|f| f.reason.clone())
+            .unwrap_or_default()
+    };
+    assert!(
+        reason("open_box").contains("not watertight"),
+        "{:?}",
+        report.failures
+    );
+    assert!(
+        reason("flat").contains("encloses no volume"),
+        "{:?}",
+        report.failures
+    );
+    assert!(!reason("cloud").is_empty(), "{:?}", report.failures);
+    let empty = tempfile::tempdir().unwrap();
+    let e = shape_files(empty.path(), &[]).unwrap_err().to_string();
+    assert!(e.contains("no shape file"), "{e}");
+}
