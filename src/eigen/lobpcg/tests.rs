@@ -514,6 +514,44 @@ fn lobpcg_largest_request_fills_the_space() {
 }
 
 #[test]
+fn auto_skips_the_symbolic_analysis_when_the_factor_cannot_fit() {
+    // An entry budget below twice the lower triangle: no factor can fit (the least fill seen
+    // is 2.8x), so Auto goes to IC(0) without analysing, never escalates, and still converges
+    // to the dense reference's pairs.
+    let n = [6, 6, 6];
+    let h = testing::grid_laplacian(n, 2.0);
+    let m = testing::kernel_mass(n, 2.0, 0.05, 0.5, 12);
+    let lower = (h.compute_nnz() + h.nrows()) / 2;
+    let tol = 1e-10;
+    let opts = LobpcgOptions {
+        max_factor_entries: lower,
+        escalate_after: Some(2),
+        ..LobpcgOptions::default()
+    };
+    let sol = Lobpcg::new(opts)
+        .solve_converged(&h, &m, &request(9, tol), &Silent)
+        .unwrap();
+    assert_solution_quality(&sol, tol);
+    let notes = &sol.info.notes;
+    assert!(
+        notes
+            .iter()
+            .any(|n| n.contains("using IC(0) without the symbolic analysis")),
+        "{notes:?}"
+    );
+    assert!(
+        !notes
+            .iter()
+            .any(|n| n.contains("switched to the exact Cholesky")),
+        "{notes:?}"
+    );
+    let reference = DenseSolver
+        .solve_converged(&h, &m, &request(12, tol), &Silent)
+        .unwrap();
+    compare_with_dense(&m, &sol, &reference, 1e-8, 1e-6);
+}
+
+#[test]
 fn auto_switches_from_ic0_to_cholesky_when_slow() {
     // max_fill_ratio = 0 forces Auto onto IC(0); after 2 iterations it must switch to the
     // exact factor (which fits in max_factor_entries) and converge to the same pairs.
