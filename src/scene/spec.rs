@@ -6,6 +6,7 @@ use crate::material::{Material, MaterialOverride};
 use crate::precompute::rkpm::{KernelType, SupportOptions};
 use crate::precompute::sampling::{CloudVolumeOptions, Resolution};
 use crate::precompute::{BasisOptions, BoundaryModes, SolverConfig};
+use crate::sim::contact::ContactSettings;
 use crate::sim::newton::{HessianStrategy, InitialGuess, Precision};
 use crate::sim::{Boundary, Collider, NewtonOptions, Placement};
 use crate::{Error, Result};
@@ -33,6 +34,10 @@ pub struct Scene {
     /// Obstacles shared by all objects, static or kinematic (`[[collider]]` tables).
     #[serde(default, rename = "collider", skip_serializing_if = "Vec::is_empty")]
     pub colliders: Vec<Collider>,
+    /// Object-object contact (`[contact]`); absent: objects pass through each other and no
+    /// contact code runs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contact: Option<ContactSettings>,
 }
 
 /// Time stepping.
@@ -206,6 +211,10 @@ pub struct ObjectSpec {
     /// 3DGS splat PLYs, in the object's rest frame (relative to the scene file).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub render: Vec<String>,
+    /// Contact samples on this object's surface (with `[contact]`; default from its size or
+    /// `contact.samples`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contact_samples: Option<usize>,
 }
 
 /// Basis precomputation settings of an object (see `freeform modes --help`).
@@ -417,8 +426,17 @@ impl Scene {
                     scene_err("cubature must be at least 1".into()),
                 ));
             }
+            if o.contact_samples == Some(0) {
+                return Err(in_object(
+                    &o.name,
+                    scene_err("contact_samples must be at least 1".into()),
+                ));
+            }
         }
         crate::sim::collider::validate_colliders(&self.colliders)?;
+        if let Some(c) = &self.contact {
+            c.validate()?;
+        }
         for (i, c) in self.colliders.iter().enumerate() {
             let stem = super::frames::collider_stem(i, c.name.as_deref());
             if let Some(o) = self.objects.iter().find(|o| o.name == stem) {

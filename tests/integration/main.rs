@@ -20,6 +20,7 @@ mod bad_inputs;
 mod boundary_modes;
 mod cli;
 mod colliders;
+mod contact;
 mod extremes;
 mod fem;
 mod geometry;
