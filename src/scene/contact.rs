@@ -2,9 +2,8 @@
 //! contact samples, the grouping of objects into islands each step, the islands solved in
 //! parallel, and the contact report.
 //!
-//! A step: every object's sample box at z_n, grown by a bound on how far its samples can
-//! move (twice the initial guess's displacement, through max_i |b_i| |dz|) and its contact
-//! thickness; objects whose grown boxes meet form an island (union-find), solved together
+//! A step: every object's sample box at z_n and at its initial guess, grown by the largest
+//! sample displacement between them and its contact thickness; objects whose grown boxes meet form an island (union-find), solved together
 //! ([`crate::sim::contact::island`]); the others step alone, exactly as without contact.
 //! After the solves, any two objects of different islands whose samples ended within
 //! contact distance (the bound was too tight: a collider or a pile pushed harder than the
@@ -75,10 +74,6 @@ pub(super) struct WorldContact {
     /// Friction coefficient of each object pair (row-major) and the smoothing velocity, m/s.
     mu: Vec<f64>,
     eps_v: f64,
-    /// Per object, max_i |W_j(X_i)| for each handle j, max_i |X_i| (rest frame) and W_0 if
-    /// it is the same at every sample: the reach of a change of z ([`WorldContact::reach`]).
-    #[allow(clippy::type_complexity)]
-    wmax: Vec<(Vec<f64>, f64, Option<f64>)>,
     stiffness: Vec<f64>,
     tolerance: f64,
     /// Sample positions at the current state, per object.
@@ -191,32 +186,6 @@ impl WorldContact {
             samples
                 .push(ContactSamples::new(shape, o.basis(), count, settings.radius).map_err(ctx)?);
         }
-        let wmax = samples
-            .iter()
-            .map(|s| {
-                let nh = s.handles();
-                let mut b = vec![0.0; 4 * nh];
-                let mut w = vec![0.0f64; nh];
-                let (mut lo0, mut hi0) = (f64::INFINITY, f64::NEG_INFINITY);
-                for i in 0..s.len() {
-                    s.b(i, &mut b);
-                    for (j, wj) in w.iter_mut().enumerate() {
-                        // b[4 j + 3] = W_j(X_i).
-                        *wj = wj.max(b[4 * j + 3].abs());
-                    }
-                    lo0 = lo0.min(b[3]);
-                    hi0 = hi0.max(b[3]);
-                }
-                // Constant to rounding (a free basis's mode 0 is one value times 1).
-                let w0 = (hi0 - lo0 <= 1e-12 * hi0.abs()).then_some(hi0);
-                let rmax = s
-                    .rest
-                    .iter()
-                    .map(|x| (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt())
-                    .fold(0.0, f64::max);
-                (w, rmax, w0)
-            })
-            .collect();
         let n = objects.len();
         let stiffness: Vec<f64> = (0..n * n)
             .map(|k| {
@@ -266,7 +235,6 @@ impl WorldContact {
             samples,
             mu,
             eps_v: settings.friction_velocity,
-            wmax,
             stiffness,
             tolerance: settings.penetration_tolerance,
             positions,
@@ -420,21 +388,30 @@ impl WorldContact {
     ) -> Vec<StepReport> {
         let sw = Stopwatch::start();
         let n = objects.len();
-        // Swept boxes: the box at z_n and the same box moved by the guess's common
-        // translation, grown by twice the rest of the guess's reach, once its translation
-        // (the solution may differ from the guess by as much) and the thickness.
-        let boxes: Vec<(Point3, Point3)> = (0..n)
-            .map(|i| {
-                let sim = objects[i].sim();
-                let start = sim.begin_step();
-                let dz: Vec<f64> = start.guess.iter().zip(&sim.z).map(|(g, z)| g - z).collect();
-                let (shift, rest) = self.reach(i, sim.layout(), &dz);
-                let len = (shift[0] * shift[0] + shift[1] * shift[1] + shift[2] * shift[2]).sqrt();
-                let grow = 2.0 * rest + len + self.samples[i].thickness;
-                let (lo, hi) = bounds(&self.positions[i], grow);
+        // Swept boxes: the samples' box at z_n and at the initial guess, grown by the largest
+        // sample displacement between them (the solution may differ from the guess by as
+        // much) and the thickness.
+        let boxes: Vec<(Point3, Point3)> = objects
+            .par_iter()
+            .zip(&self.samples)
+            .zip(&self.positions)
+            .map(|((o, s), x0)| {
+                let sim = o.sim();
+                let guess = s.positions(sim.layout(), &sim.begin_step().guess);
+                let moved = x0
+                    .iter()
+                    .zip(&guess)
+                    .map(|(a, b)| {
+                        ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2))
+                            .sqrt()
+                    })
+                    .fold(0.0, f64::max);
+                let grow = moved + s.thickness;
+                let (lo0, hi0) = bounds(x0, grow);
+                let (lo1, hi1) = bounds(&guess, grow);
                 (
-                    std::array::from_fn(|d| lo[d].min(lo[d] + shift[d])),
-                    std::array::from_fn(|d| hi[d].max(hi[d] + shift[d])),
+                    std::array::from_fn(|d| lo0[d].min(lo1[d])),
+                    std::array::from_fn(|d| hi0[d].max(hi1[d])),
                 )
             })
             .collect();
@@ -566,35 +543,6 @@ impl WorldContact {
         s.step_ms_mean = (s.step_ms_mean * k + row.wall_ms) / (k + 1.0);
         s.steps.push(row);
         reports
-    }
-
-    /// How far the samples of object `i` move for a change `dz` of its z: a common
-    /// translation (metres; zero unless handle 0 is constant over the samples, as in a free
-    /// basis) and a bound on the rest, metres:
-    /// |dx_r - shift_r| <= sum_j max|W_j| (|dZ_j[r][0..3]| max|X| + |dZ_j[r][3]|) over the
-    /// handles and columns not in the shift, the largest over the rows r times sqrt(3).
-    fn reach(&self, i: usize, layout: crate::sim::elastic::Layout, dz: &[f64]) -> ([f64; 3], f64) {
-        let (w, rmax, w0) = &self.wmax[i];
-        let shift: [f64; 3] = match w0 {
-            Some(c) => std::array::from_fn(|r| c * dz[layout.index(r, 0, 3)]),
-            None => [0.0; 3],
-        };
-        let row = |r: usize| -> f64 {
-            w.iter()
-                .enumerate()
-                .map(|(j, wj)| {
-                    let at = |a: usize| dz[layout.index(r, j, a)];
-                    let lin = (at(0) * at(0) + at(1) * at(1) + at(2) * at(2)).sqrt();
-                    let tr = if j == 0 && w0.is_some() {
-                        0.0
-                    } else {
-                        at(3).abs()
-                    };
-                    wj * (lin * rmax + tr)
-                })
-                .sum()
-        };
-        (shift, 3f64.sqrt() * (0..3).map(row).fold(0.0, f64::max))
     }
 
     /// Whether objects `a` and `b` have samples within contact distance now.
