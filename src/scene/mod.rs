@@ -27,6 +27,7 @@
 //! ```
 
 mod cache;
+mod contact;
 mod frames;
 mod render_set;
 mod run;
@@ -34,6 +35,7 @@ mod setup;
 mod spec;
 mod world;
 
+pub use contact::{ContactStepRow, ContactSummary};
 pub use frames::{FrameObserver, FrameWriter};
 pub use render_set::RenderSet;
 pub use run::{run, ObjectSummary, RunSettings, RunSummary, StepRow};
@@ -88,6 +90,7 @@ impl SceneBuilder {
                 objects: Vec::new(),
                 colliders: Vec::new(),
                 materials: Default::default(),
+                contact: None,
             },
         }
     }
@@ -136,6 +139,11 @@ impl SceneBuilder {
         self.scene.colliders.push(c);
         self
     }
+    /// Object-object contact with these settings.
+    pub fn contact(mut self, c: crate::sim::contact::ContactSettings) -> Self {
+        self.scene.contact = Some(c);
+        self
+    }
     /// Validate and return the scene.
     pub fn build(self) -> Result<Scene> {
         self.scene.validate()?;
@@ -159,7 +167,14 @@ impl ObjectSpec {
             placement: Placement::default(),
             cubature: None,
             render: Vec::new(),
+            contact_samples: None,
         }
+    }
+
+    /// Contact samples on the surface (with object-object contact).
+    pub fn contact_samples(mut self, n: usize) -> Self {
+        self.contact_samples = Some(n);
+        self
     }
 
     /// Add a render input (a mesh, point cloud or splat file drawn with the object's map).

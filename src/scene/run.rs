@@ -163,6 +163,10 @@ pub struct RunSummary {
     pub total_s: f64,
     /// Warnings (non-converged steps, cache problems...).
     pub warnings: Vec<String>,
+    /// Object-object contact: per step the pairs tested and active, the deepest penetration
+    /// and the islands; the run's worst penetration (absent without `[contact]`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub contact: Option<super::ContactSummary>,
 }
 
 /// Run `scene`: set up a [`World`] (every object's basis from the cache or computed),
@@ -211,6 +215,7 @@ pub fn run(scene: &Scene, settings: &RunSettings, progress: &dyn Progress) -> Re
         objects: world.summaries(),
         total_s: total.elapsed(),
         warnings: world.warnings().to_vec(),
+        contact: world.contact_summary().cloned(),
     })
 }
 

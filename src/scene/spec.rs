@@ -8,6 +8,7 @@ use crate::precompute::rkpm::{KernelType, SupportOptions};
 use crate::precompute::sampling::{CloudVolumeOptions, Resolution};
 use crate::precompute::GapPolicy;
 use crate::precompute::{BasisOptions, BoundaryModes, SolverConfig};
+use crate::sim::contact::ContactSettings;
 use crate::sim::newton::{HessianStrategy, InitialGuess, Precision};
 use crate::sim::{Boundary, Collider, NewtonOptions, Placement};
 use crate::{Error, Result};
@@ -40,6 +41,10 @@ pub struct Scene {
     /// (`image.labels`).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub materials: BTreeMap<String, Material>,
+    /// Object-object contact (`[contact]`); absent: objects pass through each other and no
+    /// contact code runs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contact: Option<ContactSettings>,
 }
 
 /// Time stepping.
@@ -217,6 +222,10 @@ pub struct ObjectSpec {
     /// 3DGS splat PLYs, in the object's rest frame (relative to the scene file).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub render: Vec<String>,
+    /// Contact samples on this object's surface (with `[contact]`; default from its size or
+    /// `contact.samples`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contact_samples: Option<usize>,
 }
 
 /// An object's voxel image (`[object.image]`): a NIfTI (`.nii`, `.nii.gz`) or NumPy (`.npy`)
@@ -487,12 +496,21 @@ impl Scene {
                     scene_err("cubature must be at least 1".into()),
                 ));
             }
+            if o.contact_samples == Some(0) {
+                return Err(in_object(
+                    &o.name,
+                    scene_err("contact_samples must be at least 1".into()),
+                ));
+            }
         }
         for (name, m) in &self.materials {
             m.validate()
                 .map_err(|e| scene_err(format!("material '{name}': {e}")))?;
         }
         crate::sim::collider::validate_colliders(&self.colliders)?;
+        if let Some(c) = &self.contact {
+            c.validate()?;
+        }
         for (i, c) in self.colliders.iter().enumerate() {
             let stem = super::frames::collider_stem(i, c.name.as_deref());
             if let Some(o) = self.objects.iter().find(|o| o.name == stem) {

@@ -1,5 +1,6 @@
 //! A scene being simulated: the live [`World`] you step, read and change between steps.
 
+use super::contact::{ContactSummary, WorldContact};
 use super::render_set::{self, RenderSet};
 use super::run::{ObjectSummary, RunSettings, StepRow};
 use super::setup::{
@@ -97,7 +98,7 @@ impl SceneObject {
         settings: &RunSettings,
         progress: &dyn Progress,
         warnings: &mut Vec<String>,
-    ) -> Result<SceneObject> {
+    ) -> Result<(SceneObject, Shape)> {
         let ctx = |e: Error| Error::Object {
             index,
             name: spec.name.clone(),
@@ -164,7 +165,7 @@ impl SceneObject {
         object.render.splats = splats;
         object.image = image;
         object.load_render_sets(&settings.base_dir).map_err(ctx)?;
-        Ok(object)
+        Ok((object, resolved.shape))
     }
 
     /// The reduced model and render points of an object whose basis, integration points and
@@ -432,6 +433,11 @@ impl SceneObject {
     /// One step; the report's warnings go to `warnings`.
     fn step(&mut self, warnings: &mut Vec<String>) -> StepReport {
         let rep = self.sim.step();
+        self.record(rep, warnings)
+    }
+
+    /// Keep a step's report in the summary; its warnings go to `warnings`.
+    pub(super) fn record(&mut self, rep: StepReport, warnings: &mut Vec<String>) -> StepReport {
         let step = rep.step;
         let name = &self.spec.name;
         if !rep.solve.converged {
@@ -539,6 +545,8 @@ pub struct World {
     dt: f64,
     strict: bool,
     warnings: Vec<String>,
+    /// Object-object contact (scenes with `[contact]` only).
+    contact: Option<WorldContact>,
 }
 
 impl std::fmt::Debug for World {
@@ -593,16 +601,13 @@ impl World {
         let scene = &loaded;
         let mut warnings = Vec::new();
         let mut objects = Vec::new();
+        let mut shapes = Vec::new();
         for (index, spec) in scene.objects.iter().enumerate() {
             crate::error::check_cancelled(progress, "scene setup")?;
-            objects.push(SceneObject::new(
-                index,
-                spec,
-                scene,
-                settings,
-                progress,
-                &mut warnings,
-            )?);
+            let (object, shape) =
+                SceneObject::new(index, spec, scene, settings, progress, &mut warnings)?;
+            objects.push(object);
+            shapes.push(Some(shape));
         }
         for (offset, p) in prepared.into_iter().enumerate() {
             let index = scene.objects.len() + offset;
@@ -624,7 +629,17 @@ impl World {
                 SceneObject::from_parts(index, &p.spec, scene, None, parts, 0.0, progress)?;
             object.load_render_sets(&settings.base_dir).map_err(ctx)?;
             objects.push(object);
+            shapes.push(None);
         }
+        let contact = match &scene.contact {
+            Some(c) => Some(WorldContact::new(
+                c,
+                &mut objects,
+                &shapes,
+                &scene.colliders,
+            )?),
+            None => None,
+        };
         check_strict(settings.strict, &warnings)?;
         Ok(World {
             objects,
@@ -633,6 +648,7 @@ impl World {
             dt: scene.simulation.dt,
             strict: settings.strict,
             warnings,
+            contact,
         })
     }
 
@@ -646,6 +662,14 @@ impl World {
     /// warning so far. The objects up to the one that raised it have taken the step, the
     /// others and [`World::time`] have not: a strict run is over at that point.
     pub fn step(&mut self) -> Result<Vec<StepReport>> {
+        if let Some(c) = self.contact.as_mut() {
+            let before = self.warnings.len();
+            let reports = c.step(&mut self.objects, &mut self.warnings);
+            if self.warnings.len() > before {
+                check_strict(self.strict, &self.warnings)?;
+            }
+            return Ok(reports);
+        }
         let mut reports = Vec::with_capacity(self.objects.len());
         let before = self.warnings.len();
         for object in &mut self.objects {
@@ -823,6 +847,13 @@ impl World {
     /// The pose of every collider at the current time (x -> R x + t of its rest frame).
     pub fn collider_poses(&self) -> Vec<Rigid> {
         self.kinematics.poses(self.time())
+    }
+
+    /// The object-object contact summary so far (None without `[contact]`): per step the
+    /// pairs tested and active, the deepest penetration and the islands; the worst
+    /// penetration of the run.
+    pub fn contact_summary(&self) -> Option<&ContactSummary> {
+        self.contact.as_ref().map(|c| &c.summary)
     }
 
     /// The summaries of all objects, with the means and counts of the steps taken.

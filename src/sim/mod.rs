@@ -8,6 +8,7 @@
 //! - [`terms`]: inertia, gravity, boundary and collider penalties.
 //! - [`collider`]: obstacles (planes, boxes, spheres, capsules, triangle meshes) and their
 //!   kinematics (scripted or caller-set poses, articulated chains).
+//! - [`contact`]: object-object contact (samples, broad phase, pair penalty, islands).
 //! - [`motion`]: prescribed rigid motions for boundaries.
 //! - [`newton`]: the per-step minimiser and its strategies.
 //! - [`object`]: one simulated object (setup, state, stepping).
@@ -15,6 +16,7 @@
 //! - [`gaussian`]: Gaussian splats carried by F (covariance, rotation, SH colour).
 
 pub mod collider;
+pub mod contact;
 pub mod cubature;
 pub mod deformation;
 pub mod elastic;

@@ -192,6 +192,45 @@ pub trait Potential {
         let _ = (stride, precision);
         self.hessian(z)
     }
+    /// The largest step fraction alpha the line search may take along `dir` from `z`
+    /// (default: unbounded). Object-object contact bounds it so that no sample pair passes
+    /// through another between iterates ([`crate::sim::contact`]).
+    fn max_step(&self, z: &[f64], dir: &[f64]) -> f64 {
+        let _ = (z, dir);
+        f64::INFINITY
+    }
+}
+
+/// A fixed SPD solve, x = S^-1 b: the rest system of one object (a Cholesky factor) or of an
+/// island of objects (one factor per object, block diagonal).
+pub trait RestSolve: Sync {
+    /// S^-1 `rhs`.
+    fn solve(&self, rhs: &[f64]) -> Vec<f64>;
+}
+
+impl RestSolve for Llt<f64> {
+    fn solve(&self, rhs: &[f64]) -> Vec<f64> {
+        solve_with(self, rhs)
+    }
+}
+
+/// A block-diagonal SPD solve: each block a Cholesky factor acting on consecutive entries.
+pub struct BlockRest<'a> {
+    /// The factors, in the order of the blocks.
+    pub blocks: Vec<&'a Llt<f64>>,
+}
+
+impl RestSolve for BlockRest<'_> {
+    fn solve(&self, rhs: &[f64]) -> Vec<f64> {
+        let mut out = Vec::with_capacity(rhs.len());
+        let mut at = 0;
+        for f in &self.blocks {
+            let n = f.L().nrows();
+            out.extend(solve_with(f, &rhs[at..at + n]));
+            at += n;
+        }
+        out
+    }
 }
 
 /// Outcome of one time step's minimisation.
@@ -218,6 +257,9 @@ pub struct SolveReport {
     pub line_search_cutbacks: usize,
     /// Whether the line search failed to decrease the energy (the step ended early).
     pub line_search_failed: bool,
+    /// Iterations whose line search started below a full step because of the potential's
+    /// step bound ([`Potential::max_step`]; object-object contact).
+    pub bounded_steps: usize,
     /// Hessian factorizations (Newton).
     pub factorizations: usize,
     /// Times a Newton Hessian was not positive definite and the rest matrix was used.
@@ -234,8 +276,8 @@ pub struct SolveReport {
 
 /// The fixed pieces the solver needs.
 pub struct SolverContext<'a> {
-    /// Cholesky factor of the rest system matrix S.
-    pub rest: &'a Llt<f64>,
+    /// The rest system matrix S (its Cholesky factor, or one per object of an island).
+    pub rest: &'a dyn RestSolve,
     /// Convergence measure of delta = S^-1 grad (relative RMS length).
     pub measure: &'a dyn Fn(&[f64]) -> f64,
     /// Options.
@@ -248,7 +290,7 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 
 fn solve_with(f: &Llt<f64>, rhs: &[f64]) -> Vec<f64> {
     let b = Mat::from_fn(rhs.len(), 1, |i, _| rhs[i]);
-    let x = f.solve(&b);
+    let x = Solve::solve(f, &b);
     (0..rhs.len()).map(|i| x[(i, 0)]).collect()
 }
 
@@ -306,11 +348,10 @@ pub fn minimize(
         // The convergence measure uses the best Hessian model at hand: the latest factorized
         // Hessian (Newton; L-BFGS after a refresh), else the rest matrix S.
         let sw = Stopwatch::start();
-        let model = match opts.hessian {
-            HessianStrategy::Fixed => ctx.rest,
-            _ => state.base.as_ref().unwrap_or(ctx.rest),
+        let delta = match (opts.hessian, state.base.as_ref()) {
+            (HessianStrategy::Fixed, _) | (_, None) => ctx.rest.solve(&grad),
+            (_, Some(base)) => solve_with(base, &grad),
         };
-        let delta = solve_with(model, &grad);
         rep.solve_s += sw.elapsed();
         rep.residual = (ctx.measure)(&delta);
         if !rep.residual.is_finite() {
@@ -364,7 +405,10 @@ pub fn minimize(
                     q.iter_mut().zip(y).for_each(|(qi, yi)| *qi -= a * yi);
                     alpha.push(a);
                 }
-                let mut r = solve_with(state.base.as_ref().unwrap_or(ctx.rest), &q);
+                let mut r = match state.base.as_ref() {
+                    Some(base) => solve_with(base, &q),
+                    None => ctx.rest.solve(&q),
+                };
                 for ((s, y, rho), a) in hist.iter().zip(alpha.iter().rev()) {
                     let b = rho * dot(y, &r);
                     r.iter_mut().zip(s).for_each(|(ri, si)| *ri += (a - b) * si);
@@ -408,7 +452,13 @@ pub fn minimize(
         // accepted when E did not grow beyond that noise and the directional derivative
         // shrank (the step moved toward the minimum along the direction).
         let noise = 1e-11 * e.abs() + info.rounding;
-        let mut alpha = 1.0;
+        let bound = pot.max_step(z, &dir);
+        let mut alpha = if bound < 1.0 {
+            rep.bounded_steps += 1;
+            bound.max(0.0)
+        } else {
+            1.0
+        };
         let mut accepted = None;
         for _ in 0..40 {
             for i in 0..n {

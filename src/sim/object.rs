@@ -17,7 +17,8 @@ use crate::sim::newton::{
     self, EvalInfo, InitialGuess, NewtonOptions, Potential, SolveReport, SolverContext,
 };
 use crate::sim::terms::{
-    add_block_diagonal, add_block_product, BoundaryTerm, ContactHessian, ContactTerm, Moments,
+    add_block_diagonal, add_block_product, BoundaryTerm, ColliderLag, ContactHessian, ContactTerm,
+    Moments,
 };
 use crate::{Error, Point3, Result};
 use faer::linalg::solvers::Llt;
@@ -126,6 +127,10 @@ pub struct ReducedSim {
     rest_factor: Llt<f64>,
     dt: f64,
     diag: f64,
+    default_penalty: f64,
+    /// Collider friction: mu per collider and the smoothing velocity eps_v (m/s); None:
+    /// frictionless (no friction code runs).
+    friction: Option<(Vec<f64>, f64)>,
     options: NewtonOptions,
     cubature: Cubature,
     /// Reduced coordinates z, 12 (m + 1).
@@ -319,6 +324,8 @@ impl ReducedSim {
             rest_factor,
             dt: opts.dt,
             diag,
+            default_penalty: default_k,
+            friction: None,
             options: opts.newton,
             cubature: cub,
             z: vec![0.0; layout.dofs()],
@@ -472,35 +479,11 @@ impl ReducedSim {
     /// Advance one time step of backward Euler.
     pub fn step(&mut self) -> StepReport {
         let sw = Stopwatch::start();
-        let t = self.time + self.dt;
-        let zpred: Vec<f64> = self
-            .z
-            .iter()
-            .zip(&self.zdot)
-            .map(|(z, v)| z + self.dt * v)
-            .collect();
-        let mut z = zpred.clone();
-        if self.options.initial_guess == InitialGuess::Extrapolate && self.steps > 0 {
-            for i in 0..z.len() {
-                z[i] += self.dt * (self.zdot[i] - self.zdot_prev[i]);
-            }
-        }
+        let start = self.begin_step();
+        let mut z = start.guess.clone();
         let mut history = std::mem::take(&mut self.history);
-        let pot = StepPotential {
-            sim: self,
-            zpred: &zpred,
-            t,
-        };
-        let layout = self.layout;
-        let mass = &self.mass.bb;
-        let total = self.mass.total;
-        let diag = self.diag;
-        let measure = move |d: &[f64]| {
-            let mut md = vec![0.0; d.len()];
-            add_block_product(layout, mass, 1.0, d, &mut md);
-            let q: f64 = d.iter().zip(&md).map(|(a, b)| a * b).sum();
-            (q.max(0.0) / total).sqrt() / diag
-        };
+        let pot = self.potential(&start);
+        let measure = |d: &[f64]| self.measure(d);
         let ctx = SolverContext {
             rest: &self.rest_factor,
             measure: &measure,
@@ -508,25 +491,154 @@ impl ReducedSim {
         };
         let solve = newton::minimize(&pot, &mut z, &ctx, &mut history);
         self.history = history;
+        self.finish_step(&start, z, solve, sw.elapsed())
+    }
+
+    /// The predictor, initial guess and end time of the next step (nothing changes).
+    pub(crate) fn begin_step(&self) -> StepStart {
+        let t = self.time + self.dt;
+        let zpred: Vec<f64> = self
+            .z
+            .iter()
+            .zip(&self.zdot)
+            .map(|(z, v)| z + self.dt * v)
+            .collect();
+        let mut guess = zpred.clone();
+        if self.options.initial_guess == InitialGuess::Extrapolate && self.steps > 0 {
+            for i in 0..guess.len() {
+                guess[i] += self.dt * (self.zdot[i] - self.zdot_prev[i]);
+            }
+        }
+        let friction = match (&self.friction, &self.contacts) {
+            (Some((mu, eps_v)), Some(c)) => Some((
+                c.friction_lag(self.layout, self.time, t, &self.z, mu),
+                eps_v * self.dt,
+            )),
+            _ => None,
+        };
+        StepStart {
+            zpred,
+            guess,
+            t,
+            friction,
+        }
+    }
+
+    /// Lagged Coulomb friction against the colliders from the next step on: `mu` per
+    /// collider (>= 0; all 0 or an empty list: none), `eps_v` the smoothing velocity, m/s
+    /// (sliding slower than it is treated as sticking, smoothly).
+    pub fn set_collider_friction(&mut self, mu: &[f64], eps_v: f64) -> Result<()> {
+        let count = self.contacts.as_ref().map_or(0, |c| c.kinematics().len());
+        if !mu.is_empty() && mu.len() != count {
+            return Err(Error::LengthMismatch {
+                what: "friction coefficients (one per collider)",
+                expected: count,
+                got: mu.len(),
+            });
+        }
+        if let Some(m) = mu.iter().find(|m| !(**m >= 0.0 && m.is_finite())) {
+            return Err(Error::param(
+                "friction",
+                m,
+                "a friction coefficient must be >= 0 and finite",
+            ));
+        }
+        positive(
+            "friction_velocity",
+            eps_v,
+            "the friction smoothing velocity (m/s)",
+        )?;
+        self.friction = mu.iter().any(|m| *m > 0.0).then(|| (mu.to_vec(), eps_v));
+        Ok(())
+    }
+
+    /// The incremental potential of the step that `start` begins.
+    pub(crate) fn potential<'a>(&'a self, start: &'a StepStart) -> StepPotential<'a> {
+        StepPotential {
+            sim: self,
+            zpred: &start.zpred,
+            t: start.t,
+            friction: start.friction.as_ref().map(|(l, e)| (l.as_slice(), *e)),
+        }
+    }
+
+    /// The convergence measure of a step `d` in z: its mass-weighted RMS length over the
+    /// object divided by the rest diagonal (dimensionless).
+    pub(crate) fn measure(&self, d: &[f64]) -> f64 {
+        let mut md = vec![0.0; d.len()];
+        add_block_product(self.layout, &self.mass.bb, 1.0, d, &mut md);
+        let q: f64 = d.iter().zip(&md).map(|(a, b)| a * b).sum();
+        (q.max(0.0) / self.mass.total).sqrt() / self.diag
+    }
+
+    /// The Cholesky factor of the rest system matrix.
+    pub(crate) fn rest_factor(&self) -> &Llt<f64> {
+        &self.rest_factor
+    }
+
+    /// The solver settings of each step.
+    pub(crate) fn newton_options(&self) -> &NewtonOptions {
+        &self.options
+    }
+
+    /// Take the step that `start` began, ending at `z` (found by `solve` in `wall_s` seconds).
+    pub(crate) fn finish_step(
+        &mut self,
+        start: &StepStart,
+        z: Vec<f64>,
+        solve: SolveReport,
+        wall_s: f64,
+    ) -> StepReport {
         self.zdot_prev.copy_from_slice(&self.zdot);
         for i in 0..z.len() {
             self.zdot[i] = (z[i] - self.z[i]) / self.dt;
         }
         self.z = z;
-        self.time = t;
+        self.time = start.t;
         self.steps += 1;
-        let wall_s = sw.elapsed();
         StepReport {
             step: self.steps,
-            time: t,
+            time: start.t,
             wall_s,
             solve,
             boundary_rms_deviation: self
                 .boundaries
                 .iter()
-                .map(|b| b.rms_deviation(self.layout, t, &self.z))
+                .map(|b| b.rms_deviation(self.layout, start.t, &self.z))
                 .reduce(f64::max),
         }
+    }
+
+    /// The state (z, zdot, zdot before the last step, time, steps), to undo a step.
+    pub(crate) fn snapshot(&self) -> SimSnapshot {
+        SimSnapshot {
+            z: self.z.clone(),
+            zdot: self.zdot.clone(),
+            zdot_prev: self.zdot_prev.clone(),
+            time: self.time,
+            steps: self.steps,
+        }
+    }
+
+    /// Go back to a [`ReducedSim::snapshot`] (the quasi-Newton memory stays: it only
+    /// changes where later minimisations start).
+    pub(crate) fn restore(&mut self, s: &SimSnapshot) {
+        self.z.clone_from(&s.z);
+        self.zdot.clone_from(&s.zdot);
+        self.zdot_prev.clone_from(&s.zdot_prev);
+        self.time = s.time;
+        self.steps = s.steps;
+    }
+
+    /// The default penalty stiffness of this object, Pa/m^2:
+    /// [`PENALTY_FACTOR`] x max(rho / h^2, E / D^2).
+    pub fn default_penalty(&self) -> f64 {
+        self.default_penalty
+    }
+
+    /// The time step h, seconds.
+    pub fn dt(&self) -> f64 {
+        self.dt
     }
 
     /// Gravity from the next step on, m/s^2 (None: no gravity term).
@@ -665,12 +777,15 @@ impl ReducedSim {
     }
 
     /// The incremental potential of the next step for a given predictor, for tests:
-    /// (energy, gradient) at `z`.
+    /// (energy, gradient) at `z`. With collider friction, its contacts are lagged from the
+    /// current state as the next step's would be.
     pub fn step_potential(&self, zpred: &[f64], t: f64, z: &[f64]) -> (f64, Vec<f64>) {
+        let lag = self.begin_step().friction;
         let pot = StepPotential {
             sim: self,
             zpred,
             t,
+            friction: lag.as_ref().map(|(l, e)| (l.as_slice(), *e)),
         };
         let mut g = vec![0.0; z.len()];
         let (e, _) = pot.energy_gradient(z, &mut g);
@@ -679,10 +794,12 @@ impl ReducedSim {
 
     /// The PSD Hessian of the step potential at `z` (what `Newton` factorizes).
     pub fn step_hessian(&self, zpred: &[f64], t: f64, z: &[f64]) -> Mat<f64> {
+        let lag = self.begin_step().friction;
         StepPotential {
             sim: self,
             zpred,
             t,
+            friction: lag.as_ref().map(|(l, e)| (l.as_slice(), *e)),
         }
         .hessian(z)
     }
@@ -751,12 +868,39 @@ fn placement_transform(p: &Placement) -> Result<Rigid> {
     })
 }
 
+/// A saved state of a [`ReducedSim`].
+pub(crate) struct SimSnapshot {
+    z: Vec<f64>,
+    zdot: Vec<f64>,
+    zdot_prev: Vec<f64>,
+    time: f64,
+    steps: usize,
+}
+
+/// Where a step starts: the inertial predictor z_pred = z_n + h zdot_n, the initial guess
+/// of the minimisation and the time at the end of the step, s.
+pub(crate) struct StepStart {
+    pub(crate) zpred: Vec<f64>,
+    pub(crate) guess: Vec<f64>,
+    pub(crate) t: f64,
+    /// Lagged collider friction contacts and the smoothing displacement eps_v h, metres.
+    pub(crate) friction: Option<(Vec<ColliderLag>, f64)>,
+}
+
 /// The incremental potential of one step:
 /// 1/(2 h^2) |z - z_pred|_M^2 + elastic(z) - gravity work + penalties at time t.
-struct StepPotential<'a> {
+pub(crate) struct StepPotential<'a> {
     sim: &'a ReducedSim,
     zpred: &'a [f64],
     t: f64,
+    friction: Option<(&'a [ColliderLag], f64)>,
+}
+
+impl StepPotential<'_> {
+    /// Number of reduced coordinates.
+    pub(crate) fn dofs(&self) -> usize {
+        self.sim.layout.dofs()
+    }
 }
 
 impl Potential for StepPotential<'_> {
@@ -792,6 +936,9 @@ impl Potential for StepPotential<'_> {
         if let Some(c) = &s.contacts {
             contacts = c.energy_gradient(l, self.t, z, grad);
             e += contacts.energy;
+            if let Some((lag, eps)) = self.friction {
+                e += c.friction_energy_gradient(l, lag, eps, z, grad);
+            }
         }
         (
             e,
@@ -821,6 +968,9 @@ impl Potential for StepPotential<'_> {
         }
         if let Some(c) = &s.contacts {
             c.add_hessian(l, self.t, z, ContactHessian::Psd, &mut h);
+            if let Some((lag, eps)) = self.friction {
+                c.add_friction_hessian(l, lag, eps, z, &mut h);
+            }
         }
         h
     }

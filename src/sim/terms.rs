@@ -282,6 +282,20 @@ pub struct ContactTerm {
     handles: usize,
 }
 
+/// A collider contact at the start of a step, as lagged friction keeps it
+/// ([`ContactTerm::friction_lag`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ColliderLag {
+    /// The cubature point (index into the term's points).
+    pub point: usize,
+    /// Friction coefficient times the normal force, N.
+    pub mu_lambda: f64,
+    /// I - n n^T of the contact normal at the start of the step.
+    pub projector: crate::linalg3::Mat3,
+    /// Where the obstacle would carry the point by the end of the step, metres.
+    pub carried: Point3,
+}
+
 /// What one evaluation of the contact penalties found.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ContactInfo {
@@ -418,6 +432,101 @@ impl ContactTerm {
             }
         }
         info
+    }
+
+    /// The collider contacts at the start of a step (`z`, time `t0`) as friction sees them
+    /// for the step to `t1`: per penetrating (point, obstacle) with friction coefficient
+    /// `mu[o]` > 0, mu times the penalty force kappa v d (N), the tangent projector of the
+    /// normal, and the point's position carried along by the obstacle's motion over the step
+    /// (the point the obstacle's surface would take it to if it stuck).
+    pub fn friction_lag(
+        &self,
+        layout: Layout,
+        t0: f64,
+        t1: f64,
+        z: &[f64],
+        mu: &[f64],
+    ) -> Vec<ColliderLag> {
+        let (p0, p1) = (self.kinematics.poses(t0), self.kinematics.poses(t1));
+        self.penetrations(layout, t0, z)
+            .into_iter()
+            .filter(|(_, o, _)| mu[*o] > 0.0)
+            .map(|(c, o, p)| {
+                let x = self.position(layout, c, z);
+                let (a, b) = (&p0[o], &p1[o]);
+                // x in the obstacle's frame at t0, then back out at t1.
+                let local: Point3 = std::array::from_fn(|k| {
+                    (0..3)
+                        .map(|m| a.rotation[m][k] * (x[m] - a.translation[m]))
+                        .sum()
+                });
+                ColliderLag {
+                    point: c,
+                    mu_lambda: mu[o] * self.stiffness[o] * self.volumes[c] * p.depth,
+                    projector: crate::sim::contact::friction::tangent_projector(&p.normal),
+                    carried: b.apply(&local),
+                }
+            })
+            .collect()
+    }
+
+    /// The friction potential (J) of the lagged contacts `lag` at `z`, gradient added to
+    /// `grad`; eps the smoothing displacement, metres.
+    pub fn friction_energy_gradient(
+        &self,
+        layout: Layout,
+        lag: &[ColliderLag],
+        eps: f64,
+        z: &[f64],
+        grad: &mut [f64],
+    ) -> f64 {
+        use crate::sim::contact::friction;
+        let n4 = layout.row_len();
+        let mut e = 0.0;
+        for l in lag {
+            let x = self.position(layout, l.point, z);
+            let d: [f64; 3] = std::array::from_fn(|k| x[k] - l.carried[k]);
+            e += friction::potential(l.mu_lambda, eps, &friction::project(&l.projector, &d));
+            let g = friction::gradient(l.mu_lambda, eps, &l.projector, &d);
+            for (kk, bk) in self.b(l.point) {
+                for r in 0..3 {
+                    grad[r * n4 + kk] += g[r] * bk;
+                }
+            }
+        }
+        e
+    }
+
+    /// Add the (positive semi-definite, exact) Hessian of the friction potential to `h`.
+    pub fn add_friction_hessian(
+        &self,
+        layout: Layout,
+        lag: &[ColliderLag],
+        eps: f64,
+        z: &[f64],
+        h: &mut Mat<f64>,
+    ) {
+        use crate::sim::contact::friction;
+        let n4 = layout.row_len();
+        for l in lag {
+            let x = self.position(layout, l.point, z);
+            let d: [f64; 3] = std::array::from_fn(|k| x[k] - l.carried[k]);
+            let hx = friction::hessian(l.mu_lambda, eps, &l.projector, &d);
+            let b: Vec<(usize, f64)> = self.b(l.point).collect();
+            for r in 0..3 {
+                for s in 0..3 {
+                    let coef = hx[r][s];
+                    if coef == 0.0 {
+                        continue;
+                    }
+                    for &(i, bi) in &b {
+                        for &(j, bj) in &b {
+                            h[(r * n4 + i, s * n4 + j)] += coef * bi * bj;
+                        }
+                    }
+                }
+            }
+        }
     }
 
     /// Add the Hessian of the active penalties at time `t` to `h`: k v B^T H B per

@@ -20,6 +20,7 @@ mod bad_inputs;
 mod boundary_modes;
 mod cli;
 mod colliders;
+mod contact;
 mod eval_shapes;
 mod extremes;
 mod fem;

@@ -213,6 +213,26 @@ write("scene/collider_nan_pose.toml", GOOD + "[[collider]]\n"
 write("scene/collider_bad_parent.toml", GOOD + "[[collider]]\nname = \"fore\"\nparent = \"upper\"\n"
       "shape = { capsule = { a = [0.0, 0.0, 0.0], b = [1.0, 0.0, 0.0], radius = 0.1 } }\n")
 
+# Object-object contact of issue 15: objects that start interpenetrating (overlapping, or
+# one wholly inside the other), and bad [contact] settings.
+SECOND = ('[[object]]\nname = "other"\nshape = "box:1,0.2,0.2"\n'
+          'basis = { kernels = 40, modes = 4, points = 2000 }\n')
+write("scene/contact_overlap.toml", GOOD + SECOND
+      + "placement = { translation = [0.5, 0.1, 0.0] }\n[contact]\n")
+write("scene/contact_inside.toml", GOOD.replace("box:1,0.2,0.2", "box:1,1,1")
+      + SECOND.replace("box:1,0.2,0.2", "sphere:0.1")
+      + "placement = { translation = [0.5, 0.5, 0.5] }\n[contact]\n")
+write("scene/contact_negative_stiffness.toml", GOOD + "[contact]\nstiffness = -1.0\n")
+write("scene/contact_zero_samples.toml", GOOD + "contact_samples = 0\n[contact]\n")
+write("scene/contact_bad_tolerance.toml", GOOD + "[contact]\npenetration_tolerance = 2.0\n")
+write("scene/contact_huge_radius.toml", GOOD + "[contact]\nradius = 0.5\n")
+write("scene/contact_negative_friction.toml", GOOD + "[contact]\nfriction = -0.2\n")
+write("scene/contact_nan_friction.toml", GOOD + "[contact]\n[[contact.pair]]\n"
+      "between = [\"bar\", \"floor\"]\nfriction = nan\n")
+write("scene/contact_unknown_pair.toml", GOOD + "[contact]\n[[contact.pair]]\n"
+      "between = [\"bar\", \"nobody\"]\nfriction = 0.3\n")
+
+
 # --- MatrixMarket pairs (`freeform modes --from-matrices DIR`) -------------------------
 # A 6 x 6 diagonal SPD matrix: big enough for `--modes 1` (nev = 2 <= K - 2).
 SPD = ("%%MatrixMarket matrix coordinate real symmetric\n6 6 6\n"

@@ -1,0 +1,475 @@
+//! The object-object contact energy of an island: a one-sided quadratic penalty on every
+//! pair of samples of two different objects closer than their contact distance
+//! d = t_a + t_b,
+//!
+//!   E = sum_pairs kappa_ab / 2 w_ij (d - r_ij)^2,  w_ij = A_i A_j / (pi d),  r_ij = |x_i - x_j|,
+//!
+//! with kappa_ab in Pa/m^2 (as the collider penalties), A the samples' areas (m^2), so w is
+//! a volume (m^3) and E is in joules. Two flat sheets of samples pressed together by delta
+//! feel the pressure kappa delta^2 (docs/math.md derives it). Positions are x = X + B z per
+//! object, so the gradient and Hessian in the stacked z of the island follow from the pair
+//! terms by the chain rule; the step bound keeps every pair from closing by more than half
+//! its distance within one line-search segment.
+
+use super::pairs::{candidates, BroadStats, Candidate};
+use super::samples::ContactSamples;
+use crate::linalg3::Mat3;
+use crate::sim::elastic::Layout;
+use crate::Point3;
+use faer::{Accum, Mat, Par};
+
+/// Fraction of a pair's distance (or of its contact distance, if smaller) that one
+/// line-search segment may close at most ([`PairContact::max_step`]).
+pub const STEP_FLOOR: f64 = 0.5;
+
+/// One object of an island as the contact energy sees it.
+#[derive(Debug, Clone, Copy)]
+pub struct Body<'a> {
+    /// Its contact samples.
+    pub samples: &'a ContactSamples,
+    /// The layout of its z.
+    pub layout: Layout,
+    /// Where its z starts in the island's stacked coordinates.
+    pub offset: usize,
+    /// Its rest bounding-box diagonal, metres (penetrations are reported relative to the
+    /// smaller of a pair's).
+    pub diagonal: f64,
+}
+
+/// Which Hessian of the pair penalties to build.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PairHessian {
+    /// kappa w u u^T per pair (the positive semi-definite part, for Newton).
+    Psd,
+    /// The exact Hessian kappa w (u u^T - (d - r)/r (I - u u^T)) (tests).
+    Exact,
+}
+
+/// What one evaluation of the contact energy found.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ContactStats {
+    /// Contact energy, J.
+    pub energy: f64,
+    /// Object pairs tested (box against box) and those whose samples were searched.
+    pub broad: BroadStats,
+    /// Sample pairs closer than their contact distance.
+    pub active: usize,
+    /// The deepest penetration d - r over the active pairs, metres (0 without contact).
+    pub deepest: f64,
+    /// The deepest penetration relative to the smaller rest diagonal of its two objects.
+    pub deepest_fraction: f64,
+    /// The bodies (a, b) of the pair with the largest `deepest_fraction`.
+    pub deepest_pair: Option<(usize, usize)>,
+}
+
+/// A sample pair in contact at the start of a step, as lagged friction keeps it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PairLag {
+    /// The pair.
+    pub c: Candidate,
+    /// Friction coefficient times the pair's normal force then, N.
+    pub mu_lambda: f64,
+    /// I - u u^T of its direction then.
+    pub projector: Mat3,
+    /// x_i - x_j then, metres.
+    pub start: [f64; 3],
+}
+
+impl PairLag {
+    /// The relative displacement of the pair since the start, at positions `x`.
+    fn displacement(&self, x: &[Vec<Point3>]) -> [f64; 3] {
+        let (xi, xj) = (x[self.c.a][self.c.i], x[self.c.b][self.c.j]);
+        std::array::from_fn(|k| xi[k] - xj[k] - self.start[k])
+    }
+}
+
+/// The contact energy between the bodies of an island.
+pub struct PairContact<'a> {
+    bodies: Vec<Body<'a>>,
+    stiffness: Vec<f64>,
+}
+
+/// An active pair: its candidate, unit direction u = (x_i - x_j)/r, distance r, contact
+/// distance d and kappa w.
+struct Active {
+    c: Candidate,
+    u: [f64; 3],
+    r: f64,
+    d: f64,
+    kw: f64,
+}
+
+impl<'a> PairContact<'a> {
+    /// The bodies of an island with the penalty stiffness `stiffness[a * n + b]` (Pa/m^2,
+    /// symmetric, n = bodies.len()) of each pair.
+    pub fn new(bodies: Vec<Body<'a>>, stiffness: Vec<f64>) -> PairContact<'a> {
+        assert_eq!(stiffness.len(), bodies.len() * bodies.len());
+        PairContact { bodies, stiffness }
+    }
+
+    /// The bodies.
+    pub fn bodies(&self) -> &[Body<'a>] {
+        &self.bodies
+    }
+
+    fn distance(&self, a: usize, b: usize) -> f64 {
+        self.bodies[a].samples.thickness + self.bodies[b].samples.thickness
+    }
+
+    fn slice<'z>(&self, a: usize, z: &'z [f64]) -> &'z [f64] {
+        let b = &self.bodies[a];
+        &z[b.offset..b.offset + b.layout.dofs()]
+    }
+
+    /// Deformed sample positions of every body at the stacked `z`, metres.
+    pub fn positions(&self, z: &[f64]) -> Vec<Vec<Point3>> {
+        (0..self.bodies.len())
+            .map(|a| {
+                let b = &self.bodies[a];
+                b.samples.positions(b.layout, self.slice(a, z))
+            })
+            .collect()
+    }
+
+    fn active(&self, x: &[Vec<Point3>]) -> (Vec<Active>, ContactStats) {
+        let (cands, broad) = candidates(x, &|a, b| self.distance(a, b));
+        let n = self.bodies.len();
+        let mut stats = ContactStats {
+            broad,
+            ..ContactStats::default()
+        };
+        let mut out = Vec::new();
+        for c in cands {
+            let d = self.distance(c.a, c.b);
+            let (xi, xj) = (x[c.a][c.i], x[c.b][c.j]);
+            let v: [f64; 3] = std::array::from_fn(|k| xi[k] - xj[k]);
+            let r = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            if r >= d {
+                continue;
+            }
+            // Coincident samples have no direction; any unit vector keeps E's value and a
+            // gradient that pushes them apart.
+            let u = if r > 0.0 {
+                v.map(|k| k / r)
+            } else {
+                [0.0, 1.0, 0.0]
+            };
+            let (sa, sb) = (self.bodies[c.a].samples, self.bodies[c.b].samples);
+            let w = sa.area[c.i] * sb.area[c.j] / (std::f64::consts::PI * d);
+            let kw = self.stiffness[c.a * n + c.b] * w;
+            stats.active += 1;
+            stats.energy += 0.5 * kw * (d - r) * (d - r);
+            if d - r > stats.deepest {
+                stats.deepest = d - r;
+            }
+            let diag = self.bodies[c.a].diagonal.min(self.bodies[c.b].diagonal);
+            if (d - r) / diag > stats.deepest_fraction {
+                stats.deepest_fraction = (d - r) / diag;
+                stats.deepest_pair = Some((c.a, c.b));
+            }
+            out.push(Active { c, u, r, d, kw });
+        }
+        (out, stats)
+    }
+
+    /// Energy statistics at `z` (no gradient).
+    pub fn stats(&self, z: &[f64]) -> ContactStats {
+        self.active(&self.positions(z)).1
+    }
+
+    /// Energy (J) and statistics at the stacked `z`, gradient added to `grad`.
+    pub fn energy_gradient(&self, z: &[f64], grad: &mut [f64]) -> ContactStats {
+        let x = self.positions(z);
+        let (act, stats) = self.active(&x);
+        // dE/dx per sample, then through b into z.
+        let mut gx: Vec<Vec<[f64; 3]>> = x.iter().map(|p| vec![[0.0; 3]; p.len()]).collect();
+        for p in &act {
+            let f = p.kw * (p.d - p.r);
+            for k in 0..3 {
+                gx[p.c.a][p.c.i][k] -= f * p.u[k];
+                gx[p.c.b][p.c.j][k] += f * p.u[k];
+            }
+        }
+        self.scatter(&gx, grad);
+        stats
+    }
+
+    /// Add per-sample derivatives `gx` (dE/dx, one list per body) through the b rows into the
+    /// stacked gradient `grad`.
+    pub fn scatter(&self, gx: &[Vec<[f64; 3]>], grad: &mut [f64]) {
+        for (a, g) in gx.iter().enumerate() {
+            let body = &self.bodies[a];
+            let n4 = body.layout.row_len();
+            let mut b = vec![0.0; n4];
+            for (i, gi) in g.iter().enumerate() {
+                if *gi == [0.0; 3] {
+                    continue;
+                }
+                body.samples.b(i, &mut b);
+                for r in 0..3 {
+                    let row = &mut grad[body.offset + r * n4..body.offset + (r + 1) * n4];
+                    for (gk, bk) in row.iter_mut().zip(&b) {
+                        *gk += gi[r] * bk;
+                    }
+                }
+            }
+        }
+    }
+
+    /// The contacts active at `z` (the start of a step) as lagged friction keeps them: per
+    /// pair with coefficient `mu[a * n + b]` > 0, mu times its penalty force
+    /// kappa w (d - r) (N), the tangent projector of its direction and x_i - x_j then.
+    pub fn friction_lag(&self, z: &[f64], mu: &[f64]) -> Vec<PairLag> {
+        let n = self.bodies.len();
+        let x = self.positions(z);
+        let (act, _) = self.active(&x);
+        act.iter()
+            .filter(|p| mu[p.c.a * n + p.c.b] > 0.0)
+            .map(|p| PairLag {
+                c: p.c,
+                mu_lambda: mu[p.c.a * n + p.c.b] * p.kw * (p.d - p.r),
+                projector: super::friction::tangent_projector(&p.u),
+                start: std::array::from_fn(|k| x[p.c.a][p.c.i][k] - x[p.c.b][p.c.j][k]),
+            })
+            .collect()
+    }
+
+    /// The friction potential (J) of the lagged pairs at `z` (smoothing displacement `eps`,
+    /// metres), gradient added to `grad`.
+    pub fn friction_energy_gradient(
+        &self,
+        lag: &[PairLag],
+        eps: f64,
+        z: &[f64],
+        grad: &mut [f64],
+    ) -> f64 {
+        use super::friction;
+        if lag.is_empty() {
+            return 0.0;
+        }
+        let x = self.positions(z);
+        let mut gx: Vec<Vec<[f64; 3]>> = x.iter().map(|p| vec![[0.0; 3]; p.len()]).collect();
+        let mut e = 0.0;
+        for l in lag {
+            let d = l.displacement(&x);
+            e += friction::potential(l.mu_lambda, eps, &friction::project(&l.projector, &d));
+            let g = friction::gradient(l.mu_lambda, eps, &l.projector, &d);
+            for k in 0..3 {
+                gx[l.c.a][l.c.i][k] += g[k];
+                gx[l.c.b][l.c.j][k] -= g[k];
+            }
+        }
+        self.scatter(&gx, grad);
+        e
+    }
+
+    /// Add the Hessian of the friction potential at `z` to `h`.
+    pub fn add_friction_hessian(&self, lag: &[PairLag], eps: f64, z: &[f64], h: &mut Mat<f64>) {
+        if lag.is_empty() {
+            return;
+        }
+        let x = self.positions(z);
+        let blocks: Vec<(Candidate, Mat3)> = lag
+            .iter()
+            .map(|l| {
+                let d = l.displacement(&x);
+                (
+                    l.c,
+                    super::friction::hessian(l.mu_lambda, eps, &l.projector, &d),
+                )
+            })
+            .collect();
+        self.add_pair_blocks(&blocks, h);
+    }
+
+    /// Add the Hessian of the energy at the stacked `z` to `h` (square, the island's size).
+    pub fn add_hessian(&self, z: &[f64], which: PairHessian, h: &mut Mat<f64>) {
+        let x = self.positions(z);
+        let (act, _) = self.active(&x);
+        let blocks: Vec<(Candidate, Mat3)> = act
+            .iter()
+            .map(|p| {
+                let c = match which {
+                    PairHessian::Psd => 0.0,
+                    PairHessian::Exact if p.r > 0.0 => -(p.d - p.r) / p.r,
+                    PairHessian::Exact => 0.0,
+                };
+                let hp = std::array::from_fn(|r| {
+                    std::array::from_fn(|s| {
+                        let uu = p.u[r] * p.u[s];
+                        let id = if r == s { 1.0 } else { 0.0 };
+                        p.kw * (uu + c * (id - uu))
+                    })
+                });
+                (p.c, hp)
+            })
+            .collect();
+        self.add_pair_blocks(&blocks, h);
+    }
+
+    /// Add sum over `blocks` of the Hessian of a function of x_i - x_j whose 3 x 3 Hessian is
+    /// H: [[H, -H], [-H, H]] in (x_i, x_j), through the samples' b rows into z.
+    pub fn add_pair_blocks(&self, blocks: &[(Candidate, Mat3)], h: &mut Mat<f64>) {
+        if blocks.is_empty() {
+            return;
+        }
+        // Diagonal blocks: per sample, the sum of its pairs' 3 x 3 blocks.
+        let mut own: Vec<std::collections::BTreeMap<usize, Mat3>> =
+            (0..self.bodies.len()).map(|_| Default::default()).collect();
+        for (c, hp) in blocks {
+            for (body, s) in [(c.a, c.i), (c.b, c.j)] {
+                let e = own[body].entry(s).or_insert([[0.0; 3]; 3]);
+                for r in 0..3 {
+                    for q in 0..3 {
+                        e[r][q] += hp[r][q];
+                    }
+                }
+            }
+        }
+        for (a, samples) in own.iter().enumerate() {
+            if samples.is_empty() {
+                continue;
+            }
+            let body = &self.bodies[a];
+            let n4 = body.layout.row_len();
+            let rows = self.b_rows(a, samples.keys().copied());
+            let blocks: Vec<&Mat3> = samples.values().collect();
+            for r in 0..3 {
+                for s in 0..3 {
+                    let scaled =
+                        Mat::from_fn(rows.nrows(), n4, |p, k| blocks[p][r][s] * rows[(p, k)]);
+                    faer::linalg::matmul::matmul(
+                        h.as_mut().submatrix_mut(
+                            body.offset + r * n4,
+                            body.offset + s * n4,
+                            n4,
+                            n4,
+                        ),
+                        Accum::Add,
+                        rows.transpose(),
+                        scaled.as_ref(),
+                        1.0,
+                        Par::Seq,
+                    );
+                }
+            }
+        }
+        // Off-diagonal blocks, per pair of bodies: -sum_pairs H_p[r][s] b_i b_j^T, formed as
+        // B_a^T C with C's row for sample i = sum_j H_p[r][s] b_j.
+        let mut by_bodies: std::collections::BTreeMap<(usize, usize), Vec<&(Candidate, Mat3)>> =
+            Default::default();
+        for p in blocks {
+            by_bodies.entry((p.0.a, p.0.b)).or_default().push(p);
+        }
+        for ((a, b), pairs) in by_bodies {
+            let (ba, bb) = (&self.bodies[a], &self.bodies[b]);
+            let (n4a, n4b) = (ba.layout.row_len(), bb.layout.row_len());
+            let mut index = std::collections::BTreeMap::new();
+            for (cand, _) in &pairs {
+                let next = index.len();
+                index.entry(cand.i).or_insert(next);
+            }
+            let mut order: Vec<(usize, usize)> = index.iter().map(|(&i, &row)| (row, i)).collect();
+            order.sort_unstable();
+            let rows_a = self.b_rows(a, order.iter().map(|&(_, i)| i));
+            let mut bj = vec![0.0; n4b];
+            let mut c: Vec<Mat<f64>> = (0..9).map(|_| Mat::zeros(order.len(), n4b)).collect();
+            for (cand, hp) in &pairs {
+                let row = index[&cand.i];
+                bb.samples.b(cand.j, &mut bj);
+                for r in 0..3 {
+                    for s in 0..3 {
+                        let cm = &mut c[3 * r + s];
+                        for (k, v) in bj.iter().enumerate() {
+                            cm[(row, k)] += hp[r][s] * v;
+                        }
+                    }
+                }
+            }
+            for r in 0..3 {
+                for s in 0..3 {
+                    let mut block = Mat::<f64>::zeros(n4a, n4b);
+                    faer::linalg::matmul::matmul(
+                        block.as_mut(),
+                        Accum::Replace,
+                        rows_a.transpose(),
+                        c[3 * r + s].as_ref(),
+                        -1.0,
+                        Par::Seq,
+                    );
+                    for k in 0..n4a {
+                        for l in 0..n4b {
+                            let (gi, gj) = (ba.offset + r * n4a + k, bb.offset + s * n4b + l);
+                            h[(gi, gj)] += block[(k, l)];
+                            h[(gj, gi)] += block[(k, l)];
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Rows b(X_i) of body `a`'s samples `ids`, one row each.
+    fn b_rows(&self, a: usize, ids: impl Iterator<Item = usize>) -> Mat<f64> {
+        let body = &self.bodies[a];
+        let n4 = body.layout.row_len();
+        let ids: Vec<usize> = ids.collect();
+        let mut m = Mat::zeros(ids.len(), n4);
+        let mut b = vec![0.0; n4];
+        for (p, &i) in ids.iter().enumerate() {
+            body.samples.b(i, &mut b);
+            for (k, v) in b.iter().enumerate() {
+                m[(p, k)] = *v;
+            }
+        }
+        m
+    }
+
+    /// The largest alpha such that along z + alpha' dir, 0 <= alpha' <= alpha, no sample pair
+    /// of two bodies comes closer than [`STEP_FLOOR`] times the smaller of its distance at
+    /// `z` and its contact distance (infinite when nothing limits the step). Sample paths are
+    /// straight lines in alpha, so the distance along the segment is exact: the first alpha
+    /// where |x_i - x_j + alpha (dx_i - dx_j)| reaches the floor is a root of a quadratic.
+    pub fn max_step(&self, z: &[f64], dir: &[f64]) -> f64 {
+        let x = self.positions(z);
+        let dx: Vec<Vec<Point3>> = (0..self.bodies.len())
+            .map(|a| {
+                let b = &self.bodies[a];
+                b.samples.displacements(b.layout, self.slice(a, dir))
+            })
+            .collect();
+        let moved: Vec<f64> = dx
+            .iter()
+            .map(|d| {
+                d.iter()
+                    .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+                    .fold(0.0, f64::max)
+            })
+            .collect();
+        // Pairs that can come within their contact distance along the whole segment.
+        let (cands, _) = candidates(&x, &|a, b| self.distance(a, b) + moved[a] + moved[b]);
+        let mut bound = f64::INFINITY;
+        for c in cands {
+            let d0: [f64; 3] = std::array::from_fn(|k| x[c.a][c.i][k] - x[c.b][c.j][k]);
+            let v: [f64; 3] = std::array::from_fn(|k| dx[c.a][c.i][k] - dx[c.b][c.j][k]);
+            let r0 = (d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2]).sqrt();
+            let qa = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+            if r0 == 0.0 || qa == 0.0 {
+                continue;
+            }
+            let floor = STEP_FLOOR * r0.min(self.distance(c.a, c.b));
+            let qb = 2.0 * (d0[0] * v[0] + d0[1] * v[1] + d0[2] * v[2]);
+            let qc = r0 * r0 - floor * floor;
+            let disc = qb * qb - 4.0 * qa * qc;
+            if disc < 0.0 || qb >= 0.0 {
+                // Never reaches the floor, or moving apart (qc > 0 makes both roots
+                // negative then).
+                continue;
+            }
+            // The smaller root, in the cancellation-free form 2c / (-b + sqrt(disc)).
+            let alpha = 2.0 * qc / (-qb + disc.sqrt());
+            bound = bound.min(alpha);
+        }
+        bound
+    }
+}

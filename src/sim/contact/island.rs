@@ -1,0 +1,145 @@
+//! An island: objects that may touch within a time step, solved as one minimisation over
+//! their stacked reduced coordinates. Its potential is the sum of the objects' own
+//! incremental potentials (inertia, elasticity, gravity, boundaries, collider penalties) and
+//! the contact energy between them; it is minimised by Newton (dense PSD Hessian over the
+//! island) with the contact step bound in the line search, from a start that the same bound
+//! keeps on the safe side of the previous state.
+
+use super::energy::{PairContact, PairHessian, PairLag};
+use super::ContactStats;
+use crate::report::Stopwatch;
+use crate::sim::newton::{
+    self, BlockRest, EvalInfo, HessianStrategy, Potential, QuasiNewtonState, SolverContext,
+};
+use crate::sim::object::{StepPotential, StepStart};
+use crate::sim::{ReducedSim, StepReport};
+use faer::Mat;
+
+/// The incremental potential of an island.
+struct IslandPotential<'a> {
+    parts: Vec<StepPotential<'a>>,
+    offsets: Vec<usize>,
+    contact: &'a PairContact<'a>,
+    /// Lagged object-object friction and its smoothing displacement, metres.
+    friction: (Vec<PairLag>, f64),
+}
+
+impl Potential for IslandPotential<'_> {
+    fn energy_gradient(&self, z: &[f64], grad: &mut [f64]) -> (f64, EvalInfo) {
+        let mut e = 0.0;
+        let mut info = EvalInfo {
+            min_det: f64::INFINITY,
+            ..EvalInfo::default()
+        };
+        for (p, &o) in self.parts.iter().zip(&self.offsets) {
+            let n = p.dofs();
+            grad[o..o + n].fill(0.0);
+            let (ep, ip) = p.energy_gradient(&z[o..o + n], &mut grad[o..o + n]);
+            e += ep;
+            info.min_det = info.min_det.min(ip.min_det);
+            info.inverted += ip.inverted;
+            info.contacts += ip.contacts;
+            info.penetration = info.penetration.max(ip.penetration);
+            info.rounding += ip.rounding;
+        }
+        let s = self.contact.energy_gradient(z, grad);
+        e += s.energy;
+        let (lag, eps) = &self.friction;
+        e += self.contact.friction_energy_gradient(lag, *eps, z, grad);
+        (e, info)
+    }
+
+    fn hessian(&self, z: &[f64]) -> Mat<f64> {
+        let n = z.len();
+        let mut h = Mat::zeros(n, n);
+        for (p, &o) in self.parts.iter().zip(&self.offsets) {
+            let k = p.dofs();
+            let hp = p.hessian(&z[o..o + k]);
+            h.as_mut().submatrix_mut(o, o, k, k).copy_from(&hp);
+        }
+        self.contact.add_hessian(z, PairHessian::Psd, &mut h);
+        let (lag, eps) = &self.friction;
+        self.contact.add_friction_hessian(lag, *eps, z, &mut h);
+        h
+    }
+
+    fn max_step(&self, z: &[f64], dir: &[f64]) -> f64 {
+        self.contact.max_step(z, dir)
+    }
+}
+
+/// Step the objects `sims` of one island together; `contact` holds their samples with
+/// offsets into the stacked coordinates in the same order, `mu` the friction coefficient of
+/// each pair of them (row-major) and `eps_v` the friction smoothing velocity, m/s. Returns
+/// each object's step report (the island's solve report, its wall time shared evenly) and
+/// the contact statistics at the end of the step.
+pub fn step_island(
+    sims: &mut [&mut ReducedSim],
+    contact: &PairContact,
+    mu: &[f64],
+    eps_v: f64,
+) -> (Vec<StepReport>, ContactStats) {
+    let sw = Stopwatch::start();
+    let starts: Vec<StepStart> = sims.iter().map(|s| s.begin_step()).collect();
+    let mut offsets = Vec::with_capacity(sims.len());
+    let mut at = 0;
+    for s in sims.iter() {
+        offsets.push(at);
+        at += s.layout().dofs();
+    }
+    let z0: Vec<f64> = sims.iter().flat_map(|s| s.z.iter().copied()).collect();
+    let guess: Vec<f64> = starts
+        .iter()
+        .flat_map(|s| s.guess.iter().copied())
+        .collect();
+    let (solve, z, stats) = {
+        let shared: Vec<&ReducedSim> = sims.iter().map(|s| &**s).collect();
+        let pot = IslandPotential {
+            parts: shared
+                .iter()
+                .zip(&starts)
+                .map(|(s, st)| s.potential(st))
+                .collect(),
+            offsets: offsets.clone(),
+            contact,
+            friction: (contact.friction_lag(&z0, mu), eps_v * shared[0].dt()),
+        };
+        // The start: the guess, pulled back toward the previous state as far as the step
+        // bound asks (the guess extrapolates motion and may carry a pair through another).
+        let dir: Vec<f64> = guess.iter().zip(&z0).map(|(g, z)| g - z).collect();
+        let alpha = pot.max_step(&z0, &dir).min(1.0);
+        let mut z: Vec<f64> = z0.iter().zip(&dir).map(|(z, d)| z + alpha * d).collect();
+        let measure = |d: &[f64]| {
+            shared
+                .iter()
+                .zip(&offsets)
+                .map(|(s, &o)| s.measure(&d[o..o + s.layout().dofs()]))
+                .fold(0.0, f64::max)
+        };
+        let rest = BlockRest {
+            blocks: shared.iter().map(|s| s.rest_factor()).collect(),
+        };
+        let options = newton::NewtonOptions {
+            hessian: HessianStrategy::Newton,
+            ..*shared[0].newton_options()
+        };
+        let ctx = SolverContext {
+            rest: &rest,
+            measure: &measure,
+            options: &options,
+        };
+        let solve = newton::minimize(&pot, &mut z, &ctx, &mut QuasiNewtonState::default());
+        let stats = contact.stats(&z);
+        (solve, z, stats)
+    };
+    let wall = sw.elapsed() / sims.len() as f64;
+    let reports = sims
+        .iter_mut()
+        .zip(starts.iter().zip(&offsets))
+        .map(|(s, (st, &o))| {
+            let n = s.layout().dofs();
+            s.finish_step(st, z[o..o + n].to_vec(), solve, wall)
+        })
+        .collect();
+    (reports, stats)
+}

@@ -1,0 +1,166 @@
+//! Object-object contact: the objects of a scene pushing each other (issue 15).
+//!
+//! - [`samples`]: contact samples on each object's surface with their skinning weights.
+//! - [`pairs`]: the broad phase (object boxes, then a k-d tree over the samples).
+//! - [`energy`]: the pair penalty with its gradient, Hessian and line-search step bound, in
+//!   the stacked reduced coordinates of an island.
+//! - [`island`]: objects that can touch within a step, solved together by Newton.
+//!
+//! Only scenes with a `[contact]` section build any of it ([`ContactSettings`]); without one
+//! every object steps alone, as before.
+
+pub mod energy;
+pub mod friction;
+pub mod island;
+pub mod pairs;
+pub mod samples;
+
+pub use energy::{Body, ContactStats, PairContact, PairHessian};
+pub use samples::ContactSamples;
+
+use crate::{Error, Result};
+use serde::{Deserialize, Serialize};
+
+/// Default penetration tolerance: 1% of the smaller rest bounding-box diagonal of the two
+/// objects.
+pub const DEFAULT_PENETRATION_TOLERANCE: f64 = 0.01;
+
+/// The `[contact]` section of a scene: object-object contact settings. Every field has a
+/// default (docs/scenes.md).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ContactSettings {
+    /// Penalty stiffness kappa of object pairs, Pa/m^2 (default: the larger of the two
+    /// objects' default penalty, [`crate::sim::object::PENALTY_FACTOR`] x max(rho/h^2, E/D^2)).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stiffness: Option<f64>,
+    /// Contact thickness t of every object, metres: its samples are spheres of this radius
+    /// set t inside the surface, and two objects touch when samples come within t_a + t_b.
+    /// Default: each object's sample spacing, sqrt(surface area / samples).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f64>,
+    /// Contact samples per object (default: from its size, surface area / spacing^2 with the
+    /// spacing `radius` if given, else 1/25 of its diagonal, within 64..20,000). An object's
+    /// `contact_samples` overrides it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub samples: Option<usize>,
+    /// Penetration tolerance as a fraction of the smaller rest diagonal of the two objects
+    /// (default 0.01): deeper penetrations are warnings (errors with `--strict`), and
+    /// objects that start deeper than it are refused.
+    pub penetration_tolerance: f64,
+    /// Coulomb friction coefficient of every contact, object-object and object-collider
+    /// (default 0.5; 0: frictionless). `pair` tables override it.
+    pub friction: f64,
+    /// Friction smoothing velocity eps_v, m/s (default 1e-3): tangential sliding slower
+    /// than it is resisted like a stiff spring (static friction, smoothed).
+    pub friction_velocity: f64,
+    /// Per-pair friction coefficients (`[[contact.pair]]`), later ones winning.
+    #[serde(rename = "pair", skip_serializing_if = "Vec::is_empty")]
+    pub pairs: Vec<FrictionPair>,
+}
+
+/// A friction coefficient for one pair of objects or of an object and a named collider.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrictionPair {
+    /// The two names (objects or colliders, in any order).
+    pub between: [String; 2],
+    /// Coulomb friction coefficient (>= 0).
+    pub friction: f64,
+}
+
+/// Default friction coefficient (rubber on wood, wood on wood are 0.3-0.7).
+pub const DEFAULT_FRICTION: f64 = 0.5;
+
+/// Default friction smoothing velocity, m/s (IPC's choice for metre-scale scenes).
+pub const DEFAULT_FRICTION_VELOCITY: f64 = 1e-3;
+
+impl Default for ContactSettings {
+    fn default() -> Self {
+        ContactSettings {
+            stiffness: None,
+            radius: None,
+            samples: None,
+            penetration_tolerance: DEFAULT_PENETRATION_TOLERANCE,
+            friction: DEFAULT_FRICTION,
+            friction_velocity: DEFAULT_FRICTION_VELOCITY,
+            pairs: Vec::new(),
+        }
+    }
+}
+
+impl ContactSettings {
+    /// The friction coefficient between the things named `a` and `b` (None: an unnamed
+    /// collider, which takes the default).
+    pub fn friction_between(&self, a: Option<&str>, b: Option<&str>) -> f64 {
+        let (Some(a), Some(b)) = (a, b) else {
+            return self.friction;
+        };
+        self.pairs
+            .iter()
+            .rev()
+            .find(|p| {
+                (p.between[0] == a && p.between[1] == b) || (p.between[0] == b && p.between[1] == a)
+            })
+            .map_or(self.friction, |p| p.friction)
+    }
+}
+
+impl ContactSettings {
+    /// Check the ranges.
+    pub fn validate(&self) -> Result<()> {
+        let positive = |name: &'static str, v: Option<f64>, what: &str| match v {
+            Some(x) if !(x > 0.0 && x.is_finite()) => Err(Error::param(
+                name,
+                x,
+                format!("{what} must be positive and finite"),
+            )),
+            _ => Ok(()),
+        };
+        positive(
+            "contact.stiffness",
+            self.stiffness,
+            "the contact penalty stiffness (Pa/m^2)",
+        )?;
+        positive("contact.radius", self.radius, "the contact radius (metres)")?;
+        if self.samples == Some(0) {
+            return Err(Error::param(
+                "contact.samples",
+                0,
+                "each object needs at least one contact sample",
+            ));
+        }
+        let mus = std::iter::once(("contact.friction", self.friction)).chain(
+            self.pairs
+                .iter()
+                .map(|p| ("contact.pair.friction", p.friction)),
+        );
+        for (name, mu) in mus {
+            if !(mu >= 0.0 && mu.is_finite()) {
+                return Err(Error::param(
+                    name,
+                    mu,
+                    "a friction coefficient must be >= 0 and finite (0: frictionless)",
+                ));
+            }
+        }
+        let v = self.friction_velocity;
+        if !(v > 0.0 && v.is_finite()) {
+            return Err(Error::param(
+                "contact.friction_velocity",
+                v,
+                "the friction smoothing velocity (m/s) must be positive and finite (default 1e-3)",
+            ));
+        }
+        let tol = self.penetration_tolerance;
+        if !(tol > 0.0 && tol < 1.0) {
+            return Err(Error::param(
+                "contact.penetration_tolerance",
+                tol,
+                "the penetration tolerance is a fraction of the smaller object diagonal, in \
+                 (0, 1) (default 0.01)",
+            ));
+        }
+        Ok(())
+    }
+}

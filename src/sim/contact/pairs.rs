@@ -1,0 +1,89 @@
+//! Broad phase between the objects of an island: the boxes of each object's deformed samples
+//! first, then, for each pair of objects whose boxes come within reach, a k-d tree over one
+//! object's samples queried with the other's.
+
+use crate::Point3;
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+
+/// A candidate sample pair: sample `i` of body `a` and sample `j` of body `b` (a < b).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Candidate {
+    /// First body (index into the island's bodies).
+    pub a: usize,
+    /// Second body, > `a`.
+    pub b: usize,
+    /// Sample of body `a`.
+    pub i: usize,
+    /// Sample of body `b`.
+    pub j: usize,
+}
+
+/// What a broad phase tested.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct BroadStats {
+    /// Object pairs whose boxes were compared.
+    pub object_pairs: usize,
+    /// Object pairs whose boxes came within reach (their samples were searched).
+    pub object_pairs_near: usize,
+}
+
+fn bounds(x: &[Point3]) -> (Point3, Point3) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in x {
+        for d in 0..3 {
+            lo[d] = lo[d].min(p[d]);
+            hi[d] = hi[d].max(p[d]);
+        }
+    }
+    (lo, hi)
+}
+
+/// Every sample pair (i of body a, j of body b, a < b) closer than `reach(a, b)` metres,
+/// for sample positions `x` (one list per body), in the order (a, b, i, j): sums over the
+/// result do not depend on the thread count.
+pub fn candidates(
+    x: &[Vec<Point3>],
+    reach: &dyn Fn(usize, usize) -> f64,
+) -> (Vec<Candidate>, BroadStats) {
+    let boxes: Vec<(Point3, Point3)> = x.iter().map(|p| bounds(p)).collect();
+    let mut trees: Vec<Option<ImmutableKdTree<f64, 3>>> = (0..x.len()).map(|_| None).collect();
+    let mut out = Vec::new();
+    let mut stats = BroadStats::default();
+    for a in 0..x.len() {
+        for b in a + 1..x.len() {
+            stats.object_pairs += 1;
+            let r = reach(a, b);
+            let (la, ha) = boxes[a];
+            let (lb, hb) = boxes[b];
+            if (0..3).any(|d| la[d] > hb[d] + r || lb[d] > ha[d] + r) || x[a].is_empty() {
+                continue;
+            }
+            stats.object_pairs_near += 1;
+            if trees[b].is_none() {
+                // A k-d tree over finite points cannot fail to build; non-finite positions
+                // (never produced by a finite z) would leave the pair untested.
+                trees[b] = ImmutableKdTree::new_from_slice(&x[b]).ok();
+            }
+            let Some(tree) = &trees[b] else { continue };
+            let r2 = r * r;
+            for (i, p) in x[a].iter().enumerate() {
+                if (0..3).any(|d| p[d] < lb[d] - r || p[d] > hb[d] + r) {
+                    continue;
+                }
+                let mut found: Vec<usize> = tree
+                    .query(p)
+                    .within::<SquaredEuclidean<f64>>(r2)
+                    .unsorted()
+                    .execute()
+                    .iter()
+                    .filter(|n| n.distance < r2)
+                    .map(|n| n.item as usize)
+                    .collect();
+                found.sort_unstable();
+                out.extend(found.into_iter().map(|j| Candidate { a, b, i, j }));
+            }
+        }
+    }
+    (out, stats)
+}
