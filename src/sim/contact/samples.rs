@@ -33,7 +33,8 @@ pub struct ContactSamples {
     handles: usize,
 }
 
-/// Surface area of a shape, m^2 (None for point clouds).
+/// Surface area of a shape, m^2 (None for point clouds and voxel images, which have no
+/// surface mesh).
 pub fn surface_area(shape: &Shape) -> Option<f64> {
     match shape {
         Shape::Box { size: l } => Some(2.0 * (l[0] * l[1] + l[1] * l[2] + l[0] * l[2])),
@@ -44,7 +45,7 @@ pub fn surface_area(shape: &Shape) -> Option<f64> {
                 .map(|t| triangle_area(m.vertices(), t))
                 .sum(),
         ),
-        Shape::PointCloud(_) => None,
+        Shape::PointCloud(_) | Shape::Image(_) => None,
     }
 }
 
@@ -107,7 +108,8 @@ impl ContactSamples {
                 "shape",
                 shape.kind(),
                 "object-object contact needs a surface: a box, a sphere or a closed mesh \
-                 (point clouds and splats have none; leave them out of [contact] scenes)",
+                 (point clouds, splats and voxel images have none; leave them out of \
+                 [contact] scenes, or give an image object a mesh shape)",
             )
         })?;
         let t = thickness.unwrap_or((area / count as f64).sqrt());
@@ -132,7 +134,9 @@ impl ContactSamples {
             Shape::Box { size } => box_samples(size, count, t),
             Shape::Sphere { radius } => sphere_samples(*radius, count, t),
             Shape::Mesh(m) => mesh_samples(m.vertices(), m.triangles(), count, t)?,
-            Shape::PointCloud(_) => unreachable!("surface_area is None for point clouds"),
+            Shape::PointCloud(_) | Shape::Image(_) => {
+                unreachable!("surface_area is None for point clouds and images")
+            }
         };
         let w = basis.weights(&rest).map_err(|e| Error::Scene {
             message: format!(
