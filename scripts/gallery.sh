@@ -44,6 +44,13 @@ $FF render "$WORK/robot_push" --ground 0 --elevation 45 --azimuth 20 --every 24 
     --out "$WORK/robot_push_png"
 cp "$WORK/robot_push_png/frame_000024.png" docs/img/robot_push.png
 
+# Object-object contact (examples/stack.toml): the ball has bounced off the two-block stack and
+# rolled away behind it, frame 30 of 40 (t = 0.6 s).
+$FF run examples/stack.toml --out "$WORK/stack" > /dev/null
+$FF render "$WORK/stack" --ground 0 --elevation 25 --azimuth 120 --every 6 --size 640x480 \
+    --out "$WORK/stack_png"
+cp "$WORK/stack_png/frame_000030.png" docs/img/stack.png
+
 # A splat object before and after: a beach ball of 3D Gaussians (docs/splats.md) dropped on
 # the floor. 16 000 flat surface splats (Fibonacci sphere, radius 0.3 m; axes along north,
 # east and the normal; six coloured gores and white caps, light baked in) and a grid of faint interior splats
