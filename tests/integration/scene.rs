@@ -78,12 +78,17 @@ fn example_scenes_parse() {
         "drop.toml",
         "heterogeneous.toml",
         "layered_sphere.toml",
+        "stack.toml",
     ] {
         let s = Scene::load(&dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert!(!s.objects.is_empty());
         n += 1;
     }
-    assert_eq!(n, 5);
+    assert_eq!(n, 6);
+    // The contact example has contact (with its friction) and three objects to touch.
+    let stack = Scene::load(&dir.join("stack.toml")).unwrap();
+    assert_eq!(stack.objects.len(), 3);
+    assert_eq!(stack.contact.as_ref().map(|c| c.friction), Some(0.5));
     // The layered sphere: shells alternate, stiff innermost (each override wins over the ones
     // before it, so the smallest ball is the last).
     let l = Scene::load(&dir.join("layered_sphere.toml")).unwrap();
