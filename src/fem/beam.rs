@@ -198,29 +198,47 @@ pub fn run_beam_reference(
     progress: &dyn Progress,
 ) -> crate::Result<BeamReference> {
     let (hash, key) = config.cache_key();
+    let mut r = cached_reference(cache_dir, &hash, &key, progress, || {
+        compute(config, progress)
+    })?;
+    // A cache file holds the trajectory, not the configuration it was keyed by.
+    r.config = config.clone();
+    Ok(r)
+}
+
+/// The FEM reference stored under `key` in `cache_dir/{hash}.bin`, or, when there is none or
+/// it is unusable (a warning through `progress`), `compute()`'s, written there. Without a
+/// cache directory `compute()` runs and nothing is written. `cache` tells which happened.
+///
+/// # Errors
+/// `compute()`'s errors; [`FemError::Io`] when the cache file cannot be written.
+pub(crate) fn cached_reference(
+    cache_dir: Option<&Path>,
+    hash: &str,
+    key: &str,
+    progress: &dyn Progress,
+    compute: impl FnOnce() -> crate::Result<BeamReference>,
+) -> crate::Result<BeamReference> {
     let path = cache_dir.map(|d| d.join(format!("{hash}.bin")));
     let mut rejected = None;
-    if let Some(p) = &path {
-        if p.exists() {
-            match read_cache(p, &key) {
-                Ok(mut r) => {
-                    r.config = config.clone();
-                    r.cache = CacheStatus::Hit(p.clone());
-                    return Ok(r);
-                }
-                Err(reason) => {
-                    progress.message(&format!(
-                        "warning: FEM cache {} unusable ({reason}); recomputing",
-                        p.display()
-                    ));
-                    rejected = Some(reason);
-                }
+    if let Some(p) = path.as_ref().filter(|p| p.exists()) {
+        match read_cache(p, key) {
+            Ok(mut r) => {
+                r.cache = CacheStatus::Hit(p.clone());
+                return Ok(r);
+            }
+            Err(reason) => {
+                progress.message(&format!(
+                    "warning: FEM cache {} unusable ({reason}); recomputing",
+                    p.display()
+                ));
+                rejected = Some(reason);
             }
         }
     }
-    let mut r = compute(config, progress)?;
+    let mut r = compute()?;
     if let Some(p) = path {
-        write_cache(&p, &key, &r)?;
+        write_cache(&p, key, &r)?;
         r.cache = match rejected {
             Some(reason) => CacheStatus::Recomputed { path: p, reason },
             None => CacheStatus::Written(p),

@@ -88,18 +88,7 @@ impl Accumulator {
     /// [`Error::InvalidParameter`] when a kernel index is out of range.
     pub fn add(&mut self, sf: &ShapeFunctions, volumes: &[f64], weights: &[f64]) -> Result<()> {
         let n = sf.rows();
-        for (what, got) in [
-            ("volumes", volumes.len()),
-            ("hessian weights", weights.len()),
-        ] {
-            if got != n {
-                return Err(Error::LengthMismatch {
-                    what,
-                    expected: n,
-                    got,
-                });
-            }
-        }
+        check_point_lengths(n, volumes, weights)?;
         let k = self.rows.len();
         if let Some(&bad) = sf.pattern.kernels.iter().find(|&&j| j as usize >= k) {
             return Err(Error::param(
@@ -214,6 +203,23 @@ pub fn assemble(
     let mut acc = Accumulator::new(k)?;
     acc.add(sf, volumes, weights)?;
     acc.finish()
+}
+
+/// [`Error::LengthMismatch`] unless `volumes` and `weights` have one entry per point (`n`).
+pub(crate) fn check_point_lengths(n: usize, volumes: &[f64], weights: &[f64]) -> Result<()> {
+    for (what, got) in [
+        ("volumes", volumes.len()),
+        ("hessian weights", weights.len()),
+    ] {
+        if got != n {
+            return Err(Error::LengthMismatch {
+                what,
+                expected: n,
+                got,
+            });
+        }
+    }
+    Ok(())
 }
 
 /// Hand the memory of the freed rows back to the system. The rows are millions of small

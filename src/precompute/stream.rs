@@ -62,18 +62,7 @@ pub fn assemble_streamed(
     progress: &dyn Progress,
 ) -> Result<Streamed> {
     let n = points.len();
-    for (what, got) in [
-        ("volumes", volumes.len()),
-        ("hessian weights", weights.len()),
-    ] {
-        if got != n {
-            return Err(Error::LengthMismatch {
-                what,
-                expected: n,
-                got,
-            });
-        }
-    }
+    super::assembly::check_point_lengths(n, volumes, weights)?;
     if chunk == 0 {
         return Err(Error::param(
             "chunk",

@@ -4,7 +4,7 @@
 //! every setting).
 
 use super::protocol::{boundary_regions, gravity, NormalizedShape, Protocol, ShapeTest};
-use crate::fem::beam::{fnv1a, read_cache, write_cache, BeamReference, CacheStatus};
+use crate::fem::beam::{cached_reference, fnv1a, BeamReference, CacheStatus};
 use crate::fem::element::fe_nodes;
 use crate::fem::solver::{FemParams, FemSolver};
 use crate::fem::{FemError, TetMaterials, TetMesh};
@@ -82,32 +82,9 @@ pub fn run_shape_reference(
     protocol.validate()?;
     let params = fem_params(base, protocol, shape, test);
     let (hash, key) = cache_key(mesh, protocol, shape, test, &params);
-    let path = cache_dir.map(|d| d.join(format!("{hash}.bin")));
-    let mut rejected = None;
-    if let Some(p) = path.as_ref().filter(|p| p.exists()) {
-        match read_cache(p, &key) {
-            Ok(mut r) => {
-                r.cache = CacheStatus::Hit(p.clone());
-                return Ok(r);
-            }
-            Err(reason) => {
-                progress.message(&format!(
-                    "warning: FEM cache {} unusable ({reason}); recomputing",
-                    p.display()
-                ));
-                rejected = Some(reason);
-            }
-        }
-    }
-    let mut r = compute(mesh, protocol, shape, test, params, progress)?;
-    if let Some(p) = path {
-        write_cache(&p, &key, &r)?;
-        r.cache = match rejected {
-            Some(reason) => CacheStatus::Recomputed { path: p, reason },
-            None => CacheStatus::Written(p),
-        };
-    }
-    Ok(r)
+    cached_reference(cache_dir, &hash, &key, progress, || {
+        compute(mesh, protocol, shape, test, params, progress)
+    })
 }
 
 fn compute(
