@@ -82,7 +82,7 @@ pub fn build_basis_mpi(
     let expected = super::memory::expected_points(shape, opts);
     let mut memory = super::MemoryEstimate::new(opts, expected);
     if expected as u128 <= super::sampling::MAX_GRID_CELLS {
-        memory.check()?;
+        check_memory_on_all_ranks(&mut memory)?;
     }
     let mut timings = Timings::default();
     let total = Stopwatch::start();
@@ -295,6 +295,40 @@ pub fn build_basis_mpi(
         },
         dist,
     ))
+}
+
+/// The ranks of a node share its memory, and all ranks must take the same decision (one that
+/// stopped alone would leave the others waiting in a collective call): every rank checks the
+/// estimate against the least share any rank sees, the memory available divided among the
+/// ranks on its node.
+fn check_memory_on_all_ranks(memory: &mut super::MemoryEstimate) -> Result<()> {
+    let local = ranks_on_this_node();
+    let found = super::memory::available_memory()?;
+    let share = found
+        .as_ref()
+        .map_or(f64::INFINITY, |(bytes, _)| *bytes as f64 / local as f64);
+    let mut least = [-share];
+    allreduce_max(&mut least)?;
+    let least = -least[0];
+    if !least.is_finite() {
+        return Ok(());
+    }
+    let source = match found {
+        Some((_, source)) if local > 1 => format!("{source}, shared by {local} ranks on this node"),
+        Some((_, source)) => source,
+        None => "the least memory another rank sees".to_string(),
+    };
+    memory.check_against(least as u64, &source)
+}
+
+/// How many ranks of this job run on this node, from the launcher's environment (Open MPI's
+/// `OMPI_COMM_WORLD_LOCAL_SIZE`, MPICH's `MPI_LOCALNRANKS`); 1 when neither is set.
+fn ranks_on_this_node() -> u64 {
+    ["OMPI_COMM_WORLD_LOCAL_SIZE", "MPI_LOCALNRANKS"]
+        .iter()
+        .find_map(|name| std::env::var(name).ok()?.trim().parse::<u64>().ok())
+        .filter(|&n| n > 0)
+        .unwrap_or(1)
 }
 
 /// Bounding box of the kernels' supports (centre +- radius).
