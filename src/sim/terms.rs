@@ -273,6 +273,15 @@ impl BoundaryTerm {
 /// 5 diagonals near an obstacle in one iterate.
 pub const SWEEP_SAMPLES: usize = 1000;
 
+/// One obstacle in [`ContactTerm::max_step`]: its index, the allowed extra depth delta
+/// (metres) and its bounding sphere at its pose (None: unbounded).
+#[derive(Clone, Copy)]
+struct Sweep {
+    obstacle: usize,
+    delta: f64,
+    sphere: Option<(Point3, f64)>,
+}
+
 fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
@@ -469,15 +478,19 @@ impl ContactTerm {
     pub fn max_step(&self, layout: Layout, t: f64, z: &[f64], dir: &[f64], scale: f64) -> f64 {
         let poses = self.kinematics.poses(t);
         let obstacles = self.kinematics.obstacles();
-        let swept: Vec<(usize, f64, Option<(Point3, f64)>)> = obstacles
+        let swept: Vec<Sweep> = obstacles
             .iter()
             .zip(&poses)
             .enumerate()
             .filter_map(|(o, (obstacle, pose))| {
                 let half = obstacle.half_thickness()?;
                 let delta = scale.min(0.5 * half);
-                let bound = obstacle.bounding_sphere().map(|(c, r)| (pose.apply(&c), r));
-                (delta > 0.0).then_some((o, delta, bound))
+                let sphere = obstacle.bounding_sphere().map(|(c, r)| (pose.apply(&c), r));
+                (delta > 0.0).then_some(Sweep {
+                    obstacle: o,
+                    delta,
+                    sphere,
+                })
             })
             .collect();
         if swept.is_empty() {
@@ -497,7 +510,12 @@ impl ContactTerm {
                 return f64::INFINITY;
             }
             let mut bound = f64::INFINITY;
-            for &(o, delta, sphere) in &swept {
+            for &Sweep {
+                obstacle: o,
+                delta,
+                sphere,
+            } in &swept
+            {
                 if let Some((centre, r)) = sphere {
                     if segment_distance(&x, &dx, &centre) >= r {
                         continue;
