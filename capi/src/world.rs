@@ -67,6 +67,47 @@ pub struct FfStepReport {
     pub line_search_cutbacks: usize,
 }
 
+/// Object-object contact of the world's last step and the worst of the run so far (C struct
+/// `ff_contact_report`), from [`ff_world_contact_report`]: the numbers of the last row of
+/// [`freeform::scene::ContactSummary::steps`] and the summary's run-wide worst. All zero for
+/// a scene without `[contact]` (`enabled` 0) and before the first step (`step` 0).
+///
+/// A separate struct, not new fields of [`FfStepReport`]: C callers allocate that one, so
+/// growing it would break programs built against the older header.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FfContactReport {
+    /// 1 if the scene has a `[contact]` section (object-object contact is modelled), else 0.
+    pub enabled: c_int,
+    /// Step number the row is for, 1-based (0 before the first step or without contact).
+    pub step: usize,
+    /// Object pairs whose grown bounding boxes were compared, n (n - 1) / 2.
+    pub object_pairs_tested: usize,
+    /// Object pairs whose boxes met (they were solved together, in one island).
+    pub object_pairs_near: usize,
+    /// Sample pairs within contact distance at the end of the step.
+    pub sample_pairs_active: usize,
+    /// Deepest object-object penetration at the end of the step, metres.
+    pub penetration: f64,
+    /// The deepest penetration relative to the smaller rest bounding-box diagonal of its two
+    /// objects (dimensionless).
+    pub penetration_fraction: f64,
+    /// Islands of two or more objects this step.
+    pub islands: usize,
+    /// Objects in the largest island (0 without islands).
+    pub largest_island: usize,
+    /// Objects solved again because they ended touching another island's objects.
+    pub regrouped: usize,
+    /// Wall time of the whole world step, ms.
+    pub wall_ms: f64,
+    /// Worst penetration of the run so far, metres.
+    pub worst_penetration: f64,
+    /// Worst penetration of the run so far relative to the smaller diagonal of its objects.
+    pub worst_penetration_fraction: f64,
+    /// Steps so far whose deepest penetration exceeded the scene's tolerance.
+    pub steps_over_tolerance: usize,
+}
+
 type CResult<T> = Result<T, (Status, String)>;
 
 /// [`guard`] with the function's name before every error message.
@@ -285,6 +326,45 @@ pub unsafe extern "C" fn ff_world_step_report(
                 line_search_cutbacks: row.line_search_cutbacks,
             }
         };
+        Ok(())
+    })
+}
+
+/// Object-object contact of the last world step, and the worst of the run, into `*out`
+/// (see [`FfContactReport`]). Never an error for a valid world: a scene without `[contact]`
+/// gives all zeros with `enabled` 0, and a step count of 0 means no step was taken yet.
+#[no_mangle]
+pub unsafe extern "C" fn ff_world_contact_report(
+    world: *const FfWorld,
+    out: *mut FfContactReport,
+) -> c_int {
+    call("ff_world_contact_report", || {
+        let w = unsafe { world_ref(world)? };
+        if out.is_null() {
+            return Err((Status::NullPointer, "out is NULL".into()));
+        }
+        let mut rep = FfContactReport::default();
+        if let Some(s) = w.world.contact_summary() {
+            rep.enabled = 1;
+            rep.worst_penetration = s.worst_penetration;
+            rep.worst_penetration_fraction = s.worst_penetration_fraction;
+            rep.steps_over_tolerance = s.steps_over_tolerance;
+            if let Some(row) = s.steps.last() {
+                rep.step = row.step;
+                rep.object_pairs_tested = row.object_pairs_tested;
+                rep.object_pairs_near = row.object_pairs_near;
+                rep.sample_pairs_active = row.sample_pairs_active;
+                rep.penetration = row.penetration;
+                rep.penetration_fraction = row.penetration_fraction;
+                rep.islands = row.islands.len();
+                // Sizes are sorted largest first.
+                rep.largest_island = row.islands.first().copied().unwrap_or(0);
+                rep.regrouped = row.regrouped;
+                rep.wall_ms = row.wall_ms;
+            }
+        }
+        // SAFETY: checked non-NULL; the caller provides a writable ff_contact_report.
+        unsafe { *out = rep };
         Ok(())
     })
 }

@@ -121,6 +121,25 @@ typedef struct ff_step_report {
     size_t line_search_cutbacks; /* line-search step halvings, summed over iterations */
 } ff_step_report;
 
+/* Object-object contact ([contact] scenes) of the last world step and the worst of the run
+ * (see ff_world_contact_report). A struct of its own: ff_step_report keeps its layout. */
+typedef struct ff_contact_report {
+    int enabled;                       /* 1 if the scene has a [contact] section, else 0 */
+    size_t step;                       /* step of the row, 1-based; 0 before the first step */
+    size_t object_pairs_tested;        /* object pairs whose grown boxes were compared */
+    size_t object_pairs_near;          /* object pairs whose boxes met (solved together) */
+    size_t sample_pairs_active;        /* sample pairs within contact distance at step end */
+    double penetration;                /* deepest object-object penetration, metres */
+    double penetration_fraction;       /* the same / smaller rest diagonal of the two objects */
+    size_t islands;                    /* islands of two or more objects */
+    size_t largest_island;             /* objects in the largest island (0: none) */
+    size_t regrouped;                  /* objects solved again (ended touching another island) */
+    double wall_ms;                    /* wall time of the whole world step, ms */
+    double worst_penetration;          /* worst penetration of the run so far, metres */
+    double worst_penetration_fraction; /* the same / smaller diagonal of its two objects */
+    size_t steps_over_tolerance;       /* steps deeper than contact.penetration_tolerance */
+} ff_contact_report;
+
 /* Open the scene file scene_path and set up every object (basis from the scene's cache or
  * computed, reduced model, render points), as `freeform run` does: relative paths in the
  * scene resolve against the scene file's directory; no frames are written, nothing is
@@ -142,6 +161,10 @@ int ff_world_step(ff_world *world);
 
 /* The last step of object `object` into *out (FF_ERR_INVALID_ARGUMENT before the first). */
 int ff_world_step_report(const ff_world *world, size_t object, ff_step_report *out);
+
+/* Object-object contact of the last world step and the worst of the run into *out. A scene
+ * without [contact] gives all zeros (enabled 0); before the first step, step is 0. */
+int ff_world_contact_report(const ff_world *world, ff_contact_report *out);
 
 /* Steps of object `object` that did not converge so far (0 for NULL or a bad index). */
 size_t ff_world_nonconverged_steps(const ff_world *world, size_t object);

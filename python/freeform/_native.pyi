@@ -210,4 +210,17 @@ class World:
     ) -> None: ...
     def set_placement(self, object: ObjectRef, placement: dict[str, Any]) -> None: ...
     def basis(self, object: ObjectRef) -> Basis: ...
+    @property
+    def contact(self) -> Optional[dict[str, Any]]:
+        """Object-object contact of the last step ([contact] scenes; None without, or before
+        the first step): step, object_pairs_tested, object_pairs_near, sample_pairs_active,
+        penetration (deepest, metres), penetration_fraction (of the smaller rest diagonal of
+        the two objects), islands (sizes, largest first), island_count, largest_island,
+        regrouped (objects solved again), wall_ms (the world step, ms)."""
+    def contact_summary(self) -> Optional[dict[str, Any]]:
+        """The run's contact summary as `freeform run --json`'s "contact" (None without
+        [contact]): steps (rows as `contact`, without island_count and largest_island),
+        worst_penetration (metres), worst_penetration_fraction, steps_over_tolerance,
+        step_ms_mean (ms), samples and thickness (metres) per object, stiffness (Pa/m^2,
+        objects x objects, row-major)."""
     def summaries(self) -> list[dict[str, Any]]: ...

@@ -586,6 +586,39 @@ impl PyWorld {
         })
     }
 
+    /// Object-object contact of the last step (scenes with ``[contact]``), a dict, or None
+    /// without ``[contact]`` or before the first step: ``step``; ``object_pairs_tested``
+    /// (object boxes compared, n (n - 1) / 2) and ``object_pairs_near`` (boxes that met);
+    /// ``sample_pairs_active`` (sample pairs within contact distance at the end of the
+    /// step); ``penetration`` (deepest, metres) and ``penetration_fraction`` (of the smaller
+    /// rest bounding-box diagonal of the two objects); ``islands`` (sizes of the islands of
+    /// two or more objects, largest first), ``island_count``, ``largest_island`` (0 without
+    /// islands); ``regrouped`` (objects solved again); ``wall_ms`` (the world step, ms).
+    #[getter]
+    fn contact<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        let Some(row) = self.world.contact_summary().and_then(|s| s.steps.last()) else {
+            return Ok(None);
+        };
+        let d = report(py, row)?;
+        d.set_item("island_count", row.islands.len())?;
+        d.set_item("largest_island", row.islands.first().copied().unwrap_or(0))?;
+        Ok(Some(d))
+    }
+
+    /// The object-object contact summary of the run so far, a dict with the structure of
+    /// ``freeform run --json``'s ``contact`` (None without ``[contact]``): per-step rows as
+    /// ``contact`` gives them (without the ``island_count`` and ``largest_island``
+    /// shorthands), ``worst_penetration`` (metres), ``worst_penetration_fraction``,
+    /// ``steps_over_tolerance``, ``step_ms_mean`` (ms), per object ``samples`` and
+    /// ``thickness`` (metres), and the pair ``stiffness`` (Pa/m^2, objects x objects,
+    /// row-major).
+    fn contact_summary<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        self.world
+            .contact_summary()
+            .map(|s| report(py, s))
+            .transpose()
+    }
+
     /// Every object's summary (per-step rows, means, monitors) as dicts.
     fn summaries<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         report(py, &self.world.summaries())

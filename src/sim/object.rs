@@ -30,6 +30,12 @@ use serde::{Deserialize, Serialize};
 /// scales with the units, the material and the time step.
 pub const PENALTY_FACTOR: f64 = 1e3;
 
+/// How much deeper into an obstacle a cubature point may go along one line-search step,
+/// as a fraction of the object's rest diagonal: small enough that a plate a few percent of
+/// the object's size cannot be jumped across, large enough that an object settling into
+/// contact is not held back (the penalty's depth at rest is far smaller).
+pub const SWEEP_DEPTH: f64 = 0.01;
+
 /// A region of the object driven by a prescribed motion (held when the motion is `Fixed`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -483,6 +489,18 @@ impl ReducedSim {
         let mut z = start.guess.clone();
         let mut history = std::mem::take(&mut self.history);
         let pot = self.potential(&start);
+        // The guess extrapolates the motion and may carry points across a thin obstacle:
+        // pulled back toward z_n as far as the swept bound asks (kept as is when it allows
+        // the whole way).
+        if self.contacts.is_some() {
+            let dir: Vec<f64> = z.iter().zip(&self.z).map(|(g, z0)| g - z0).collect();
+            let alpha = pot.max_step(&self.z, &dir);
+            if alpha < 1.0 {
+                for ((zi, z0), d) in z.iter_mut().zip(&self.z).zip(&dir) {
+                    *zi = z0 + alpha * d;
+                }
+            }
+        }
         let measure = |d: &[f64]| self.measure(d);
         let ctx = SolverContext {
             rest: &self.rest_factor,
@@ -973,5 +991,15 @@ impl Potential for StepPotential<'_> {
             }
         }
         h
+    }
+
+    /// The colliders' swept bound ([`crate::sim::terms::ContactTerm::max_step`]): no cubature
+    /// point enters an obstacle deeper than [`SWEEP_DEPTH`] of the object's diagonal (or half
+    /// the obstacle's half-thickness) beyond where it is, along its path.
+    fn max_step(&self, z: &[f64], dir: &[f64]) -> f64 {
+        let s = self.sim;
+        s.contacts.as_ref().map_or(f64::INFINITY, |c| {
+            c.max_step(s.layout, self.t, z, dir, SWEEP_DEPTH * s.diag)
+        })
     }
 }

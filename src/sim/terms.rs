@@ -268,6 +268,37 @@ impl BoundaryTerm {
     }
 }
 
+/// Path samples a cubature point's sweep follows at most per line-search direction
+/// ([`ContactTerm::max_step`]): with delta = 1% of the object's diagonal, a point may move
+/// 5 diagonals near an obstacle in one iterate.
+pub const SWEEP_SAMPLES: usize = 1000;
+
+/// One obstacle in [`ContactTerm::max_step`]: its index, the allowed extra depth delta
+/// (metres) and its bounding sphere at its pose (None: unbounded).
+#[derive(Clone, Copy)]
+struct Sweep {
+    obstacle: usize,
+    delta: f64,
+    sphere: Option<(Point3, f64)>,
+}
+
+fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Distance from `c` to the segment from `x` to `x + dx`, metres.
+fn segment_distance(x: &Point3, dx: &[f64; 3], c: &Point3) -> f64 {
+    let w: [f64; 3] = std::array::from_fn(|d| c[d] - x[d]);
+    let len2 = dot(dx, dx);
+    let s = if len2 > 0.0 {
+        (dot(&w, dx) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let e: [f64; 3] = std::array::from_fn(|d| w[d] - s * dx[d]);
+    dot(&e, &e).sqrt()
+}
+
 /// One-sided collider penalties kappa/2 sum_c v_c d_c^2 on the cubature points, d_c the
 /// penetration depth of point c in each obstacle at the obstacles' poses at time t
 /// ([`Kinematics`]).
@@ -432,6 +463,99 @@ impl ContactTerm {
             }
         }
         info
+    }
+
+    /// The largest step fraction alpha in [0, 1] along `dir` from `z` (infinite when
+    /// nothing limits it) such that no cubature point goes deeper into an obstacle (at its
+    /// pose at time `t`) than its depth at `z` plus delta, delta = min(`scale` (metres), half
+    /// the obstacle's [`crate::sim::collider::Obstacle::half_thickness`]), anywhere along its
+    /// straight path: a swept
+    /// test, so a fast point cannot jump across a thin obstacle between iterates (the
+    /// penalty alone only sees where it lands). The depth is 1-Lipschitz in the position, so
+    /// it is checked at path samples delta/2 apart against depth(z) + delta/2; a path is
+    /// followed for at most [`SWEEP_SAMPLES`] samples (a point moving farther near an
+    /// obstacle is bounded there). Planes bound nothing.
+    pub fn max_step(&self, layout: Layout, t: f64, z: &[f64], dir: &[f64], scale: f64) -> f64 {
+        let poses = self.kinematics.poses(t);
+        let obstacles = self.kinematics.obstacles();
+        let swept: Vec<Sweep> = obstacles
+            .iter()
+            .zip(&poses)
+            .enumerate()
+            .filter_map(|(o, (obstacle, pose))| {
+                let half = obstacle.half_thickness()?;
+                let delta = scale.min(0.5 * half);
+                let sphere = obstacle.bounding_sphere().map(|(c, r)| (pose.apply(&c), r));
+                (delta > 0.0).then_some(Sweep {
+                    obstacle: o,
+                    delta,
+                    sphere,
+                })
+            })
+            .collect();
+        if swept.is_empty() {
+            return f64::INFINITY;
+        }
+        let n4 = layout.row_len();
+        let point = |c: usize| -> f64 {
+            let x = self.position(layout, c, z);
+            let mut dx = [0.0; 3];
+            for (k, bk) in self.b(c) {
+                for (r, v) in dx.iter_mut().enumerate() {
+                    *v += bk * dir[r * n4 + k];
+                }
+            }
+            let len = dot(&dx, &dx).sqrt();
+            if len == 0.0 {
+                return f64::INFINITY;
+            }
+            let mut bound = f64::INFINITY;
+            for &Sweep {
+                obstacle: o,
+                delta,
+                sphere,
+            } in &swept
+            {
+                if let Some((centre, r)) = sphere {
+                    if segment_distance(&x, &dx, &centre) >= r {
+                        continue;
+                    }
+                }
+                let (obstacle, pose) = (&obstacles[o], &poses[o]);
+                let depth = |y: &Point3| obstacle.penetration(pose, y).map_or(0.0, |p| p.depth);
+                let limit = depth(&x) + 0.5 * delta;
+                let sigma = 0.5 * delta / len;
+                for k in 1..=SWEEP_SAMPLES {
+                    let s = (k as f64 * sigma).min(1.0);
+                    let y = std::array::from_fn(|d| x[d] + s * dx[d]);
+                    if depth(&y) > limit {
+                        // The first sample is within delta/2 of x, so within the limit but
+                        // for rounding: at least that far is always allowed.
+                        bound = bound.min((k - 1).max(1) as f64 * sigma);
+                        break;
+                    }
+                    if s == 1.0 {
+                        break;
+                    }
+                    if k == SWEEP_SAMPLES {
+                        bound = bound.min(s);
+                    }
+                }
+            }
+            bound
+        };
+        if obstacles.iter().any(|o| o.mesh().is_some()) {
+            use rayon::prelude::*;
+            (0..self.points.len())
+                .into_par_iter()
+                .with_min_len(64)
+                .map(point)
+                .reduce(|| f64::INFINITY, f64::min)
+        } else {
+            (0..self.points.len())
+                .map(point)
+                .fold(f64::INFINITY, f64::min)
+        }
     }
 
     /// The collider contacts at the start of a step (`z`, time `t0`) as friction sees them

@@ -195,6 +195,10 @@ const RUN_SCENES: &[Case] = &[
     (&["@scene/contact_negative_friction.toml"], "contact.friction = -0.2: a friction coefficient must be >= 0"),
     (&["@scene/contact_nan_friction.toml"], "contact.pair.friction = NaN: a friction coefficient must be >= 0"),
     (&["@scene/contact_unknown_pair.toml"], "'nobody': names no object and no collider"),
+    (&["@scene/contact_negative_pair_friction.toml"], "contact.pair.friction = -1: a friction coefficient must be >= 0"),
+    (&["@scene/collider_misoriented.toml"], "misoriented.obj: a solid collider mesh must be closed and consistently oriented, and this one has 0 boundary, 0 non-manifold and"),
+    (&["@scene/collider_nan_vertex.toml"], "nan_vertex.obj"),
+    (&["@scene/collider_fin_surface.toml"], "collider_fin.obj: a one-sided collider surface needs manifold, consistently oriented triangles (its normals say which side is free), and this one has 1 non-manifold"),
     (&["@scene/does_not_exist.toml"], "does_not_exist.toml"),
     (&["@scene/splats_zero_quat.toml"], "splats_zero_quat.ply: splat PLY element `vertex` 7 property `rot_0..rot_3` = (0, 0, 0, 0) is a zero or non-finite quaternion"),
     (&["@scene/splats_nan_scale.toml"], "splats_nan_scale.ply: splat PLY element `vertex` 3 property `scale_1` = NaN is not finite"),
@@ -839,4 +843,19 @@ fn basis_array_beyond_its_limit_is_rejected() {
         COEFFICIENT_LIMIT,
         u64::from(honest_len),
     );
+}
+
+/// Zero friction is valid (frictionless), not bad input: the keys that refuse -0.2 and NaN
+/// (the corpus above) accept 0, for every contact and for a pair.
+#[test]
+fn zero_friction_is_frictionless_not_an_error() {
+    let text = "[simulation]\ndt = 0.01\nsteps = 2\n[[object]]\nname = \"bar\"\n\
+                shape = \"box:1,0.2,0.2\"\n[[collider]]\nname = \"floor\"\n\
+                shape = { plane = { point = [0, -1, 0], normal = [0, 1, 0] } }\n\
+                [contact]\nfriction = 0.0\n[[contact.pair]]\nbetween = [\"bar\", \"floor\"]\n\
+                friction = 0.0\n";
+    let scene = Scene::from_toml(text).unwrap();
+    let c = scene.contact.as_ref().unwrap();
+    assert_eq!(c.friction, 0.0);
+    assert_eq!(c.friction_between(Some("bar"), Some("floor")), 0.0);
 }

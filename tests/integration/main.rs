@@ -36,4 +36,5 @@ mod splats;
 mod streaming;
 mod strict;
 mod sweep_cli;
+mod tunnel;
 mod world;

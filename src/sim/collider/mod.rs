@@ -714,6 +714,24 @@ impl Obstacle {
         }
     }
 
+    /// Half the obstacle's thinnest extent, metres: past this depth the nearest surface of a
+    /// point inside can be the far one, so the penalty would push it on through (a box's
+    /// smallest half-size, a sphere's or capsule's radius). Infinite for a mesh (its
+    /// thickness is not known; the object's own scale bounds the sweep), None for a plane
+    /// (the depth grows without bound along every line into it: nothing to pass through).
+    pub fn half_thickness(&self) -> Option<f64> {
+        match self {
+            Obstacle::Plane { .. } => None,
+            Obstacle::Box { min, max, .. } => Some(
+                (0..3)
+                    .map(|d| 0.5 * (max[d] - min[d]))
+                    .fold(f64::INFINITY, f64::min),
+            ),
+            Obstacle::Sphere { radius, .. } | Obstacle::Capsule { radius, .. } => Some(*radius),
+            Obstacle::Mesh(_) => Some(f64::INFINITY),
+        }
+    }
+
     /// A sphere (centre, radius; rest frame, metres) that holds every point that can
     /// penetrate, for a cheap rejection; None when the obstacle is unbounded (a plane, a
     /// one-sided mesh surface).

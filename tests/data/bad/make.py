@@ -231,6 +231,18 @@ write("scene/contact_nan_friction.toml", GOOD + "[contact]\n[[contact.pair]]\n"
       "between = [\"bar\", \"floor\"]\nfriction = nan\n")
 write("scene/contact_unknown_pair.toml", GOOD + "[contact]\n[[contact.pair]]\n"
       "between = [\"bar\", \"nobody\"]\nfriction = 0.3\n")
+write("scene/contact_negative_pair_friction.toml", GOOD + "[contact]\n[[contact.pair]]\n"
+      "between = [\"bar\", \"floor\"]\nfriction = -1.0\n")
+# Collider meshes (issue 15): a solid with two faces turned the wrong way, a non-finite
+# vertex, and a one-sided surface with an edge shared by three triangles (a fin).
+write("scene/collider_misoriented.toml", GOOD + "[[collider]]\nname = \"crate\"\n"
+      "shape = { mesh = { file = \"../obj/misoriented.obj\" } }\n")
+write("scene/collider_nan_vertex.toml", GOOD + "[[collider]]\n"
+      "shape = { mesh = { file = \"../obj/nan_vertex.obj\" } }\n")
+write("scene/collider_fin.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\n"
+      "f 1 2 3\nf 2 1 4\nf 1 2 5\n")
+write("scene/collider_fin_surface.toml", GOOD + "[[collider]]\n"
+      "shape = { mesh = { file = \"collider_fin.obj\", sided = \"outside\" } }\n")
 
 
 # --- MatrixMarket pairs (`freeform modes --from-matrices DIR`) -------------------------
