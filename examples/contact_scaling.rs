@@ -37,9 +37,8 @@ fn scene(n: usize, steps: usize) -> String {
         ([0.0, 0.0, 0.0], [0.0, 0.0, 1.0]),
         ([0.0, 0.0, lz], [0.0, 0.0, -1.0]),
     ] {
-        s += &format!(
-            "[[collider]]\nshape = {{ plane = {{ point = {p:?}, normal = {nrm:?} }} }}\n"
-        );
+        s +=
+            &format!("[[collider]]\nshape = {{ plane = {{ point = {p:?}, normal = {nrm:?} }} }}\n");
     }
     for i in 0..n {
         let level = i / per_level;
@@ -101,7 +100,7 @@ fn measure(n: usize, steps: usize) -> Row {
     let mut unconverged = 0;
     for _ in 0..steps {
         let reports = world.step().expect("step");
-        unconverged += reports.iter().filter(|r| !r.converged).count();
+        unconverged += reports.iter().filter(|r| !r.solve.converged).count();
     }
     let cpu = cpu_seconds() - c1;
     let wall = t1.elapsed().as_secs_f64();
@@ -139,7 +138,21 @@ fn measure(n: usize, steps: usize) -> Row {
 }
 
 fn plot(rows: &[Row], path: &str) -> Result<(), Box<dyn std::error::Error>> {
-    let root = BitMapBackend::new(path, (720, 480)).into_drawing_area();
+    let font = freeform::render::register_font()?;
+    let (w, h) = (720u32, 480u32);
+    let mut rgb = vec![255u8; (w * h * 3) as usize];
+    draw(rows, font, &mut rgb, (w, h)).map_err(|e| e.to_string())?;
+    freeform::render::write_png_rgb(std::path::Path::new(path), w, h, &rgb)?;
+    Ok(())
+}
+
+fn draw<'a>(
+    rows: &[Row],
+    font: &str,
+    rgb: &'a mut [u8],
+    size: (u32, u32),
+) -> Result<(), Box<dyn std::error::Error + 'a>> {
+    let root = BitMapBackend::with_buffer(rgb, size).into_drawing_area();
     root.fill(&WHITE)?;
     let nmax = rows.iter().map(|r| r.n).max().unwrap_or(1) as f64;
     let ymax = rows
@@ -147,11 +160,14 @@ fn plot(rows: &[Row], path: &str) -> Result<(), Box<dyn std::error::Error>> {
         .map(|r| r.cpu_ms.max(r.step_ms))
         .fold(1.0, f64::max);
     let mut chart = ChartBuilder::on(&root)
-        .caption("Step time against object count (contact)", ("sans-serif", 22))
+        .caption("Step time against object count (contact)", (font, 22))
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(60)
-        .build_cartesian_2d((0.8..nmax * 1.25).log_scale(), (0.5..ymax * 2.0).log_scale())?;
+        .build_cartesian_2d(
+            (0.8..nmax * 1.25).log_scale(),
+            (0.5..ymax * 2.0).log_scale(),
+        )?;
     chart
         .configure_mesh()
         .x_desc("objects N")
