@@ -15,12 +15,23 @@ use crate::report::Stopwatch;
 use crate::sim::contact::island::step_island;
 use crate::sim::contact::pairs::candidates;
 use crate::sim::contact::samples::default_count;
-use crate::sim::contact::{Body, ContactSamples, ContactSettings, ContactStats, PairContact};
+use crate::sim::contact::{
+    Body, ContactSamples, ContactSettings, ContactStats, IslandSolver, PairContact,
+};
 use crate::sim::motion::rotation_matrix;
 use crate::sim::StepReport;
 use crate::{Error, Point3, Result};
 use rayon::prelude::*;
 use serde::Serialize;
+
+/// How many times a pair's penalty stiffness is multiplied when its island ends a step
+/// deeper than the penetration tolerance: 4, which halves the depth under the same load
+/// (pressure kappa delta^2).
+pub const STIFFENING_FACTOR: f64 = 4.0;
+
+/// Most stiffness raises (and so re-solves) of one island in one step: 4 raises allow 256x
+/// the default stiffness, a sixteenth of the depth.
+pub const MAX_STIFFENING: usize = 4;
 
 /// One step of object-object contact in the run summary.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -43,6 +54,9 @@ pub struct ContactStepRow {
     pub islands: Vec<usize>,
     /// Objects solved again because they ended in contact with another island's.
     pub regrouped: usize,
+    /// Islands solved again with a raised pair stiffness (penetration above the tolerance),
+    /// counted once per raise.
+    pub stiffened: usize,
 }
 
 /// Object-object contact over a run.
@@ -54,7 +68,8 @@ pub struct ContactSummary {
     pub samples: Vec<usize>,
     /// Contact thickness per object, metres.
     pub thickness: Vec<f64>,
-    /// Penalty stiffness of each object pair, Pa/m^2 (row-major, objects x objects).
+    /// Penalty stiffness of each object pair at the end of the run, Pa/m^2 (row-major,
+    /// objects x objects; raised where a pair went deeper than the tolerance).
     pub stiffness: Vec<f64>,
     /// Worst penetration of the run, metres.
     pub worst_penetration: f64,
@@ -76,6 +91,7 @@ pub(super) struct WorldContact {
     eps_v: f64,
     stiffness: Vec<f64>,
     tolerance: f64,
+    solver: IslandSolver,
     /// Sample positions at the current state, per object.
     positions: Vec<Vec<Point3>>,
     warned: std::collections::BTreeSet<(usize, usize)>,
@@ -135,6 +151,9 @@ fn groups(parent: &mut [usize]) -> Vec<Vec<usize>> {
 struct Solved {
     reports: Vec<(usize, StepReport)>,
     stats: Option<ContactStats>,
+    /// For an island: its objects and their pair stiffnesses (row-major over the group) if
+    /// any was raised, and the number of raises.
+    stiffened: Option<(Vec<usize>, Vec<f64>, usize)>,
 }
 
 impl WorldContact {
@@ -237,6 +256,7 @@ impl WorldContact {
             eps_v: settings.friction_velocity,
             stiffness,
             tolerance: settings.penetration_tolerance,
+            solver: settings.solver,
             positions,
             warned: Default::default(),
         };
@@ -325,6 +345,7 @@ impl WorldContact {
             return Solved {
                 reports: vec![(*only, rep)],
                 stats: None,
+                stiffened: None,
             };
         }
         let mut offset = 0;
@@ -343,22 +364,41 @@ impl WorldContact {
             })
             .collect();
         let n = self.samples.len();
-        let stiffness = group
+        let m = group.len();
+        let mut stiffness: Vec<f64> = group
             .iter()
             .flat_map(|&a| group.iter().map(move |&b| self.stiffness[a * n + b]))
             .collect();
-        let contact = PairContact::new(bodies, stiffness);
         let mu: Vec<f64> = group
             .iter()
             .flat_map(|&a| group.iter().map(move |&b| self.mu[a * n + b]))
             .collect();
         let mut sims: Vec<&mut crate::sim::ReducedSim> =
             objs.into_iter().map(|o| o.sim_mut()).collect();
-        let (reports, mut stats) = step_island(&mut sims, &contact, &mu, self.eps_v);
-        stats.deepest_pair = stats.deepest_pair.map(|(a, b)| (group[a], group[b]));
-        Solved {
-            reports: group.iter().copied().zip(reports).collect(),
-            stats: Some(stats),
+        let snapshots: Vec<_> = sims.iter().map(|s| s.snapshot()).collect();
+        let mut raises = 0;
+        loop {
+            let contact = PairContact::new(bodies.clone(), stiffness.clone());
+            let (reports, mut stats) =
+                step_island(&mut sims, &contact, &mu, self.eps_v, self.solver);
+            if let Some((a, b)) = stats.deepest_pair {
+                if stats.deepest_fraction > self.tolerance && raises < MAX_STIFFENING {
+                    // Too deep: undo, stiffen this pair, solve again.
+                    stiffness[a * m + b] *= STIFFENING_FACTOR;
+                    stiffness[b * m + a] *= STIFFENING_FACTOR;
+                    for (s, snap) in sims.iter_mut().zip(&snapshots) {
+                        s.restore(snap);
+                    }
+                    raises += 1;
+                    continue;
+                }
+            }
+            stats.deepest_pair = stats.deepest_pair.map(|(a, b)| (group[a], group[b]));
+            return Solved {
+                reports: group.iter().copied().zip(reports).collect(),
+                stats: Some(stats),
+                stiffened: (raises > 0).then(|| (group.to_vec(), stiffness, raises)),
+            };
         }
     }
 
@@ -494,9 +534,20 @@ impl WorldContact {
             penetration_fraction: 0.0,
             islands: Vec::new(),
             regrouped,
+            stiffened: 0,
         };
         let mut deepest_pair = None;
         for s in solved.into_iter().flatten() {
+            if let Some((group, k, raises)) = s.stiffened {
+                row.stiffened += raises;
+                let m = group.len();
+                for (p, &a) in group.iter().enumerate() {
+                    for (q, &b) in group.iter().enumerate() {
+                        self.stiffness[a * n + b] = k[p * m + q];
+                    }
+                }
+                self.summary.stiffness.clone_from(&self.stiffness);
+            }
             if let Some(st) = s.stats {
                 row.islands.push(s.reports.len());
                 row.sample_pairs_active += st.active;
