@@ -228,7 +228,8 @@ impl BlockSolve {
         while info.iterations < cap {
             self.h.mul(&p, &mut hp);
             let php = dot(&p, &hp);
-            if !(php > 0.0) {
+            // Zero or negative curvature (or NaN) along p: stop with the iterate so far.
+            if php.is_nan() || php <= 0.0 {
                 break;
             }
             let alpha = rz / php;
