@@ -195,6 +195,7 @@ const RUN_SCENES: &[Case] = &[
     (&["@scene/contact_negative_friction.toml"], "contact.friction = -0.2: a friction coefficient must be >= 0"),
     (&["@scene/contact_nan_friction.toml"], "contact.pair.friction = NaN: a friction coefficient must be >= 0"),
     (&["@scene/contact_unknown_pair.toml"], "'nobody': names no object and no collider"),
+    (&["@scene/contact_unknown_solver.toml"], "unknown variant `sparse`"),
     (&["@scene/does_not_exist.toml"], "does_not_exist.toml"),
     (&["@scene/splats_zero_quat.toml"], "splats_zero_quat.ply: splat PLY element `vertex` 7 property `rot_0..rot_3` = (0, 0, 0, 0) is a zero or non-finite quaternion"),
     (&["@scene/splats_nan_scale.toml"], "splats_nan_scale.ply: splat PLY element `vertex` 3 property `scale_1` = NaN is not finite"),
