@@ -377,15 +377,24 @@ impl WorldContact {
             objs.into_iter().map(|o| o.sim_mut()).collect();
         let snapshots: Vec<_> = sims.iter().map(|s| s.snapshot()).collect();
         let mut raises = 0;
+        let mut start: Option<Vec<f64>> = None;
         loop {
             let contact = PairContact::new(bodies.clone(), stiffness.clone());
-            let (reports, mut stats) =
-                step_island(&mut sims, &contact, &mu, self.eps_v, self.solver);
+            let (reports, mut stats) = step_island(
+                &mut sims,
+                &contact,
+                &mu,
+                self.eps_v,
+                self.solver,
+                start.as_deref(),
+            );
             if let Some((a, b)) = stats.deepest_pair {
                 if stats.deepest_fraction > self.tolerance && raises < MAX_STIFFENING {
-                    // Too deep: undo, stiffen this pair, solve again.
+                    // Too deep: undo, stiffen this pair, solve again from where this solve
+                    // ended (the stiffer pair only has to push out what went too deep).
                     stiffness[a * m + b] *= STIFFENING_FACTOR;
                     stiffness[b * m + a] *= STIFFENING_FACTOR;
+                    start = Some(sims.iter().flat_map(|s| s.z.iter().copied()).collect());
                     for (s, snap) in sims.iter_mut().zip(&snapshots) {
                         s.restore(snap);
                     }

@@ -97,7 +97,9 @@ impl Potential for IslandPotential<'_> {
 /// Step the objects `sims` of one island together; `contact` holds their samples with
 /// offsets into the stacked coordinates in the same order, `mu` the friction coefficient of
 /// each pair of them (row-major), `eps_v` the friction smoothing velocity, m/s, and
-/// `solver` how the Newton systems are solved. Returns
+/// `solver` how the Newton systems are solved; `start` (stacked z) where the minimisation
+/// starts instead of the pulled-back guess: the end of an earlier solve of the same step
+/// (from the same state), which the step bound keeps on the safe side. Returns
 /// each object's step report (the island's solve report, its wall time shared evenly) and
 /// the contact statistics at the end of the step.
 pub fn step_island(
@@ -106,6 +108,7 @@ pub fn step_island(
     mu: &[f64],
     eps_v: f64,
     solver: IslandSolver,
+    start: Option<&[f64]>,
 ) -> (Vec<StepReport>, ContactStats) {
     let sw = Stopwatch::start();
     let starts: Vec<StepStart> = sims.iter().map(|s| s.begin_step()).collect();
@@ -133,11 +136,18 @@ pub fn step_island(
             friction: (contact.friction_lag(&z0, mu), eps_v * shared[0].dt()),
             solver,
         };
-        // The start: the guess, pulled back toward the previous state as far as the step
-        // bound asks (the guess extrapolates motion and may carry a pair through another).
-        let dir: Vec<f64> = guess.iter().zip(&z0).map(|(g, z)| g - z).collect();
-        let alpha = pot.max_step(&z0, &dir).min(1.0);
-        let mut z: Vec<f64> = z0.iter().zip(&dir).map(|(z, d)| z + alpha * d).collect();
+        // The start: a given one (an earlier solve of this step, reached from z0 by bounded
+        // line searches), or the guess pulled back toward the previous state as far as the
+        // step bound asks (the guess extrapolates motion and may carry a pair through
+        // another).
+        let mut z: Vec<f64> = match start {
+            Some(s) => s.to_vec(),
+            None => {
+                let dir: Vec<f64> = guess.iter().zip(&z0).map(|(g, z)| g - z).collect();
+                let alpha = pot.max_step(&z0, &dir).min(1.0);
+                z0.iter().zip(&dir).map(|(z, d)| z + alpha * d).collect()
+            }
+        };
         let measure = |d: &[f64]| {
             shared
                 .iter()
