@@ -3,7 +3,9 @@
 //! parallel, and the contact report.
 //!
 //! A step: every object's sample box at z_n and at its initial guess, grown by the largest
-//! sample displacement between them and its contact thickness; objects whose grown boxes meet form an island (union-find), solved together
+//! sample displacement between them and its contact thickness; two objects whose grown boxes
+//! meet, and which have a pair of samples within their contact distance plus twice their
+//! displacements now, join one island (union-find), solved together
 //! ([`crate::sim::contact::island`]); the others step alone, exactly as without contact.
 //! After the solves, any two objects of different islands whose samples ended within
 //! contact distance (the bound was too tight: a collider or a pile pushed harder than the
@@ -42,7 +44,8 @@ pub struct ContactStepRow {
     pub wall_ms: f64,
     /// Object pairs whose grown sample boxes were compared (n (n - 1) / 2).
     pub object_pairs_tested: usize,
-    /// Object pairs whose grown boxes met (they were put in one island).
+    /// Object pairs whose grown boxes met (their samples were then tested; those within
+    /// reach were put in one island).
     pub object_pairs_near: usize,
     /// Sample pairs within contact distance at the end of the step.
     pub sample_pairs_active: usize,
@@ -440,7 +443,7 @@ impl WorldContact {
         // Swept boxes: the samples' box at z_n and at the initial guess, grown by the largest
         // sample displacement between them (the solution may differ from the guess by as
         // much) and the thickness.
-        let boxes: Vec<(Point3, Point3)> = objects
+        let swept: Vec<((Point3, Point3), f64)> = objects
             .par_iter()
             .zip(&self.samples)
             .zip(&self.positions)
@@ -459,8 +462,11 @@ impl WorldContact {
                 let (lo0, hi0) = bounds(x0, grow);
                 let (lo1, hi1) = bounds(&guess, grow);
                 (
-                    std::array::from_fn(|d| lo0[d].min(lo1[d])),
-                    std::array::from_fn(|d| hi0[d].max(hi1[d])),
+                    (
+                        std::array::from_fn(|d| lo0[d].min(lo1[d])),
+                        std::array::from_fn(|d| hi0[d].max(hi1[d])),
+                    ),
+                    moved,
                 )
             })
             .collect();
@@ -468,9 +474,14 @@ impl WorldContact {
         let mut near = 0;
         for a in 0..n {
             for b in a + 1..n {
-                if meet(&boxes[a], &boxes[b]) {
+                let ((box_a, moved_a), (box_b, moved_b)) = (&swept[a], &swept[b]);
+                if meet(box_a, box_b) {
                     near += 1;
-                    union(&mut parent, a, b);
+                    // Boxes are loose for rotated and round objects: join the two only if
+                    // some pair of their samples now is within reach (the same margin).
+                    if self.within(a, b, 2.0 * (moved_a + moved_b)) {
+                        union(&mut parent, a, b);
+                    }
                 }
             }
         }
@@ -607,7 +618,13 @@ impl WorldContact {
 
     /// Whether objects `a` and `b` have samples within contact distance now.
     fn touching(&self, a: usize, b: usize) -> bool {
-        let d = self.samples[a].thickness + self.samples[b].thickness;
+        self.within(a, b, 0.0)
+    }
+
+    /// Whether objects `a` and `b` have samples within contact distance plus `margin`
+    /// (metres) now.
+    fn within(&self, a: usize, b: usize, margin: f64) -> bool {
+        let d = self.samples[a].thickness + self.samples[b].thickness + margin;
         if !meet(
             &bounds(&self.positions[a], d),
             &bounds(&self.positions[b], 0.0),
