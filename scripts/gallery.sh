@@ -51,6 +51,16 @@ $FF render "$WORK/stack" --ground 0 --elevation 25 --azimuth 120 --every 6 --siz
     --out "$WORK/stack_png"
 cp "$WORK/stack_png/frame_000030.png" docs/img/stack.png
 
+# Plinko (examples/plinko.toml): 18 objects on the first row of pegs, frame 6 (t = 0.3 s). Only
+# the first 30 steps are run (a copy of the scene with `steps = 30`): the picture needs no more,
+# and the later steps, with most objects in one island, are the slow part (docs/performance.md).
+sed 's/^steps = 150$/steps = 30/' examples/plinko.toml > "$WORK/plinko30.toml"
+grep -q '^steps = 30$' "$WORK/plinko30.toml"
+$FF run "$WORK/plinko30.toml" --out "$WORK/plinko" > /dev/null
+$FF render "$WORK/plinko" --ground 0 --elevation 10 --azimuth 0 --every 6 --size 640x480 \
+    --color none --out "$WORK/plinko_png"
+cp "$WORK/plinko_png/frame_000006.png" docs/img/plinko.png
+
 # A splat object before and after: a beach ball of 3D Gaussians (docs/splats.md) dropped on
 # the floor. 16 000 flat surface splats (Fibonacci sphere, radius 0.3 m; axes along north,
 # east and the normal; six coloured gores and white caps, light baked in) and a grid of faint interior splats

@@ -3,7 +3,9 @@
 //! parallel, and the contact report.
 //!
 //! A step: every object's sample box at z_n and at its initial guess, grown by the largest
-//! sample displacement between them and its contact thickness; objects whose grown boxes meet form an island (union-find), solved together
+//! sample displacement between them and its contact thickness; two objects whose grown boxes
+//! meet, and which have a pair of samples within their contact distance plus twice their
+//! displacements now, join one island (union-find), solved together
 //! ([`crate::sim::contact::island`]); the others step alone, exactly as without contact.
 //! After the solves, any two objects of different islands whose samples ended within
 //! contact distance (the bound was too tight: a collider or a pile pushed harder than the
@@ -15,12 +17,23 @@ use crate::report::Stopwatch;
 use crate::sim::contact::island::step_island;
 use crate::sim::contact::pairs::candidates;
 use crate::sim::contact::samples::default_count;
-use crate::sim::contact::{Body, ContactSamples, ContactSettings, ContactStats, PairContact};
+use crate::sim::contact::{
+    Body, ContactSamples, ContactSettings, ContactStats, IslandSolver, PairContact,
+};
 use crate::sim::motion::rotation_matrix;
 use crate::sim::StepReport;
 use crate::{Error, Point3, Result};
 use rayon::prelude::*;
 use serde::Serialize;
+
+/// How many times a pair's penalty stiffness is multiplied when its island ends a step
+/// deeper than the penetration tolerance: 4, which halves the depth under the same load
+/// (pressure kappa delta^2).
+pub const STIFFENING_FACTOR: f64 = 4.0;
+
+/// Most stiffness raises (and so re-solves) of one island in one step: 4 raises allow 256x
+/// the default stiffness, a sixteenth of the depth.
+pub const MAX_STIFFENING: usize = 4;
 
 /// One step of object-object contact in the run summary.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -31,7 +44,8 @@ pub struct ContactStepRow {
     pub wall_ms: f64,
     /// Object pairs whose grown sample boxes were compared (n (n - 1) / 2).
     pub object_pairs_tested: usize,
-    /// Object pairs whose grown boxes met (they were put in one island).
+    /// Object pairs whose grown boxes met (their samples were then tested; those within
+    /// reach were put in one island).
     pub object_pairs_near: usize,
     /// Sample pairs within contact distance at the end of the step.
     pub sample_pairs_active: usize,
@@ -43,6 +57,9 @@ pub struct ContactStepRow {
     pub islands: Vec<usize>,
     /// Objects solved again because they ended in contact with another island's.
     pub regrouped: usize,
+    /// Islands solved again with a raised pair stiffness (penetration above the tolerance),
+    /// counted once per raise.
+    pub stiffened: usize,
 }
 
 /// Object-object contact over a run.
@@ -54,7 +71,8 @@ pub struct ContactSummary {
     pub samples: Vec<usize>,
     /// Contact thickness per object, metres.
     pub thickness: Vec<f64>,
-    /// Penalty stiffness of each object pair, Pa/m^2 (row-major, objects x objects).
+    /// Penalty stiffness of each object pair at the end of the run, Pa/m^2 (row-major,
+    /// objects x objects; raised where a pair went deeper than the tolerance).
     pub stiffness: Vec<f64>,
     /// Worst penetration of the run, metres.
     pub worst_penetration: f64,
@@ -76,6 +94,7 @@ pub(super) struct WorldContact {
     eps_v: f64,
     stiffness: Vec<f64>,
     tolerance: f64,
+    solver: IslandSolver,
     /// Sample positions at the current state, per object.
     positions: Vec<Vec<Point3>>,
     warned: std::collections::BTreeSet<(usize, usize)>,
@@ -135,6 +154,9 @@ fn groups(parent: &mut [usize]) -> Vec<Vec<usize>> {
 struct Solved {
     reports: Vec<(usize, StepReport)>,
     stats: Option<ContactStats>,
+    /// For an island: its objects and their pair stiffnesses (row-major over the group) if
+    /// any was raised, and the number of raises.
+    stiffened: Option<(Vec<usize>, Vec<f64>, usize)>,
 }
 
 impl WorldContact {
@@ -237,6 +259,7 @@ impl WorldContact {
             eps_v: settings.friction_velocity,
             stiffness,
             tolerance: settings.penetration_tolerance,
+            solver: settings.solver,
             positions,
             warned: Default::default(),
         };
@@ -325,6 +348,7 @@ impl WorldContact {
             return Solved {
                 reports: vec![(*only, rep)],
                 stats: None,
+                stiffened: None,
             };
         }
         let mut offset = 0;
@@ -343,22 +367,50 @@ impl WorldContact {
             })
             .collect();
         let n = self.samples.len();
-        let stiffness = group
+        let m = group.len();
+        let mut stiffness: Vec<f64> = group
             .iter()
             .flat_map(|&a| group.iter().map(move |&b| self.stiffness[a * n + b]))
             .collect();
-        let contact = PairContact::new(bodies, stiffness);
         let mu: Vec<f64> = group
             .iter()
             .flat_map(|&a| group.iter().map(move |&b| self.mu[a * n + b]))
             .collect();
         let mut sims: Vec<&mut crate::sim::ReducedSim> =
             objs.into_iter().map(|o| o.sim_mut()).collect();
-        let (reports, mut stats) = step_island(&mut sims, &contact, &mu, self.eps_v);
-        stats.deepest_pair = stats.deepest_pair.map(|(a, b)| (group[a], group[b]));
-        Solved {
-            reports: group.iter().copied().zip(reports).collect(),
-            stats: Some(stats),
+        let snapshots: Vec<_> = sims.iter().map(|s| s.snapshot()).collect();
+        let mut raises = 0;
+        let mut start: Option<Vec<f64>> = None;
+        loop {
+            let contact = PairContact::new(bodies.clone(), stiffness.clone());
+            let (reports, mut stats) = step_island(
+                &mut sims,
+                &contact,
+                &mu,
+                self.eps_v,
+                self.solver,
+                start.as_deref(),
+            );
+            if let Some((a, b)) = stats.deepest_pair {
+                if stats.deepest_fraction > self.tolerance && raises < MAX_STIFFENING {
+                    // Too deep: undo, stiffen this pair, solve again from where this solve
+                    // ended (the stiffer pair only has to push out what went too deep).
+                    stiffness[a * m + b] *= STIFFENING_FACTOR;
+                    stiffness[b * m + a] *= STIFFENING_FACTOR;
+                    start = Some(sims.iter().flat_map(|s| s.z.iter().copied()).collect());
+                    for (s, snap) in sims.iter_mut().zip(&snapshots) {
+                        s.restore(snap);
+                    }
+                    raises += 1;
+                    continue;
+                }
+            }
+            stats.deepest_pair = stats.deepest_pair.map(|(a, b)| (group[a], group[b]));
+            return Solved {
+                reports: group.iter().copied().zip(reports).collect(),
+                stats: Some(stats),
+                stiffened: (raises > 0).then(|| (group.to_vec(), stiffness, raises)),
+            };
         }
     }
 
@@ -391,7 +443,7 @@ impl WorldContact {
         // Swept boxes: the samples' box at z_n and at the initial guess, grown by the largest
         // sample displacement between them (the solution may differ from the guess by as
         // much) and the thickness.
-        let boxes: Vec<(Point3, Point3)> = objects
+        let swept: Vec<((Point3, Point3), f64)> = objects
             .par_iter()
             .zip(&self.samples)
             .zip(&self.positions)
@@ -410,8 +462,11 @@ impl WorldContact {
                 let (lo0, hi0) = bounds(x0, grow);
                 let (lo1, hi1) = bounds(&guess, grow);
                 (
-                    std::array::from_fn(|d| lo0[d].min(lo1[d])),
-                    std::array::from_fn(|d| hi0[d].max(hi1[d])),
+                    (
+                        std::array::from_fn(|d| lo0[d].min(lo1[d])),
+                        std::array::from_fn(|d| hi0[d].max(hi1[d])),
+                    ),
+                    moved,
                 )
             })
             .collect();
@@ -419,9 +474,14 @@ impl WorldContact {
         let mut near = 0;
         for a in 0..n {
             for b in a + 1..n {
-                if meet(&boxes[a], &boxes[b]) {
+                let ((box_a, moved_a), (box_b, moved_b)) = (&swept[a], &swept[b]);
+                if meet(box_a, box_b) {
                     near += 1;
-                    union(&mut parent, a, b);
+                    // Boxes are loose for rotated and round objects: join the two only if
+                    // some pair of their samples now is within reach (the same margin).
+                    if self.within(a, b, 2.0 * (moved_a + moved_b)) {
+                        union(&mut parent, a, b);
+                    }
                 }
             }
         }
@@ -494,9 +554,20 @@ impl WorldContact {
             penetration_fraction: 0.0,
             islands: Vec::new(),
             regrouped,
+            stiffened: 0,
         };
         let mut deepest_pair = None;
         for s in solved.into_iter().flatten() {
+            if let Some((group, k, raises)) = s.stiffened {
+                row.stiffened += raises;
+                let m = group.len();
+                for (p, &a) in group.iter().enumerate() {
+                    for (q, &b) in group.iter().enumerate() {
+                        self.stiffness[a * n + b] = k[p * m + q];
+                    }
+                }
+                self.summary.stiffness.clone_from(&self.stiffness);
+            }
             if let Some(st) = s.stats {
                 row.islands.push(s.reports.len());
                 row.sample_pairs_active += st.active;
@@ -547,7 +618,13 @@ impl WorldContact {
 
     /// Whether objects `a` and `b` have samples within contact distance now.
     fn touching(&self, a: usize, b: usize) -> bool {
-        let d = self.samples[a].thickness + self.samples[b].thickness;
+        self.within(a, b, 0.0)
+    }
+
+    /// Whether objects `a` and `b` have samples within contact distance plus `margin`
+    /// (metres) now.
+    fn within(&self, a: usize, b: usize, margin: f64) -> bool {
+        let d = self.samples[a].thickness + self.samples[b].thickness + margin;
         if !meet(
             &bounds(&self.positions[a], d),
             &bounds(&self.positions[b], 0.0),

@@ -199,6 +199,24 @@ pub trait Potential {
         let _ = (z, dir);
         f64::INFINITY
     }
+    /// The Newton system at z when the potential solves it in its own structure (an island
+    /// of objects: block sparse, [`crate::sim::contact::system`]); default
+    /// [`NewtonSystem::Dense`]: build [`Potential::hessian`] and factorize it densely.
+    fn newton_system(&self, z: &[f64]) -> NewtonSystem {
+        let _ = z;
+        NewtonSystem::Dense
+    }
+}
+
+/// How a potential's Newton system at one iterate is solved ([`Potential::newton_system`]).
+pub enum NewtonSystem {
+    /// Build the dense Hessian and factorize it (Cholesky).
+    Dense,
+    /// The potential's own solver of H(z) d = g.
+    Solver(Box<dyn RestSolve + Send>),
+    /// The system is not positive definite (the rest step is taken, as when a dense
+    /// Cholesky factorization fails).
+    Indefinite,
 }
 
 /// A fixed SPD solve, x = S^-1 b: the rest system of one object (a Cholesky factor) or of an
@@ -302,6 +320,9 @@ pub struct QuasiNewtonState {
     pairs: std::collections::VecDeque<(Vec<f64>, Vec<f64>, f64)>,
     /// Factor of the latest refreshed Hessian (None: the rest matrix S).
     base: Option<Llt<f64>>,
+    /// The latest Newton system solved in the potential's own structure
+    /// ([`NewtonSystem::Solver`]), used like `base`.
+    structured: Option<Box<dyn RestSolve + Send>>,
 }
 
 /// Build the quasi-Newton base Hessian at `z` and factorize it (None: not positive
@@ -322,6 +343,39 @@ fn refreshed_base(
     let factor = h.llt(Side::Lower).ok();
     rep.solve_s += sw.elapsed();
     factor
+}
+
+/// The dense Newton direction H(z)^-1 `grad` (the step `delta` of the best model at hand
+/// when the Hessian does not factorize), with its time and factorization counted in `rep`.
+fn newton_direction(
+    pot: &dyn Potential,
+    z: &[f64],
+    grad: &[f64],
+    delta: &[f64],
+    base: &mut Option<Llt<f64>>,
+    rep: &mut SolveReport,
+) -> Vec<f64> {
+    use crate::report::Stopwatch;
+    let sw = Stopwatch::start();
+    let h = pot.hessian(z);
+    rep.hessian_s += sw.elapsed();
+    let sw = Stopwatch::start();
+    rep.factorizations += 1;
+    let d = match h.llt(Side::Lower) {
+        Ok(f) => {
+            let d = solve_with(&f, grad);
+            *base = Some(f);
+            d
+        }
+        Err(_) => {
+            // The PSD-projected Hessian plus the SPD inertia is positive definite in exact
+            // arithmetic; if rounding breaks that, take the rest step.
+            rep.cholesky_fallbacks += 1;
+            delta.to_vec()
+        }
+    };
+    rep.solve_s += sw.elapsed();
+    d
 }
 
 /// Minimise `pot` starting from `z` (updated in place); `state` carries the quasi-Newton memory between
@@ -348,9 +402,11 @@ pub fn minimize(
         // The convergence measure uses the best Hessian model at hand: the latest factorized
         // Hessian (Newton; L-BFGS after a refresh), else the rest matrix S.
         let sw = Stopwatch::start();
-        let delta = match (opts.hessian, state.base.as_ref()) {
-            (HessianStrategy::Fixed, _) | (_, None) => ctx.rest.solve(&grad),
-            (_, Some(base)) => solve_with(base, &grad),
+        let delta = match (opts.hessian, state.base.as_ref(), state.structured.as_ref()) {
+            (HessianStrategy::Fixed, _, _) => ctx.rest.solve(&grad),
+            (HessianStrategy::Newton, _, Some(s)) => s.solve(&grad),
+            (_, Some(base), _) => solve_with(base, &grad),
+            (_, None, _) => ctx.rest.solve(&grad),
         };
         rep.solve_s += sw.elapsed();
         rep.residual = (ctx.measure)(&delta);
@@ -418,24 +474,26 @@ pub fn minimize(
             }
             HessianStrategy::Newton => {
                 let sw = Stopwatch::start();
-                let h = pot.hessian(z);
+                let system = pot.newton_system(z);
                 rep.hessian_s += sw.elapsed();
-                let sw = Stopwatch::start();
-                rep.factorizations += 1;
-                let d = match h.llt(Side::Lower) {
-                    Ok(f) => {
-                        let d = solve_with(&f, &grad);
-                        state.base = Some(f);
+                let d = match system {
+                    NewtonSystem::Dense => {
+                        newton_direction(pot, z, &grad, &delta, &mut state.base, &mut rep)
+                    }
+                    NewtonSystem::Solver(s) => {
+                        let sw = Stopwatch::start();
+                        rep.factorizations += 1;
+                        let d = s.solve(&grad);
+                        state.structured = Some(s);
+                        rep.solve_s += sw.elapsed();
                         d
                     }
-                    Err(_) => {
-                        // The PSD-projected Hessian plus the SPD inertia is positive definite
-                        // in exact arithmetic; if rounding breaks that, take the rest step.
+                    NewtonSystem::Indefinite => {
+                        rep.factorizations += 1;
                         rep.cholesky_fallbacks += 1;
                         delta.clone()
                     }
                 };
-                rep.solve_s += sw.elapsed();
                 d.iter().map(|v| -v).collect()
             }
         };

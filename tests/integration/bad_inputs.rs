@@ -199,6 +199,7 @@ const RUN_SCENES: &[Case] = &[
     (&["@scene/collider_misoriented.toml"], "misoriented.obj: a solid collider mesh must be closed and consistently oriented, and this one has 0 boundary, 0 non-manifold and"),
     (&["@scene/collider_nan_vertex.toml"], "nan_vertex.obj"),
     (&["@scene/collider_fin_surface.toml"], "collider_fin.obj: a one-sided collider surface needs manifold, consistently oriented triangles (its normals say which side is free), and this one has 1 non-manifold"),
+    (&["@scene/contact_unknown_solver.toml"], "unknown variant `sparse`"),
     (&["@scene/does_not_exist.toml"], "does_not_exist.toml"),
     (&["@scene/splats_zero_quat.toml"], "splats_zero_quat.ply: splat PLY element `vertex` 7 property `rot_0..rot_3` = (0, 0, 0, 0) is a zero or non-finite quaternion"),
     (&["@scene/splats_nan_scale.toml"], "splats_nan_scale.ply: splat PLY element `vertex` 3 property `scale_1` = NaN is not finite"),

@@ -8,7 +8,9 @@ use freeform::geometry::Shape;
 use freeform::material::Material;
 use freeform::progress::Silent;
 use freeform::scene::{ObjectSpec, RunSettings, Scene, SceneBuilder, World};
-use freeform::sim::contact::{Body, ContactSamples, ContactSettings, PairContact, PairHessian};
+use freeform::sim::contact::{
+    Body, ContactSamples, ContactSettings, IslandSolver, PairContact, PairHessian,
+};
 use freeform::sim::terms::ColliderShape;
 use freeform::sim::{Collider, Placement};
 
@@ -248,6 +250,80 @@ fn a_head_on_collision_conserves_linear_momentum() {
         c.worst_penetration_fraction < c.penetration_tolerance,
         "{c:?}"
     );
+}
+
+/// The island's block solve (block-Jacobi conjugate gradients) takes the same step as the
+/// dense Newton solve over the whole island: two blocks collide head on, stepped once with
+/// each solver from the same state (every step before the first island is the same code
+/// path, bit for bit).
+#[test]
+fn the_block_island_solve_takes_the_dense_solve_step() {
+    let tol = 1e-9;
+    let scene = |solver| {
+        SceneBuilder::new(0.01, 30)
+            .cache(no_cache())
+            .tol(tol)
+            .object(block("a", 0.2, [-0.25, 0.0, 0.0], [1.0, 0.0, 0.0]))
+            .object(block("b", 0.2, [0.1, 0.02, 0.0], [-0.6, 0.0, 0.0]))
+            .contact(ContactSettings {
+                solver,
+                ..ContactSettings::default()
+            })
+            .build()
+            .unwrap()
+    };
+    let mut dense = world(&scene(IslandSolver::Dense));
+    let mut blocks = world(&scene(IslandSolver::Blocks));
+    let mut compared = 0;
+    for _ in 0..30 {
+        dense.step().unwrap();
+        blocks.step().unwrap();
+        let row = dense
+            .contact_summary()
+            .unwrap()
+            .steps
+            .last()
+            .unwrap()
+            .clone();
+        if row.islands.is_empty() {
+            for i in 0..2 {
+                assert_eq!(dense.object(i).sim().z, blocks.object(i).sim().z);
+            }
+            continue;
+        }
+        // Each solve stops when the remaining Newton step moves the points by less than
+        // tol D (mass-weighted RMS; equal volumes and density here, so a plain RMS), and
+        // near the minimiser that step is the distance to it: the two end states are within
+        // 2 tol D of each other. Factor 5 for the step being measured with the previous
+        // iteration's Hessian.
+        for i in 0..2 {
+            let (o0, o1) = (dense.object(i), blocks.object(i));
+            let (x0, x1) = (
+                o0.integration_positions().unwrap(),
+                o1.integration_positions().unwrap(),
+            );
+            let rms = (x0
+                .iter()
+                .zip(&x1)
+                .map(|(p, q)| (0..3).map(|d| (p[d] - q[d]).powi(2)).sum::<f64>())
+                .sum::<f64>()
+                / x0.len() as f64)
+                .sqrt();
+            let bound = 10.0 * tol * o0.sim().diagonal();
+            assert!(
+                rms <= bound,
+                "object {i}: states differ by {rms:.3e} m > {bound:.3e}"
+            );
+            let (r0, r1) = (
+                o0.summary().steps.last().unwrap(),
+                o1.summary().steps.last().unwrap(),
+            );
+            assert!(r0.converged && r1.converged, "{r0:?} {r1:?}");
+        }
+        compared += 1;
+        break;
+    }
+    assert_eq!(compared, 1, "the blocks never touched");
 }
 
 /// Three blocks stacked on a floor under gravity settle: after 0.6 s they no longer move

@@ -79,12 +79,22 @@ fn example_scenes_parse() {
         "heterogeneous.toml",
         "layered_sphere.toml",
         "stack.toml",
+        "plinko.toml",
     ] {
         let s = Scene::load(&dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert!(!s.objects.is_empty());
         n += 1;
     }
-    assert_eq!(n, 6);
+    assert_eq!(n, 7);
+    // Plinko: the 18 objects of K = 500, m = 12, with contact, through 20 pegs.
+    let plinko = Scene::load(&dir.join("plinko.toml")).unwrap();
+    assert_eq!(plinko.objects.len(), 18);
+    assert!(plinko
+        .objects
+        .iter()
+        .all(|o| o.basis.kernels == 500 && o.basis.modes == 12));
+    assert_eq!(plinko.contact.as_ref().map(|c| c.friction), Some(0.3));
+    assert_eq!(plinko.colliders.len(), 27);
     // The contact example has contact (with its friction) and three objects to touch.
     let stack = Scene::load(&dir.join("stack.toml")).unwrap();
     assert_eq!(stack.objects.len(), 3);

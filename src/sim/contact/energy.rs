@@ -13,9 +13,11 @@
 
 use super::pairs::{candidates, BroadStats, Candidate};
 use super::samples::ContactSamples;
+use super::system::BlockHessian;
 use crate::linalg3::Mat3;
 use crate::sim::elastic::Layout;
 use crate::Point3;
+use faer::prelude::ReborrowMut;
 use faer::{Accum, Mat, Par};
 
 /// Fraction of a pair's distance (or of its contact distance, if smaller) that one
@@ -263,8 +265,21 @@ impl<'a> PairContact<'a> {
         e
     }
 
-    /// Add the Hessian of the friction potential at `z` to `h`.
+    /// Add the Hessian of the friction potential at `z` to `h` (square, the island's size).
     pub fn add_friction_hessian(&self, lag: &[PairLag], eps: f64, z: &[f64], h: &mut Mat<f64>) {
+        let mut blocks = self.empty_blocks();
+        self.add_friction_hessian_blocks(lag, eps, z, &mut blocks);
+        self.add_dense(&blocks, h);
+    }
+
+    /// Add the Hessian of the friction potential at `z` to the island's block matrix `h`.
+    pub fn add_friction_hessian_blocks(
+        &self,
+        lag: &[PairLag],
+        eps: f64,
+        z: &[f64],
+        h: &mut BlockHessian,
+    ) {
         if lag.is_empty() {
             return;
         }
@@ -284,6 +299,30 @@ impl<'a> PairContact<'a> {
 
     /// Add the Hessian of the energy at the stacked `z` to `h` (square, the island's size).
     pub fn add_hessian(&self, z: &[f64], which: PairHessian, h: &mut Mat<f64>) {
+        let mut blocks = self.empty_blocks();
+        self.add_hessian_blocks(z, which, &mut blocks);
+        self.add_dense(&blocks, h);
+    }
+
+    /// Zero blocks, one per body.
+    fn empty_blocks(&self) -> BlockHessian {
+        let sizes: Vec<usize> = self.bodies.iter().map(|b| b.layout.dofs()).collect();
+        BlockHessian::zeros(&sizes)
+    }
+
+    /// Add `blocks` into the dense `h` at the bodies' offsets.
+    fn add_dense(&self, blocks: &BlockHessian, h: &mut Mat<f64>) {
+        let mut at = 0;
+        for b in &self.bodies {
+            assert_eq!(b.offset, at, "bodies are stacked in order");
+            at += b.layout.dofs();
+        }
+        blocks.add_to_dense(h);
+    }
+
+    /// Add the Hessian of the energy at the stacked `z` to the island's block matrix `h`
+    /// (one block per body, in body order).
+    pub fn add_hessian_blocks(&self, z: &[f64], which: PairHessian, h: &mut BlockHessian) {
         let x = self.positions(z);
         let (act, _) = self.active(&x);
         let blocks: Vec<(Candidate, Mat3)> = act
@@ -308,8 +347,9 @@ impl<'a> PairContact<'a> {
     }
 
     /// Add sum over `blocks` of the Hessian of a function of x_i - x_j whose 3 x 3 Hessian is
-    /// H: [[H, -H], [-H, H]] in (x_i, x_j), through the samples' b rows into z.
-    pub fn add_pair_blocks(&self, blocks: &[(Candidate, Mat3)], h: &mut Mat<f64>) {
+    /// H: [[H, -H], [-H, H]] in (x_i, x_j), through the samples' b rows into z: into each
+    /// body's diagonal block and the coupling block of each pair of bodies in contact.
+    pub fn add_pair_blocks(&self, blocks: &[(Candidate, Mat3)], h: &mut BlockHessian) {
         if blocks.is_empty() {
             return;
         }
@@ -334,17 +374,13 @@ impl<'a> PairContact<'a> {
             let n4 = body.layout.row_len();
             let rows = self.b_rows(a, samples.keys().copied());
             let blocks: Vec<&Mat3> = samples.values().collect();
+            let mut target = h.block_mut(a, a);
             for r in 0..3 {
                 for s in 0..3 {
                     let scaled =
                         Mat::from_fn(rows.nrows(), n4, |p, k| blocks[p][r][s] * rows[(p, k)]);
                     faer::linalg::matmul::matmul(
-                        h.as_mut().submatrix_mut(
-                            body.offset + r * n4,
-                            body.offset + s * n4,
-                            n4,
-                            n4,
-                        ),
+                        target.rb_mut().submatrix_mut(r * n4, s * n4, n4, n4),
                         Accum::Add,
                         rows.transpose(),
                         scaled.as_ref(),
@@ -354,8 +390,8 @@ impl<'a> PairContact<'a> {
                 }
             }
         }
-        // Off-diagonal blocks, per pair of bodies: -sum_pairs H_p[r][s] b_i b_j^T, formed as
-        // B_a^T C with C's row for sample i = sum_j H_p[r][s] b_j.
+        // Coupling blocks, per pair of bodies (a < b): -sum_pairs H_p[r][s] b_i b_j^T,
+        // formed as B_a^T C with C's row for sample i = sum_j H_p[r][s] b_j.
         let mut by_bodies: std::collections::BTreeMap<(usize, usize), Vec<&(Candidate, Mat3)>> =
             Default::default();
         for p in blocks {
@@ -386,24 +422,17 @@ impl<'a> PairContact<'a> {
                     }
                 }
             }
+            let mut target = h.block_mut(a, b);
             for r in 0..3 {
                 for s in 0..3 {
-                    let mut block = Mat::<f64>::zeros(n4a, n4b);
                     faer::linalg::matmul::matmul(
-                        block.as_mut(),
-                        Accum::Replace,
+                        target.rb_mut().submatrix_mut(r * n4a, s * n4b, n4a, n4b),
+                        Accum::Add,
                         rows_a.transpose(),
                         c[3 * r + s].as_ref(),
                         -1.0,
                         Par::Seq,
                     );
-                    for k in 0..n4a {
-                        for l in 0..n4b {
-                            let (gi, gj) = (ba.offset + r * n4a + k, bb.offset + s * n4b + l);
-                            h[(gi, gj)] += block[(k, l)];
-                            h[(gj, gi)] += block[(k, l)];
-                        }
-                    }
                 }
             }
         }

@@ -1,15 +1,20 @@
 //! An island: objects that may touch within a time step, solved as one minimisation over
 //! their stacked reduced coordinates. Its potential is the sum of the objects' own
 //! incremental potentials (inertia, elasticity, gravity, boundaries, collider penalties) and
-//! the contact energy between them; it is minimised by Newton (dense PSD Hessian over the
-//! island) with the contact step bound in the line search, from a start that the same bound
-//! keeps on the safe side of the previous state.
+//! the contact energy between them; it is minimised by Newton with the contact step bound in
+//! the line search, from a start that the same bound keeps on the safe side of the previous
+//! state. The Newton system keeps its block structure (one block per object, coupling blocks
+//! only between objects in contact; [`super::system`]) and is solved by block-Jacobi
+//! preconditioned conjugate gradients, or densely on request ([`IslandSolver::Dense`], the
+//! reference the tests compare with).
 
 use super::energy::{PairContact, PairHessian, PairLag};
-use super::ContactStats;
+use super::system::BlockHessian;
+use super::{ContactStats, IslandSolver};
 use crate::report::Stopwatch;
 use crate::sim::newton::{
-    self, BlockRest, EvalInfo, HessianStrategy, Potential, QuasiNewtonState, SolverContext,
+    self, BlockRest, EvalInfo, HessianStrategy, NewtonSystem, Potential, QuasiNewtonState,
+    SolverContext,
 };
 use crate::sim::object::{StepPotential, StepStart};
 use crate::sim::{ReducedSim, StepReport};
@@ -22,6 +27,27 @@ struct IslandPotential<'a> {
     contact: &'a PairContact<'a>,
     /// Lagged object-object friction and its smoothing displacement, metres.
     friction: (Vec<PairLag>, f64),
+    solver: IslandSolver,
+}
+
+impl IslandPotential<'_> {
+    /// The PSD Hessian in blocks: each object's own (built in parallel, each by itself, so
+    /// the result does not depend on the thread count), then the contact and friction terms.
+    fn blocks(&self, z: &[f64]) -> BlockHessian {
+        use rayon::prelude::*;
+        let diag: Vec<Mat<f64>> = self
+            .parts
+            .par_iter()
+            .zip(&self.offsets)
+            .map(|(p, &o)| p.hessian(&z[o..o + p.dofs()]))
+            .collect();
+        let mut h = BlockHessian::new(diag);
+        self.contact.add_hessian_blocks(z, PairHessian::Psd, &mut h);
+        let (lag, eps) = &self.friction;
+        self.contact
+            .add_friction_hessian_blocks(lag, *eps, z, &mut h);
+        h
+    }
 }
 
 impl Potential for IslandPotential<'_> {
@@ -50,17 +76,17 @@ impl Potential for IslandPotential<'_> {
     }
 
     fn hessian(&self, z: &[f64]) -> Mat<f64> {
-        let n = z.len();
-        let mut h = Mat::zeros(n, n);
-        for (p, &o) in self.parts.iter().zip(&self.offsets) {
-            let k = p.dofs();
-            let hp = p.hessian(&z[o..o + k]);
-            h.as_mut().submatrix_mut(o, o, k, k).copy_from(&hp);
+        self.blocks(z).to_dense()
+    }
+
+    fn newton_system(&self, z: &[f64]) -> NewtonSystem {
+        if self.solver == IslandSolver::Dense {
+            return NewtonSystem::Dense;
         }
-        self.contact.add_hessian(z, PairHessian::Psd, &mut h);
-        let (lag, eps) = &self.friction;
-        self.contact.add_friction_hessian(lag, *eps, z, &mut h);
-        h
+        match self.blocks(z).into_solver() {
+            Some(s) => NewtonSystem::Solver(Box::new(s)),
+            None => NewtonSystem::Indefinite,
+        }
     }
 
     fn max_step(&self, z: &[f64], dir: &[f64]) -> f64 {
@@ -70,7 +96,10 @@ impl Potential for IslandPotential<'_> {
 
 /// Step the objects `sims` of one island together; `contact` holds their samples with
 /// offsets into the stacked coordinates in the same order, `mu` the friction coefficient of
-/// each pair of them (row-major) and `eps_v` the friction smoothing velocity, m/s. Returns
+/// each pair of them (row-major), `eps_v` the friction smoothing velocity, m/s, and
+/// `solver` how the Newton systems are solved; `start` (stacked z) where the minimisation
+/// starts instead of the pulled-back guess: the end of an earlier solve of the same step
+/// (from the same state), which the step bound keeps on the safe side. Returns
 /// each object's step report (the island's solve report, its wall time shared evenly) and
 /// the contact statistics at the end of the step.
 pub fn step_island(
@@ -78,6 +107,8 @@ pub fn step_island(
     contact: &PairContact,
     mu: &[f64],
     eps_v: f64,
+    solver: IslandSolver,
+    start: Option<&[f64]>,
 ) -> (Vec<StepReport>, ContactStats) {
     let sw = Stopwatch::start();
     let starts: Vec<StepStart> = sims.iter().map(|s| s.begin_step()).collect();
@@ -103,12 +134,20 @@ pub fn step_island(
             offsets: offsets.clone(),
             contact,
             friction: (contact.friction_lag(&z0, mu), eps_v * shared[0].dt()),
+            solver,
         };
-        // The start: the guess, pulled back toward the previous state as far as the step
-        // bound asks (the guess extrapolates motion and may carry a pair through another).
-        let dir: Vec<f64> = guess.iter().zip(&z0).map(|(g, z)| g - z).collect();
-        let alpha = pot.max_step(&z0, &dir).min(1.0);
-        let mut z: Vec<f64> = z0.iter().zip(&dir).map(|(z, d)| z + alpha * d).collect();
+        // The start: a given one (an earlier solve of this step, reached from z0 by bounded
+        // line searches), or the guess pulled back toward the previous state as far as the
+        // step bound asks (the guess extrapolates motion and may carry a pair through
+        // another).
+        let mut z: Vec<f64> = match start {
+            Some(s) => s.to_vec(),
+            None => {
+                let dir: Vec<f64> = guess.iter().zip(&z0).map(|(g, z)| g - z).collect();
+                let alpha = pot.max_step(&z0, &dir).min(1.0);
+                z0.iter().zip(&dir).map(|(z, d)| z + alpha * d).collect()
+            }
+        };
         let measure = |d: &[f64]| {
             shared
                 .iter()

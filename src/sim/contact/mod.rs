@@ -5,6 +5,8 @@
 //! - [`energy`]: the pair penalty with its gradient, Hessian and line-search step bound, in
 //!   the stacked reduced coordinates of an island.
 //! - [`island`]: objects that can touch within a step, solved together by Newton.
+//! - [`system`]: the island's Newton system in blocks, solved by block-Jacobi conjugate
+//!   gradients.
 //!
 //! Only scenes with a `[contact]` section build any of it ([`ContactSettings`]); without one
 //! every object steps alone, as before.
@@ -14,6 +16,7 @@ pub mod friction;
 pub mod island;
 pub mod pairs;
 pub mod samples;
+pub mod system;
 
 pub use energy::{Body, ContactStats, PairContact, PairHessian};
 pub use samples::ContactSamples;
@@ -57,6 +60,21 @@ pub struct ContactSettings {
     /// Per-pair friction coefficients (`[[contact.pair]]`), later ones winning.
     #[serde(rename = "pair", skip_serializing_if = "Vec::is_empty")]
     pub pairs: Vec<FrictionPair>,
+    /// How an island's Newton systems are solved (default `blocks`).
+    pub solver: IslandSolver,
+}
+
+/// How the Newton system of an island of objects in contact is solved.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum IslandSolver {
+    /// In its block structure by block-Jacobi preconditioned conjugate gradients
+    /// ([`system`]): cost linear in the objects and their contacts. Default.
+    #[default]
+    Blocks,
+    /// The dense Hessian over the whole island, Cholesky-factorized: cost cubic in the
+    /// island's size (the reference the block solve is tested against).
+    Dense,
 }
 
 /// A friction coefficient for one pair of objects or of an object and a named collider.
@@ -85,6 +103,7 @@ impl Default for ContactSettings {
             friction: DEFAULT_FRICTION,
             friction_velocity: DEFAULT_FRICTION_VELOCITY,
             pairs: Vec::new(),
+            solver: IslandSolver::default(),
         }
     }
 }

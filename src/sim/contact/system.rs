@@ -1,0 +1,340 @@
+//! The Newton system of an island, kept in its block structure: one dense block per object
+//! (its own Hessian plus the diagonal part of its contacts) and a coupling block only for
+//! each pair of objects with samples in contact. It is solved by conjugate gradients
+//! preconditioned with each object's own block (block Jacobi, one Cholesky factor per
+//! object), so the cost grows with the number of objects and contacts instead of the cube
+//! of the island's size, as the dense factorization did (docs/performance.md).
+
+use crate::sim::newton::RestSolve;
+use faer::linalg::matmul::matmul;
+use faer::linalg::solvers::{Llt, Solve};
+use faer::{Accum, Mat, MatMut, MatRef, Par, Side};
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+
+/// Relative residual |H d - g| / |g| at which the conjugate gradients stop. 1e-8: the
+/// direction then differs from the exact Newton step by far less than the minimiser's own
+/// tolerance (1e-6 of the diagonal by default), and it stays well above the round-off of the
+/// block products (~1e-13 relative); the test against the dense solve checks the agreement.
+pub const CG_TOLERANCE: f64 = 1e-8;
+
+/// Most conjugate-gradient iterations per solve, a multiple of the number of objects: block
+/// Jacobi converges in a number of iterations that grows with the length of the contact
+/// chains, not with the unknowns per object; the cap only guards against a breakdown.
+pub const CG_ITERATIONS_PER_OBJECT: usize = 60;
+
+/// A symmetric block matrix over the stacked coordinates of an island: dense diagonal blocks
+/// (n_a x n_a) and the upper coupling blocks H_ab (n_a x n_b, a < b) of the pairs that have
+/// any; H_ba = H_ab^T is implied.
+#[derive(Debug, Clone)]
+pub struct BlockHessian {
+    offsets: Vec<usize>,
+    diag: Vec<Mat<f64>>,
+    coupling: BTreeMap<(usize, usize), Mat<f64>>,
+}
+
+impl BlockHessian {
+    /// From the diagonal blocks (square, in the order of the stacked coordinates) and no
+    /// coupling.
+    pub fn new(diag: Vec<Mat<f64>>) -> BlockHessian {
+        let mut offsets = Vec::with_capacity(diag.len() + 1);
+        let mut at = 0;
+        for d in &diag {
+            assert_eq!(d.nrows(), d.ncols(), "diagonal blocks are square");
+            offsets.push(at);
+            at += d.nrows();
+        }
+        offsets.push(at);
+        BlockHessian {
+            offsets,
+            diag,
+            coupling: BTreeMap::new(),
+        }
+    }
+
+    /// Zero blocks of the given sizes.
+    pub fn zeros(sizes: &[usize]) -> BlockHessian {
+        BlockHessian::new(sizes.iter().map(|&n| Mat::zeros(n, n)).collect())
+    }
+
+    /// Total size of the stacked coordinates.
+    pub fn dim(&self) -> usize {
+        self.offsets[self.offsets.len() - 1]
+    }
+
+    /// Number of blocks (objects).
+    pub fn blocks(&self) -> usize {
+        self.diag.len()
+    }
+
+    /// Number of coupling blocks (object pairs in contact).
+    pub fn couplings(&self) -> usize {
+        self.coupling.len()
+    }
+
+    /// The block (a, b), a <= b, to add into (a coupling block is created zero on first
+    /// use).
+    pub fn block_mut(&mut self, a: usize, b: usize) -> MatMut<'_, f64> {
+        assert!(a <= b, "only the upper blocks are stored");
+        if a == b {
+            return self.diag[a].as_mut();
+        }
+        let (na, nb) = (self.diag[a].nrows(), self.diag[b].nrows());
+        self.coupling
+            .entry((a, b))
+            .or_insert_with(|| Mat::zeros(na, nb))
+            .as_mut()
+    }
+
+    /// Add the whole matrix into the dense `h` (dim x dim).
+    pub fn add_to_dense(&self, h: &mut Mat<f64>) {
+        for (a, d) in self.diag.iter().enumerate() {
+            let o = self.offsets[a];
+            let mut dst = h.as_mut().submatrix_mut(o, o, d.nrows(), d.ncols());
+            dst += d.as_ref();
+        }
+        for (&(a, b), c) in &self.coupling {
+            let (oa, ob) = (self.offsets[a], self.offsets[b]);
+            let mut dst = h.as_mut().submatrix_mut(oa, ob, c.nrows(), c.ncols());
+            dst += c.as_ref();
+            let mut dst = h.as_mut().submatrix_mut(ob, oa, c.ncols(), c.nrows());
+            dst += c.transpose();
+        }
+    }
+
+    /// The dense matrix.
+    pub fn to_dense(&self) -> Mat<f64> {
+        let n = self.dim();
+        let mut h = Mat::zeros(n, n);
+        self.add_to_dense(&mut h);
+        h
+    }
+
+    /// y = H x.
+    pub fn mul(&self, x: &[f64], y: &mut [f64]) {
+        y.fill(0.0);
+        let o = &self.offsets;
+        let col = |v, a: usize| column(v, o[a], o[a + 1]);
+        let mut out: Vec<Mat<f64>> = self.diag.iter().map(|d| Mat::zeros(d.nrows(), 1)).collect();
+        for (a, d) in self.diag.iter().enumerate() {
+            matmul(
+                out[a].as_mut(),
+                Accum::Add,
+                d.as_ref(),
+                col(x, a),
+                1.0,
+                Par::Seq,
+            );
+        }
+        for (&(a, b), c) in &self.coupling {
+            matmul(
+                out[a].as_mut(),
+                Accum::Add,
+                c.as_ref(),
+                col(x, b),
+                1.0,
+                Par::Seq,
+            );
+            matmul(
+                out[b].as_mut(),
+                Accum::Add,
+                c.transpose(),
+                col(x, a),
+                1.0,
+                Par::Seq,
+            );
+        }
+        for (a, v) in out.iter().enumerate() {
+            for i in 0..v.nrows() {
+                y[o[a] + i] = v[(i, 0)];
+            }
+        }
+    }
+
+    /// Factor each diagonal block (in parallel; each factor on its own, so the result does
+    /// not depend on the thread count) for the block-Jacobi preconditioner. None: a block is
+    /// not positive definite.
+    pub fn into_solver(self) -> Option<BlockSolve> {
+        let factors: Vec<Option<Llt<f64>>> = self
+            .diag
+            .par_iter()
+            .map(|d| d.llt(Side::Lower).ok())
+            .collect();
+        let factors = factors.into_iter().collect::<Option<Vec<_>>>()?;
+        Some(BlockSolve { h: self, factors })
+    }
+}
+
+/// H^-1 g for a [`BlockHessian`] H by block-Jacobi preconditioned conjugate gradients.
+pub struct BlockSolve {
+    h: BlockHessian,
+    factors: Vec<Llt<f64>>,
+}
+
+/// What one [`BlockSolve::solve_with_info`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct CgInfo {
+    /// Iterations taken.
+    pub iterations: usize,
+    /// Final |H d - g| / |g|.
+    pub relative_residual: f64,
+}
+
+/// Entries lo..hi of `v` as a column.
+fn column(v: &[f64], lo: usize, hi: usize) -> MatRef<'_, f64> {
+    MatRef::from_column_major_slice(&v[lo..hi], hi - lo, 1)
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+impl BlockSolve {
+    /// The matrix.
+    pub fn matrix(&self) -> &BlockHessian {
+        &self.h
+    }
+
+    fn precondition(&self, r: &[f64], z: &mut [f64]) {
+        let o = &self.h.offsets;
+        for (a, f) in self.factors.iter().enumerate() {
+            let n = o[a + 1] - o[a];
+            let x = Solve::solve(f, column(r, o[a], o[a + 1]));
+            for i in 0..n {
+                z[o[a] + i] = x[(i, 0)];
+            }
+        }
+    }
+
+    /// d with H d = g to the relative residual [`CG_TOLERANCE`] (or the best iterate after
+    /// the iteration cap; every iterate from 0 is a descent direction for -d, as the
+    /// conjugate gradients minimise the quadratic model over growing subspaces).
+    pub fn solve_with_info(&self, g: &[f64]) -> (Vec<f64>, CgInfo) {
+        let n = g.len();
+        let mut x = vec![0.0; n];
+        let gnorm = dot(g, g).sqrt();
+        let mut info = CgInfo::default();
+        if gnorm == 0.0 || !gnorm.is_finite() {
+            return (x, info);
+        }
+        let mut r = g.to_vec();
+        let mut z = vec![0.0; n];
+        self.precondition(&r, &mut z);
+        let mut p = z.clone();
+        let mut rz = dot(&r, &z);
+        let mut hp = vec![0.0; n];
+        let cap = CG_ITERATIONS_PER_OBJECT * self.h.blocks().max(1);
+        info.relative_residual = 1.0;
+        while info.iterations < cap {
+            self.h.mul(&p, &mut hp);
+            let php = dot(&p, &hp);
+            // Zero or negative curvature (or NaN) along p: stop with the iterate so far.
+            if php.is_nan() || php <= 0.0 {
+                break;
+            }
+            let alpha = rz / php;
+            for i in 0..n {
+                x[i] += alpha * p[i];
+                r[i] -= alpha * hp[i];
+            }
+            info.iterations += 1;
+            info.relative_residual = dot(&r, &r).sqrt() / gnorm;
+            if info.relative_residual <= CG_TOLERANCE {
+                break;
+            }
+            self.precondition(&r, &mut z);
+            let rz_next = dot(&r, &z);
+            let beta = rz_next / rz;
+            rz = rz_next;
+            for i in 0..n {
+                p[i] = z[i] + beta * p[i];
+            }
+        }
+        (x, info)
+    }
+}
+
+impl RestSolve for BlockSolve {
+    fn solve(&self, rhs: &[f64]) -> Vec<f64> {
+        self.solve_with_info(rhs).0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A random SPD island of three blocks (3, 4 and 2 unknowns) coupled 0-1 and 1-2: the
+    /// block products equal the dense ones, and the conjugate-gradient solve equals the dense
+    /// Cholesky solve to the CG tolerance times the condition number.
+    #[test]
+    fn block_solve_matches_the_dense_cholesky_solve() {
+        let sizes = [3, 4, 2];
+        let mut seed = 12345u64;
+        let mut rnd = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+        };
+        let n: usize = sizes.iter().sum();
+        // H = A A^T + I restricted to the block pattern: build A with the same pattern.
+        let a = Mat::from_fn(n, n, |_, _| rnd());
+        let mut dense = Mat::<f64>::identity(n, n);
+        matmul(
+            dense.as_mut(),
+            Accum::Add,
+            a.as_ref(),
+            a.transpose(),
+            1.0,
+            Par::Seq,
+        );
+        // Zero the (0, 2) coupling: it is not stored.
+        for i in 0..3 {
+            for j in 7..9 {
+                dense[(i, j)] = 0.0;
+                dense[(j, i)] = 0.0;
+            }
+        }
+        // Keep it SPD after removing the coupling: add a diagonal shift.
+        for i in 0..n {
+            dense[(i, i)] += 10.0;
+        }
+        let off = [0, 3, 7, 9];
+        let mut h = BlockHessian::zeros(&sizes);
+        for (a, b) in [(0, 0), (1, 1), (2, 2), (0, 1), (1, 2)] {
+            let mut blk = h.block_mut(a, b);
+            for i in 0..sizes[a] {
+                for j in 0..sizes[b] {
+                    blk[(i, j)] = dense[(off[a] + i, off[b] + j)];
+                }
+            }
+        }
+        assert_eq!(h.couplings(), 2);
+        let back = h.to_dense();
+        for i in 0..n {
+            for j in 0..n {
+                assert_eq!(back[(i, j)], dense[(i, j)]);
+            }
+        }
+        let g: Vec<f64> = (0..n).map(|_| rnd()).collect();
+        let mut y = vec![0.0; n];
+        h.mul(&g, &mut y);
+        for i in 0..n {
+            let e: f64 = (0..n).map(|j| dense[(i, j)] * g[j]).sum();
+            // Sums of 9 products of O(10) numbers: round-off ~1e-14.
+            assert!((y[i] - e).abs() < 1e-12, "{} vs {e}", y[i]);
+        }
+        let reference = dense.llt(Side::Lower).unwrap();
+        let rhs = Mat::from_fn(n, 1, |i, _| g[i]);
+        let exact = Solve::solve(&reference, rhs.as_ref());
+        let (d, info) = h.into_solver().unwrap().solve_with_info(&g);
+        assert!(info.relative_residual <= CG_TOLERANCE, "{info:?}");
+        // Relative error <= condition number x relative residual; the shifted matrix has a
+        // condition number below 10 here (eigenvalues in [10, ~50]).
+        let norm: f64 = (0..n).map(|i| exact[(i, 0)].powi(2)).sum::<f64>().sqrt();
+        for i in 0..n {
+            assert!((d[i] - exact[(i, 0)]).abs() <= 10.0 * CG_TOLERANCE * norm);
+        }
+    }
+}
