@@ -89,8 +89,17 @@ impl Potential for IslandPotential<'_> {
         }
     }
 
+    /// The object-object bound and each member's swept collider bound (the same guard
+    /// against jumping across a thin obstacle that an object stepping alone has).
     fn max_step(&self, z: &[f64], dir: &[f64]) -> f64 {
-        self.contact.max_step(z, dir)
+        self.parts
+            .iter()
+            .zip(&self.offsets)
+            .map(|(p, &o)| {
+                let n = p.dofs();
+                p.max_step(&z[o..o + n], &dir[o..o + n])
+            })
+            .fold(self.contact.max_step(z, dir), f64::min)
     }
 }
 
