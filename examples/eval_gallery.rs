@@ -2,7 +2,8 @@
 //! normalized surface at rest and at the end of each test (t = steps * dt) as the FEM
 //! reference moves it, coloured by displacement. The references come from the cache that
 //! `freeform eval` filled (same defaults: TetGen `-pYq1.414a1e-3`, P2); a missing one is
-//! computed, which is slow.
+//! computed, which is slow. Prints each test's largest displacement over the run (/ D, the
+//! bounding-box diagonal, as the error metric).
 //!
 //! ```sh
 //! cargo run --release --example eval_gallery -- /work/shapes anchor,pinion,rotor \
@@ -74,7 +75,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 Some(Path::new(cache)),
                 &freeform::progress::Silent,
             )?;
-            eprintln!("{name} {}: {:?}", test.name(), r.cache);
+            // The largest displacement over the run, for reading the error metric (/ D).
+            let d = Aabb::from_points(&r.rest).map_or(1.0, |b| b.diagonal());
+            let umax = r
+                .frames
+                .iter()
+                .flat_map(|f| f.iter().zip(&r.rest))
+                .map(|(a, b)| ((0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>()).sqrt())
+                .fold(0.0, f64::max);
+            println!(
+                "{name} {}: max |u| / D = {:.3e} ({:?})",
+                test.name(),
+                umax / d,
+                r.cache
+            );
             let map = match &node_of {
                 Some(m) => m.clone(),
                 None => {
