@@ -4,14 +4,18 @@
 # the same solid with a 4x finer surface, original vertices first and unchanged.
 import sys
 src, dst = sys.argv[1], sys.argv[2]
-tok = [l.split('#')[0].split() for l in open(src)]
-tok = [t for l in tok for t in l]
-assert tok[0] == 'OFF'
-nv, nf = int(tok[1]), int(tok[2]); i = 4
-V = [tuple(float(x) for x in tok[i+3*k:i+3*k+3]) for k in range(nv)]; i += 3*nv
+# Line-based: a COFF file (CGAL's data set) has colours after each vertex's coordinates
+# and each face's indices; only the first 3 numbers of a vertex line are kept.
+lines = [l.split('#')[0].split() for l in open(src)]
+lines = [l for l in lines if l]
+assert lines[0][0] in ('OFF', 'COFF'), f"{src}: not an OFF or COFF file"
+head = lines[0][1:] if len(lines[0]) > 1 else lines[1]
+body = lines[1:] if len(lines[0]) > 1 else lines[2:]
+nv, nf = int(head[0]), int(head[1])
+V = [tuple(float(x) for x in l[:3]) for l in body[:nv]]
 F = []
-for _ in range(nf):
-    n = int(tok[i]); F.append([int(x) for x in tok[i+1:i+1+n]]); i += 1+n
+for l in body[nv:nv + nf]:
+    n = int(l[0]); F.append([int(x) for x in l[1:1 + n]])
 mid = {}
 def m(a, b):
     k = (min(a, b), max(a, b))

@@ -146,11 +146,11 @@ pub enum CacheStatus {
     },
 }
 
-/// A beam reference trajectory.
+/// A FEM reference trajectory: the beam's ([`run_beam_reference`]) or a real shape's
+/// (`benchmark::shapes::reference`). What it was computed from is its cache key, not stored
+/// here (a cache file holds only the trajectory).
 #[derive(Debug, Clone)]
 pub struct BeamReference {
-    /// The definition it was computed from.
-    pub config: FemBeamConfig,
     /// FE node rest positions, N x 3, metres: the mesh nodes, then (quadratic elements)
     /// the edge-midpoint nodes. The reduced map is evaluated at these.
     pub rest: Vec<Point3>,
@@ -198,12 +198,9 @@ pub fn run_beam_reference(
     progress: &dyn Progress,
 ) -> crate::Result<BeamReference> {
     let (hash, key) = config.cache_key();
-    let mut r = cached_reference(cache_dir, &hash, &key, progress, || {
+    cached_reference(cache_dir, &hash, &key, progress, || {
         compute(config, progress)
-    })?;
-    // A cache file holds the trajectory, not the configuration it was keyed by.
-    r.config = config.clone();
-    Ok(r)
+    })
 }
 
 /// The FEM reference stored under `key` in `cache_dir/{hash}.bin`, or, when there is none or
@@ -310,7 +307,6 @@ fn compute(config: &FemBeamConfig, progress: &dyn Progress) -> crate::Result<Bea
     }
     progress.finish();
     Ok(BeamReference {
-        config: config.clone(),
         rest,
         tets: mesh.tets().to_vec(),
         frames,
@@ -480,7 +476,6 @@ pub(crate) fn read_cache(path: &Path, key: &str) -> Result<BeamReference, String
         all.chunks(n).map(|c| c.to_vec()).collect()
     };
     Ok(BeamReference {
-        config: FemBeamConfig::standard(BeamTest::Bend, 1),
         rest,
         tets,
         frames,

@@ -64,8 +64,7 @@ pub fn fem_params(
 }
 
 /// Run (or load from `cache_dir`) the FEM reference of `test` on `mesh` (the TetGen mesh of
-/// `shape`). The returned [`BeamReference`]'s `config` field is meaningless here (it is the
-/// beam's type reused for its trajectory and cache).
+/// `shape`).
 ///
 /// # Errors
 /// A region that holds no FE node ([`Error::InvalidParameter`]), the solver's errors
@@ -155,7 +154,6 @@ fn compute(
     }
     progress.finish();
     Ok(BeamReference {
-        config: crate::fem::beam::FemBeamConfig::standard(crate::fem::beam::BeamTest::Bend, 1),
         rest,
         tets: mesh.tets().to_vec(),
         frames,
