@@ -51,6 +51,13 @@ $FF render "$WORK/stack" --ground 0 --elevation 25 --azimuth 120 --every 6 --siz
     --out "$WORK/stack_png"
 cp "$WORK/stack_png/frame_000030.png" docs/img/stack.png
 
+# Container (examples/container.toml): 13 objects of five shapes settled in the open-top mesh
+# container, seen from above (its walls are opaque), the last frame (t = 1.5 s).
+$FF run examples/container.toml --out "$WORK/container" > /dev/null
+$FF render "$WORK/container" --ground 0 --elevation 65 --azimuth 10 --every 30 --size 640x480 \
+    --out "$WORK/container_png"
+cp "$WORK/container_png/frame_000030.png" docs/img/container.png
+
 # Plinko (examples/plinko.toml): 18 objects on the first row of pegs, frame 6 (t = 0.3 s). Only
 # the first 30 steps are run (a copy of the scene with `steps = 30`): the picture needs no more,
 # and the later steps, with most objects in one island, are the slow part (docs/performance.md).

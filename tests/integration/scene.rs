@@ -80,12 +80,13 @@ fn example_scenes_parse() {
         "layered_sphere.toml",
         "stack.toml",
         "plinko.toml",
+        "container.toml",
     ] {
         let s = Scene::load(&dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert!(!s.objects.is_empty());
         n += 1;
     }
-    assert_eq!(n, 7);
+    assert_eq!(n, 8);
     // Plinko: the 18 objects of K = 500, m = 12, with contact, through 20 pegs.
     let plinko = Scene::load(&dir.join("plinko.toml")).unwrap();
     assert_eq!(plinko.objects.len(), 18);
@@ -95,6 +96,21 @@ fn example_scenes_parse() {
         .all(|o| o.basis.kernels == 500 && o.basis.modes == 12));
     assert_eq!(plinko.contact.as_ref().map(|c| c.friction), Some(0.3));
     assert_eq!(plinko.colliders.len(), 27);
+    // The container: 13 objects of five shapes, two of them the closed meshes that
+    // scripts/example_meshes.py writes (they read as solids), in a one-sided mesh container.
+    let c = Scene::load(&dir.join("container.toml")).unwrap();
+    assert_eq!(c.objects.len(), 13);
+    let mut shapes: Vec<&str> = c.objects.iter().map(|o| o.shape.as_str()).collect();
+    shapes.sort_unstable();
+    shapes.dedup();
+    assert_eq!(shapes.len(), 5);
+    for mesh in ["torus.obj", "ell.obj"] {
+        let path = dir.join("data").join(mesh);
+        let shape = freeform::io::read_shape(path.to_str().unwrap(), &Default::default())
+            .unwrap_or_else(|e| panic!("{mesh}: {e}"));
+        assert_eq!(shape.kind(), "mesh", "{mesh}");
+    }
+    assert_eq!(c.colliders.len(), 1);
     // The contact example has contact (with its friction) and three objects to touch.
     let stack = Scene::load(&dir.join("stack.toml")).unwrap();
     assert_eq!(stack.objects.len(), 3);
