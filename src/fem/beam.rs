@@ -264,26 +264,26 @@ fn compute(config: &FemBeamConfig, progress: &dyn Progress) -> crate::Result<Bea
     let mut fixed = held.clone();
     fixed.extend(&turned);
     let mut solver = FemSolver::new(&mesh, &materials, &fixed, config.solver.clone())?;
-    let rest = solver.rest_positions().to_vec();
     let (cy, cz) = (0.5 * config.size[1], 0.5 * config.size[2]);
     let is_turned: Vec<bool> = {
-        let mut v = vec![false; rest.len()];
+        let mut v = vec![false; fe.len()];
         turned.iter().for_each(|&i| v[i] = true);
         v
     };
-    let mut frames = Vec::with_capacity(config.steps);
-    let mut step_seconds = Vec::with_capacity(config.steps);
-    let mut newton_iterations = Vec::with_capacity(config.steps);
-    progress.begin(
-        &format!("FEM {} r={}", config.test.name(), config.resolution),
-        Some(config.steps as u64),
-    );
-    for n in 1..=config.steps {
-        if !turned.is_empty() {
+    let label = format!("FEM {} r={}", config.test.name(), config.resolution);
+    record_trajectory(
+        &mut solver,
+        &mesh,
+        config.steps,
+        &label,
+        progress,
+        |n, rest, fixed| {
+            if turned.is_empty() {
+                return None;
+            }
             let theta = (config.twist_degrees * n as f64 / config.steps as f64).to_radians();
             let (s, c) = theta.sin_cos();
-            let targets: Vec<Point3> = solver
-                .fixed_nodes()
+            let targets = fixed
                 .iter()
                 .map(|&i| {
                     let p = rest[i];
@@ -295,7 +295,31 @@ fn compute(config: &FemBeamConfig, progress: &dyn Progress) -> crate::Result<Bea
                     }
                 })
                 .collect();
-            solver.set_targets(&targets)?;
+            Some(targets)
+        },
+    )
+}
+
+/// Step `solver` `steps` times and record the reference: before step n (1-based),
+/// `targets(n, rest positions, fixed nodes)` gives the fixed nodes' positions, or None to
+/// leave them where they are; every step's positions, wall time and Newton iterations are
+/// kept. `label` names the work in `progress`.
+pub(crate) fn record_trajectory(
+    solver: &mut FemSolver,
+    mesh: &TetMesh,
+    steps: usize,
+    label: &str,
+    progress: &dyn Progress,
+    mut targets: impl FnMut(usize, &[Point3], &[usize]) -> Option<Vec<Point3>>,
+) -> crate::Result<BeamReference> {
+    let rest = solver.rest_positions().to_vec();
+    let mut frames = Vec::with_capacity(steps);
+    let mut step_seconds = Vec::with_capacity(steps);
+    let mut newton_iterations = Vec::with_capacity(steps);
+    progress.begin(label, Some(steps as u64));
+    for n in 1..=steps {
+        if let Some(t) = targets(n, &rest, solver.fixed_nodes()) {
+            solver.set_targets(&t)?;
         }
         let t0 = Instant::now();
         let info = solver.step()?;

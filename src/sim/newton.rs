@@ -378,6 +378,22 @@ fn newton_direction(
     d
 }
 
+/// Where a minimisation should start from the previous state `from` when `guess`
+/// extrapolates the motion: the guess itself when [`Potential::max_step`] allows the whole way
+/// (bit for bit), else pulled back along `guess - from` as far as it allows (the guess may
+/// carry a point across a thin obstacle or a contact sample through another).
+pub fn bounded_start(pot: &dyn Potential, from: &[f64], guess: &[f64]) -> Vec<f64> {
+    let dir: Vec<f64> = guess.iter().zip(from).map(|(g, z0)| g - z0).collect();
+    let alpha = pot.max_step(from, &dir);
+    if alpha >= 1.0 {
+        return guess.to_vec();
+    }
+    from.iter()
+        .zip(&dir)
+        .map(|(z0, d)| z0 + alpha * d)
+        .collect()
+}
+
 /// Minimise `pot` starting from `z` (updated in place); `state` carries the quasi-Newton memory between
 /// calls.
 pub fn minimize(

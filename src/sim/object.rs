@@ -486,21 +486,11 @@ impl ReducedSim {
     pub fn step(&mut self) -> StepReport {
         let sw = Stopwatch::start();
         let start = self.begin_step();
-        let mut z = start.guess.clone();
         let mut history = std::mem::take(&mut self.history);
         let pot = self.potential(&start);
-        // The guess extrapolates the motion and may carry points across a thin obstacle:
-        // pulled back toward z_n as far as the swept bound asks (kept as is when it allows
-        // the whole way).
-        if self.contacts.is_some() {
-            let dir: Vec<f64> = z.iter().zip(&self.z).map(|(g, z0)| g - z0).collect();
-            let alpha = pot.max_step(&self.z, &dir);
-            if alpha < 1.0 {
-                for ((zi, z0), d) in z.iter_mut().zip(&self.z).zip(&dir) {
-                    *zi = z0 + alpha * d;
-                }
-            }
-        }
+        // The colliders' swept bound keeps the guess from carrying points across a thin
+        // obstacle (without colliders nothing bounds it and the guess stands as it is).
+        let mut z = newton::bounded_start(&pot, &self.z, &start.guess);
         let measure = |d: &[f64]| self.measure(d);
         let ctx = SolverContext {
             rest: &self.rest_factor,

@@ -4,14 +4,13 @@
 //! every setting).
 
 use super::protocol::{boundary_regions, gravity, NormalizedShape, Protocol, ShapeTest};
-use crate::fem::beam::{cached_reference, fnv1a, BeamReference, CacheStatus};
+use crate::fem::beam::{cached_reference, fnv1a, record_trajectory, BeamReference};
 use crate::fem::element::fe_nodes;
 use crate::fem::solver::{FemParams, FemSolver};
 use crate::fem::{FemError, TetMaterials, TetMesh};
 use crate::progress::Progress;
 use crate::{Error, Point3, Result};
 use std::path::Path;
-use std::time::Instant;
 
 /// Cache key of a shape reference: FNV-1a 64 of the canonical JSON of the mesh's hash and
 /// the settings, as 16 hex digits, and the JSON itself.
@@ -124,43 +123,29 @@ fn compute(
     let fixed: Vec<usize> = (0..fe.len()).filter(|&i| owner[i].is_some()).collect();
     let steps = protocol.steps;
     let mut solver = FemSolver::new(mesh, &materials, &fixed, params)?;
-    let rest = solver.rest_positions().to_vec();
-    let mut frames = Vec::with_capacity(steps);
-    let mut step_seconds = Vec::with_capacity(steps);
-    let mut newton_iterations = Vec::with_capacity(steps);
-    progress.begin(&format!("FEM {}", test.name()), Some(steps as u64));
     let moving = regions
         .iter()
         .any(|(_, m)| *m != crate::sim::motion::Motion::Fixed);
-    for n in 1..=steps {
-        if moving {
+    let label = format!("FEM {}", test.name());
+    record_trajectory(
+        &mut solver,
+        mesh,
+        steps,
+        &label,
+        progress,
+        |n, rest, fixed| {
             let t = n as f64 * protocol.dt;
-            let targets: Vec<Point3> = solver
-                .fixed_nodes()
-                .iter()
-                .map(|&i| match owner[i] {
-                    Some(r) => regions[r].1.at(t).apply(&rest[i]),
-                    None => rest[i],
-                })
-                .collect();
-            solver.set_targets(&targets)?;
-        }
-        let t0 = Instant::now();
-        let info = solver.step()?;
-        step_seconds.push(t0.elapsed().as_secs_f64());
-        newton_iterations.push(info.newton_iterations as u32);
-        frames.push(solver.positions().to_vec());
-        progress.set_position(n as u64);
-    }
-    progress.finish();
-    Ok(BeamReference {
-        rest,
-        tets: mesh.tets().to_vec(),
-        frames,
-        step_seconds,
-        newton_iterations,
-        cache: CacheStatus::NotCached,
-    })
+            moving.then(|| {
+                fixed
+                    .iter()
+                    .map(|&i| match owner[i] {
+                        Some(r) => regions[r].1.at(t).apply(&rest[i]),
+                        None => rest[i],
+                    })
+                    .collect()
+            })
+        },
+    )
 }
 
 /// The trajectory difference between two references of the same shape and test on two

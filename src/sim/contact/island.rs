@@ -146,16 +146,10 @@ pub fn step_island(
             solver,
         };
         // The start: a given one (an earlier solve of this step, reached from z0 by bounded
-        // line searches), or the guess pulled back toward the previous state as far as the
-        // step bound asks (the guess extrapolates motion and may carry a pair through
-        // another).
+        // line searches), or the guess within the step bound.
         let mut z: Vec<f64> = match start {
             Some(s) => s.to_vec(),
-            None => {
-                let dir: Vec<f64> = guess.iter().zip(&z0).map(|(g, z)| g - z).collect();
-                let alpha = pot.max_step(&z0, &dir).min(1.0);
-                z0.iter().zip(&dir).map(|(z, d)| z + alpha * d).collect()
-            }
+            None => newton::bounded_start(&pot, &z0, &guess),
         };
         let measure = |d: &[f64]| {
             shared
