@@ -6,7 +6,7 @@
 //! step wall time, process CPU time per step, both per object; islands; pairs; the deepest
 //! penetration; unconverged steps) and draws docs/img/contact_scaling.png.
 //!
-//!     cargo run --release --example contact_scaling [-- quick] [-- threads N]
+//!     cargo run --release --example contact_scaling [-- quick]
 //!
 //! `quick` runs N = 1, 2, 4 only, 40 steps. The CPU time (user + system of the whole process,
 //! over the steps only) is what to compare on a shared machine.

@@ -110,44 +110,23 @@ impl BlockHessian {
         h
     }
 
-    /// y = H x.
+    /// y = H x (written block by block straight into y: no allocation, as CG calls it
+    /// every iteration).
     pub fn mul(&self, x: &[f64], y: &mut [f64]) {
         y.fill(0.0);
         let o = &self.offsets;
         let col = |v, a: usize| column(v, o[a], o[a + 1]);
-        let mut out: Vec<Mat<f64>> = self.diag.iter().map(|d| Mat::zeros(d.nrows(), 1)).collect();
+        let mut add = |a: usize, m: MatRef<'_, f64>, b: usize| {
+            let out =
+                MatMut::from_column_major_slice_mut(&mut y[o[a]..o[a + 1]], o[a + 1] - o[a], 1);
+            matmul(out, Accum::Add, m, col(x, b), 1.0, Par::Seq);
+        };
         for (a, d) in self.diag.iter().enumerate() {
-            matmul(
-                out[a].as_mut(),
-                Accum::Add,
-                d.as_ref(),
-                col(x, a),
-                1.0,
-                Par::Seq,
-            );
+            add(a, d.as_ref(), a);
         }
         for (&(a, b), c) in &self.coupling {
-            matmul(
-                out[a].as_mut(),
-                Accum::Add,
-                c.as_ref(),
-                col(x, b),
-                1.0,
-                Par::Seq,
-            );
-            matmul(
-                out[b].as_mut(),
-                Accum::Add,
-                c.transpose(),
-                col(x, a),
-                1.0,
-                Par::Seq,
-            );
-        }
-        for (a, v) in out.iter().enumerate() {
-            for i in 0..v.nrows() {
-                y[o[a] + i] = v[(i, 0)];
-            }
+            add(a, c.as_ref(), b);
+            add(b, c.transpose(), a);
         }
     }
 
@@ -197,12 +176,14 @@ impl BlockSolve {
 
     fn precondition(&self, r: &[f64], z: &mut [f64]) {
         let o = &self.h.offsets;
+        z.copy_from_slice(r);
         for (a, f) in self.factors.iter().enumerate() {
             let n = o[a + 1] - o[a];
-            let x = Solve::solve(f, column(r, o[a], o[a + 1]));
-            for i in 0..n {
-                z[o[a] + i] = x[(i, 0)];
-            }
+            f.solve_in_place(MatMut::from_column_major_slice_mut(
+                &mut z[o[a]..o[a + 1]],
+                n,
+                1,
+            ));
         }
     }
 
