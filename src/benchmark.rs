@@ -27,8 +27,8 @@ pub struct ReducedBeamOptions {
     pub modes: usize,
     /// Kernels K.
     pub kernels: usize,
-    /// Integration grid: a point count or a spacing (None: the pipeline default, 50 K
-    /// points clamped to [20,000, 2,000,000]).
+    /// Integration grid: a point count or a spacing (None: the pipeline default,
+    /// [`crate::precompute::default_points`]).
     pub resolution: Option<Resolution>,
     /// Cubature points.
     pub cubature: usize,

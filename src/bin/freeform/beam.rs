@@ -78,7 +78,7 @@ pub struct BeamArgs {
     /// Kernels K.
     #[arg(long, default_value_t = 1000)]
     kernels: usize,
-    /// Integration points [default: 50 K clamped to 20,000..2,000,000].
+    /// Integration points [default: 50 K clamped to 20,000..2,000,000; 10 K above K = 200,000].
     #[arg(long)]
     points: Option<usize>,
     /// Cubature points while simulating.
