@@ -199,11 +199,21 @@ pub trait Potential {
         let _ = (z, dir);
         f64::INFINITY
     }
-    /// The Newton system at z when the potential solves it in its own structure (an island
-    /// of objects: block sparse, [`crate::sim::contact::system`]); default
-    /// [`NewtonSystem::Dense`]: build [`Potential::hessian`] and factorize it densely.
-    fn newton_system(&self, z: &[f64]) -> NewtonSystem {
+    /// The exact Hessian at z (default: none, Newton factorizes [`Potential::hessian`]).
+    /// Where it exists Newton factorizes it first and takes the PSD approximation only when
+    /// the exact one is not positive definite: near a minimum it is, and the projected
+    /// curvature (clipped compression modes, dropped contact curvature) slows Newton to a
+    /// linear rate (docs/performance.md, "Object-object contact").
+    fn exact_hessian(&self, z: &[f64]) -> Option<Mat<f64>> {
         let _ = z;
+        None
+    }
+    /// The Newton step at z for the gradient `grad` when the potential solves its system in
+    /// its own structure (an island of objects: block sparse,
+    /// [`crate::sim::contact::system`]); default [`NewtonSystem::Dense`]: factorize
+    /// [`Potential::exact_hessian`] or [`Potential::hessian`] densely.
+    fn newton_system(&self, z: &[f64], grad: &[f64]) -> NewtonSystem {
+        let _ = (z, grad);
         NewtonSystem::Dense
     }
 }
@@ -212,8 +222,17 @@ pub trait Potential {
 pub enum NewtonSystem {
     /// Build the dense Hessian and factorize it (Cholesky).
     Dense,
-    /// The potential's own solver of H(z) d = g.
-    Solver(Box<dyn RestSolve + Send>),
+    /// The potential solved it: its solver of H(z) d = g (kept to measure convergence at
+    /// the next iterate) and d for the given gradient, a descent direction (-d).
+    Solved {
+        /// The factorized system.
+        solver: Box<dyn RestSolve + Send>,
+        /// H(z)^-1 grad.
+        direction: Vec<f64>,
+        /// Whether the exact Hessian was not positive definite and the PSD approximation
+        /// was used.
+        projected: bool,
+    },
     /// The system is not positive definite (the rest step is taken, as when a dense
     /// Cholesky factorization fails).
     Indefinite,
@@ -282,6 +301,9 @@ pub struct SolveReport {
     pub factorizations: usize,
     /// Times a Newton Hessian was not positive definite and the rest matrix was used.
     pub cholesky_fallbacks: usize,
+    /// Times the exact Hessian ([`Potential::exact_hessian`]) was not positive definite and
+    /// its PSD approximation was factorized instead.
+    pub projected_fallbacks: usize,
     /// Diagnostics at the final state.
     pub info: EvalInfo,
     /// Seconds spent in energy/gradient evaluations.
@@ -347,6 +369,14 @@ fn refreshed_base(
 
 /// The dense Newton direction H(z)^-1 `grad` (the step `delta` of the best model at hand
 /// when the Hessian does not factorize), with its time and factorization counted in `rep`.
+/// f(), its wall time added to `seconds`.
+fn timed<T>(seconds: &mut f64, f: impl FnOnce() -> T) -> T {
+    let sw = crate::report::Stopwatch::start();
+    let out = f();
+    *seconds += sw.elapsed();
+    out
+}
+
 fn newton_direction(
     pot: &dyn Potential,
     z: &[f64],
@@ -356,9 +386,20 @@ fn newton_direction(
     rep: &mut SolveReport,
 ) -> Vec<f64> {
     use crate::report::Stopwatch;
-    let sw = Stopwatch::start();
-    let h = pot.hessian(z);
-    rep.hessian_s += sw.elapsed();
+    if let Some(h) = timed(&mut rep.hessian_s, || pot.exact_hessian(z)) {
+        rep.factorizations += 1;
+        let solved = timed(&mut rep.solve_s, || {
+            let f = h.llt(Side::Lower).ok()?;
+            let d = solve_with(&f, grad);
+            (dot(grad, &d) > 0.0).then_some((f, d))
+        });
+        if let Some((f, d)) = solved {
+            *base = Some(f);
+            return d;
+        }
+        rep.projected_fallbacks += 1;
+    }
+    let h = timed(&mut rep.hessian_s, || pot.hessian(z));
     let sw = Stopwatch::start();
     rep.factorizations += 1;
     let d = match h.llt(Side::Lower) {
@@ -490,21 +531,25 @@ pub fn minimize(
             }
             HessianStrategy::Newton => {
                 let sw = Stopwatch::start();
-                let system = pot.newton_system(z);
-                rep.hessian_s += sw.elapsed();
+                let system = pot.newton_system(z, &grad);
                 let d = match system {
                     NewtonSystem::Dense => {
                         newton_direction(pot, z, &grad, &delta, &mut state.base, &mut rep)
                     }
-                    NewtonSystem::Solver(s) => {
-                        let sw = Stopwatch::start();
+                    NewtonSystem::Solved {
+                        solver,
+                        direction,
+                        projected,
+                    } => {
+                        // The potential built, factorized and solved in one call.
+                        rep.hessian_s += sw.elapsed();
                         rep.factorizations += 1;
-                        let d = s.solve(&grad);
-                        state.structured = Some(s);
-                        rep.solve_s += sw.elapsed();
-                        d
+                        rep.projected_fallbacks += usize::from(projected);
+                        state.structured = Some(solver);
+                        direction
                     }
                     NewtonSystem::Indefinite => {
+                        rep.hessian_s += sw.elapsed();
                         rep.factorizations += 1;
                         rep.cholesky_fallbacks += 1;
                         delta.clone()
@@ -671,5 +716,93 @@ mod tests {
         for i in 0..2 {
             assert!((z[i] - B[i] / A[i]).abs() < 1e-12, "z = {z:?}");
         }
+    }
+
+    /// E = z^4 / 4 - z^2 + z / 2 in one unknown: E'' = 3 z^2 - 2 is negative near 0; the
+    /// "projected" model 3 z^2 + 1 is positive everywhere and 3 too large, as a clipped
+    /// compression mode or a dropped contact curvature makes Newton's model too stiff.
+    struct DoubleWell {
+        exact: bool,
+    }
+
+    impl Potential for DoubleWell {
+        fn energy_gradient(&self, z: &[f64], grad: &mut [f64]) -> (f64, EvalInfo) {
+            let x = z[0];
+            grad[0] = x * x * x - 2.0 * x + 0.5;
+            (x.powi(4) / 4.0 - x * x + 0.5 * x, EvalInfo::default())
+        }
+        fn hessian(&self, z: &[f64]) -> Mat<f64> {
+            Mat::from_fn(1, 1, |_, _| 3.0 * z[0] * z[0] + 1.0)
+        }
+        fn exact_hessian(&self, z: &[f64]) -> Option<Mat<f64>> {
+            self.exact
+                .then(|| Mat::from_fn(1, 1, |_, _| 3.0 * z[0] * z[0] - 2.0))
+        }
+    }
+
+    fn newton_from(z0: f64, exact: bool) -> (f64, SolveReport) {
+        let rest = Mat::<f64>::identity(1, 1).llt(Side::Lower).unwrap();
+        let measure = |d: &[f64]| d[0].abs();
+        let options = NewtonOptions {
+            hessian: HessianStrategy::Newton,
+            tol: 1e-10,
+            ..NewtonOptions::default()
+        };
+        let ctx = SolverContext {
+            rest: &rest,
+            measure: &measure,
+            options: &options,
+        };
+        let mut z = vec![z0];
+        let rep = minimize(
+            &DoubleWell { exact },
+            &mut z,
+            &ctx,
+            &mut QuasiNewtonState::default(),
+        );
+        (z[0], rep)
+    }
+
+    /// E' = 0 on [lo, hi] by bisection (E' changes sign there).
+    fn root(mut lo: f64, mut hi: f64) -> f64 {
+        let f = |x: f64| x * x * x - 2.0 * x + 0.5;
+        for _ in 0..200 {
+            let mid = 0.5 * (lo + hi);
+            if f(lo) * f(mid) <= 0.0 {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        0.5 * (lo + hi)
+    }
+
+    #[test]
+    fn newton_takes_the_exact_hessian_where_it_is_positive_definite() {
+        let right = root(1.0, 2.0);
+        // Where E'' > 0 all the way, the exact model converges quadratically; the
+        // three-too-stiff model only linearly (rate 1 - E''/(E''+3) ~ 0.5 at the minimum).
+        let (z, exact) = newton_from(2.0, true);
+        let (zp, projected) = newton_from(2.0, false);
+        assert!(exact.converged && projected.converged);
+        assert_eq!(exact.projected_fallbacks, 0);
+        // Both to 1e-10 (the tolerance on the step) of the bisected minimiser.
+        assert!(
+            (z - right).abs() < 1e-9 && (zp - right).abs() < 1e-9,
+            "{z} {zp} {right}"
+        );
+        assert!(exact.iterations <= 6, "{exact:?}");
+        assert!(
+            projected.iterations >= 2 * exact.iterations,
+            "{projected:?}"
+        );
+        // From inside the concave band the exact Hessian is negative: the projected one is
+        // taken there (counted), and Newton still ends at a minimiser (E' = 0, E'' > 0).
+        let (z, rep) = newton_from(0.1, true);
+        assert!(rep.converged, "{rep:?}");
+        assert!(rep.projected_fallbacks >= 1, "{rep:?}");
+        assert_eq!(rep.cholesky_fallbacks, 0);
+        let left = root(-2.0, -1.0);
+        assert!((z - left).abs() < 1e-9 || (z - right).abs() < 1e-9, "{z}");
     }
 }

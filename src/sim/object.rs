@@ -911,6 +911,46 @@ impl StepPotential<'_> {
     }
 }
 
+impl StepPotential<'_> {
+    /// The Hessian at z with every cubature point's elastic Hessian and every collider
+    /// penalty's curvature exact (`exact`), or projected to PSD as Newton and the
+    /// quasi-Newton bases factorize it ([`Potential::hessian`]); friction's is exact either
+    /// way.
+    fn assembled_hessian(
+        &self,
+        z: &[f64],
+        stride: usize,
+        precision: Precision,
+        exact: bool,
+    ) -> Mat<f64> {
+        let s = self.sim;
+        let l = s.layout;
+        let (projection, contact) = if exact {
+            (Projection::None, ContactHessian::Exact)
+        } else {
+            (Projection::PerPoint, ContactHessian::Psd)
+        };
+        let mut h = s.elastic.hessian_sampled(z, projection, stride, precision);
+        add_block_diagonal(l, &s.mass.bb, 1.0 / (s.dt * s.dt), &mut h);
+        for b in &s.boundaries {
+            add_block_diagonal(l, &b.moments.bb, 1.0, &mut h);
+        }
+        if let Some(c) = &s.contacts {
+            c.add_hessian(l, self.t, z, contact, &mut h);
+            if let Some((lag, eps)) = self.friction {
+                c.add_friction_hessian(l, lag, eps, z, &mut h);
+            }
+        }
+        h
+    }
+
+    /// The exact Hessian at z (may be indefinite): an island's Newton tries it before the
+    /// projected one ([`Potential::exact_hessian`]).
+    pub fn hessian_exact(&self, z: &[f64]) -> Mat<f64> {
+        self.assembled_hessian(z, 1, Precision::Double, true)
+    }
+}
+
 impl Potential for StepPotential<'_> {
     fn energy_gradient(&self, z: &[f64], grad: &mut [f64]) -> (f64, EvalInfo) {
         let s = self.sim;
@@ -965,22 +1005,7 @@ impl Potential for StepPotential<'_> {
     }
 
     fn base_hessian(&self, z: &[f64], stride: usize, precision: Precision) -> Mat<f64> {
-        let s = self.sim;
-        let l = s.layout;
-        let mut h = s
-            .elastic
-            .hessian_sampled(z, Projection::PerPoint, stride, precision);
-        add_block_diagonal(l, &s.mass.bb, 1.0 / (s.dt * s.dt), &mut h);
-        for b in &s.boundaries {
-            add_block_diagonal(l, &b.moments.bb, 1.0, &mut h);
-        }
-        if let Some(c) = &s.contacts {
-            c.add_hessian(l, self.t, z, ContactHessian::Psd, &mut h);
-            if let Some((lag, eps)) = self.friction {
-                c.add_friction_hessian(l, lag, eps, z, &mut h);
-            }
-        }
-        h
+        self.assembled_hessian(z, stride, precision, false)
     }
 
     /// The colliders' swept bound ([`crate::sim::terms::ContactTerm::max_step`]): no cubature

@@ -14,7 +14,7 @@ use super::{ContactStats, IslandSolver};
 use crate::report::Stopwatch;
 use crate::sim::newton::{
     self, BlockRest, EvalInfo, HessianStrategy, NewtonSystem, Potential, QuasiNewtonState,
-    SolverContext,
+    RestSolve, SolverContext,
 };
 use crate::sim::object::{StepPotential, StepStart};
 use crate::sim::{ReducedSim, StepReport};
@@ -31,22 +31,62 @@ struct IslandPotential<'a> {
 }
 
 impl IslandPotential<'_> {
-    /// The PSD Hessian in blocks: each object's own (built in parallel, each by itself, so
-    /// the result does not depend on the thread count), then the contact and friction terms.
-    fn blocks(&self, z: &[f64]) -> BlockHessian {
+    /// The Hessian in blocks: each object's own (built in parallel, each by itself, so the
+    /// result does not depend on the thread count), then the contact and friction terms;
+    /// exact (`exact`: may be indefinite) or with the objects' and the pairs' curvature
+    /// projected to PSD.
+    fn blocks(&self, z: &[f64], exact: bool) -> BlockHessian {
         use rayon::prelude::*;
         let diag: Vec<Mat<f64>> = self
             .parts
             .par_iter()
             .zip(&self.offsets)
-            .map(|(p, &o)| p.hessian(&z[o..o + p.dofs()]))
+            .map(|(p, &o)| {
+                let zp = &z[o..o + p.dofs()];
+                if exact {
+                    p.hessian_exact(zp)
+                } else {
+                    p.hessian(zp)
+                }
+            })
             .collect();
         let mut h = BlockHessian::new(diag);
-        self.contact.add_hessian_blocks(z, PairHessian::Psd, &mut h);
+        let pairs = if exact {
+            PairHessian::Exact
+        } else {
+            PairHessian::Psd
+        };
+        self.contact.add_hessian_blocks(z, pairs, &mut h);
         let (lag, eps) = &self.friction;
         self.contact
             .add_friction_hessian_blocks(lag, *eps, z, &mut h);
         h
+    }
+
+    /// Factorize the blocks and solve for `grad`: Some when the system is positive definite
+    /// along every direction the solve explored and the step descends.
+    fn solve(
+        &self,
+        h: BlockHessian,
+        grad: &[f64],
+    ) -> Option<(Box<dyn RestSolve + Send>, Vec<f64>)> {
+        let (solver, d): (Box<dyn RestSolve + Send>, Vec<f64>) = match self.solver {
+            IslandSolver::Dense => {
+                let f = h.to_dense().llt(faer::Side::Lower).ok()?;
+                let d = f.solve(grad);
+                (Box::new(f), d)
+            }
+            IslandSolver::Blocks => {
+                let s = h.into_solver()?;
+                let (d, info) = s.solve_with_info(grad);
+                if info.negative_curvature {
+                    return None;
+                }
+                (Box::new(s), d)
+            }
+        };
+        let slope: f64 = grad.iter().zip(&d).map(|(g, v)| g * v).sum();
+        (slope > 0.0).then_some((solver, d))
     }
 }
 
@@ -76,17 +116,22 @@ impl Potential for IslandPotential<'_> {
     }
 
     fn hessian(&self, z: &[f64]) -> Mat<f64> {
-        self.blocks(z).to_dense()
+        self.blocks(z, false).to_dense()
     }
 
-    fn newton_system(&self, z: &[f64]) -> NewtonSystem {
-        if self.solver == IslandSolver::Dense {
-            return NewtonSystem::Dense;
+    /// The exact Hessian first, the projected one when it is not positive definite (as
+    /// [`Potential::exact_hessian`] describes), solved densely or in blocks.
+    fn newton_system(&self, z: &[f64], grad: &[f64]) -> NewtonSystem {
+        for exact in [true, false] {
+            if let Some((solver, direction)) = self.solve(self.blocks(z, exact), grad) {
+                return NewtonSystem::Solved {
+                    solver,
+                    direction,
+                    projected: !exact,
+                };
+            }
         }
-        match self.blocks(z).into_solver() {
-            Some(s) => NewtonSystem::Solver(Box::new(s)),
-            None => NewtonSystem::Indefinite,
-        }
+        NewtonSystem::Indefinite
     }
 
     /// The object-object bound and each member's swept collider bound (the same guard

@@ -157,6 +157,9 @@ pub struct CgInfo {
     pub iterations: usize,
     /// Final |H d - g| / |g|.
     pub relative_residual: f64,
+    /// Whether the solve stopped at a direction of zero or negative curvature (H is not
+    /// positive definite).
+    pub negative_curvature: bool,
 }
 
 /// Entries lo..hi of `v` as a column.
@@ -211,6 +214,7 @@ impl BlockSolve {
             let php = dot(&p, &hp);
             // Zero or negative curvature (or NaN) along p: stop with the iterate so far.
             if php.is_nan() || php <= 0.0 {
+                info.negative_curvature = true;
                 break;
             }
             let alpha = rz / php;
