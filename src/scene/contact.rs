@@ -391,19 +391,22 @@ impl WorldContact {
                 self.solver,
                 start.as_deref(),
             );
-            if let Some((a, b)) = stats.deepest_pair {
-                if stats.deepest_fraction > self.tolerance && raises < MAX_STIFFENING {
-                    // Too deep: undo, stiffen this pair, solve again from where this solve
-                    // ended (the stiffer pair only has to push out what went too deep).
+            if stats.deepest_fraction > self.tolerance && raises < MAX_STIFFENING {
+                // Too deep: undo, stiffen every pair of objects that went too deep (in a
+                // large island several do at once; one at a time used up the raises on
+                // the first few), solve again from where this solve ended (the stiffer pairs
+                // only have to push out what went too deep).
+                let end: Vec<f64> = sims.iter().flat_map(|s| s.z.iter().copied()).collect();
+                for (a, b) in contact.pairs_deeper_than(&end, self.tolerance) {
                     stiffness[a * m + b] *= STIFFENING_FACTOR;
                     stiffness[b * m + a] *= STIFFENING_FACTOR;
-                    start = Some(sims.iter().flat_map(|s| s.z.iter().copied()).collect());
-                    for (s, snap) in sims.iter_mut().zip(&snapshots) {
-                        s.restore(snap);
-                    }
-                    raises += 1;
-                    continue;
                 }
+                start = Some(end);
+                for (s, snap) in sims.iter_mut().zip(&snapshots) {
+                    s.restore(snap);
+                }
+                raises += 1;
+                continue;
             }
             stats.deepest_pair = stats.deepest_pair.map(|(a, b)| (group[a], group[b]));
             return Solved {

@@ -944,8 +944,8 @@ impl StepPotential<'_> {
         h
     }
 
-    /// The exact Hessian at z (may be indefinite): an island's Newton tries it before the
-    /// projected one ([`Potential::exact_hessian`]).
+    /// The exact Hessian at z (may be indefinite): Newton, alone or in an island, tries it
+    /// before the projected one ([`Potential::exact_hessian`]).
     pub fn hessian_exact(&self, z: &[f64]) -> Mat<f64> {
         self.assembled_hessian(z, 1, Precision::Double, true)
     }
@@ -1006,6 +1006,10 @@ impl Potential for StepPotential<'_> {
 
     fn base_hessian(&self, z: &[f64], stride: usize, precision: Precision) -> Mat<f64> {
         self.assembled_hessian(z, stride, precision, false)
+    }
+
+    fn exact_hessian(&self, z: &[f64]) -> Option<Mat<f64>> {
+        Some(self.hessian_exact(z))
     }
 
     /// The colliders' swept bound ([`crate::sim::terms::ContactTerm::max_step`]): no cubature

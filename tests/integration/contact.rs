@@ -8,6 +8,7 @@ use freeform::geometry::Shape;
 use freeform::material::Material;
 use freeform::progress::Silent;
 use freeform::scene::{ObjectSpec, RunSettings, Scene, SceneBuilder, World};
+use freeform::sim::contact::energy::SEGMENT_REACH;
 use freeform::sim::contact::{
     Body, ContactSamples, ContactSettings, IslandSolver, PairContact, PairHessian,
 };
@@ -61,8 +62,9 @@ fn positions(w: &World) -> Vec<Vec<[f64; 3]>> {
 }
 
 /// The energy's gradient and exact Hessian in the stacked reduced coordinates of two
-/// overlapping blocks match central differences, and the Newton (PSD) Hessian is positive
-/// semi-definite.
+/// overlapping blocks match central differences, the PSD Hessian is positive semi-definite,
+/// the pair is found deeper than a tolerance below its depth, and the step bound caps a
+/// segment that would move the samples by metres.
 #[test]
 fn pair_energy_gradient_and_hessian_match_finite_differences() {
     // Two blocks overlapping by 4 mm (the tolerance is raised so the world accepts them).
@@ -190,6 +192,34 @@ fn pair_energy_gradient_and_hessian_match_finite_differences() {
     let top = eig.iter().cloned().fold(0.0, f64::max);
     // Rounding of the assembled sum: ~1e-14 of its largest eigenvalue.
     assert!(eig.iter().all(|&l| l >= -1e-12 * top), "{eig:?}");
+    // The pair of blocks is reported deeper than a tolerance below its depth, not above it.
+    let depth = st.deepest_fraction;
+    assert_eq!(contact.pairs_deeper_than(&z, 0.5 * depth), vec![(0, 1)]);
+    assert!(contact.pairs_deeper_than(&z, 1.01 * depth).is_empty());
+    // A near-singular Newton system can ask for a step of metres: the bound lets one segment
+    // move samples by at most SEGMENT_REACH of the smaller diagonal. Both blocks slide
+    // together along x (their translation columns), so no sample pair closes and only that
+    // cap bounds the step.
+    let mut huge = vec![0.0; 2 * n];
+    huge[lb.index(0, 0, 3)] = 1e3;
+    huge[n + lb.index(0, 0, 3)] = 1e3;
+    let moved = |i: usize| {
+        samples[i]
+            .displacements(layout, &huge[i * n..(i + 1) * n])
+            .iter()
+            .map(|d| (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt())
+            .fold(0.0, f64::max)
+    };
+    let smallest = contact.bodies()[0]
+        .diagonal
+        .min(contact.bodies()[1].diagonal);
+    let alpha = contact.max_step(&z, &huge);
+    assert!(alpha > 0.0 && moved(0) > 100.0, "{alpha} {}", moved(0));
+    assert!(
+        alpha * (moved(0) + moved(1)) <= SEGMENT_REACH * smallest * (1.0 + 1e-12),
+        "{alpha} moves {} of {smallest}",
+        alpha * (moved(0) + moved(1))
+    );
 }
 
 /// Two free blocks meet head-on without gravity or friction and bounce apart: the total

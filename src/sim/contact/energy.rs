@@ -24,6 +24,10 @@ use faer::{Accum, Mat, Par};
 /// line-search segment may close at most ([`PairContact::max_step`]).
 pub const STEP_FLOOR: f64 = 0.5;
 
+/// Largest distance, as a fraction of the smallest rest diagonal of an island's bodies, that
+/// one line-search segment may move any contact sample ([`PairContact::max_step`]).
+pub const SEGMENT_REACH: f64 = 0.5;
+
 /// One object of an island as the contact energy sees it.
 #[derive(Debug, Clone, Copy)]
 pub struct Body<'a> {
@@ -177,6 +181,23 @@ impl<'a> PairContact<'a> {
     /// Energy statistics at `z` (no gradient).
     pub fn stats(&self, z: &[f64]) -> ContactStats {
         self.active(&self.positions(z)).1
+    }
+
+    /// The body pairs (a < b) with a sample pair at `z` deeper than `tolerance` times the
+    /// smaller rest diagonal of the two bodies.
+    pub fn pairs_deeper_than(&self, z: &[f64], tolerance: f64) -> Vec<(usize, usize)> {
+        let (act, _) = self.active(&self.positions(z));
+        let mut out: Vec<(usize, usize)> = act
+            .iter()
+            .filter(|p| {
+                let diag = self.bodies[p.c.a].diagonal.min(self.bodies[p.c.b].diagonal);
+                p.d - p.r > tolerance * diag
+            })
+            .map(|p| (p.c.a.min(p.c.b), p.c.a.max(p.c.b)))
+            .collect();
+        out.sort_unstable();
+        out.dedup();
+        out
     }
 
     /// Energy (J) and statistics at the stacked `z`, gradient added to `grad`.
@@ -459,6 +480,8 @@ impl<'a> PairContact<'a> {
     /// `z` and its contact distance (infinite when nothing limits the step). Sample paths are
     /// straight lines in alpha, so the distance along the segment is exact: the first alpha
     /// where |x_i - x_j + alpha (dx_i - dx_j)| reaches the floor is a root of a quadratic.
+    /// Also at most the alpha at which two samples' relative motion reaches
+    /// [`SEGMENT_REACH`] of the smallest body's diagonal.
     pub fn max_step(&self, z: &[f64], dir: &[f64]) -> f64 {
         let x = self.positions(z);
         let dx: Vec<Vec<Point3>> = (0..self.bodies.len())
@@ -475,9 +498,25 @@ impl<'a> PairContact<'a> {
                     .fold(0.0, f64::max)
             })
             .collect();
-        // Pairs that can come within their contact distance along the whole segment.
-        let (cands, _) = candidates(&x, &|a, b| self.distance(a, b) + moved[a] + moved[b]);
-        let mut bound = f64::INFINITY;
+        // A segment may move samples by at most SEGMENT_REACH of the smallest body's
+        // diagonal: a near-singular Newton system can ask for far more, and then every
+        // sample of every neighbour would be a candidate (millions of pairs, hundreds of MB).
+        let smallest = self
+            .bodies
+            .iter()
+            .map(|b| b.diagonal)
+            .fold(f64::INFINITY, f64::min);
+        let largest = moved.iter().fold(0.0, |m: f64, &v| m.max(v));
+        let mut bound = if 2.0 * largest > SEGMENT_REACH * smallest {
+            SEGMENT_REACH * smallest / (2.0 * largest)
+        } else {
+            f64::INFINITY
+        };
+        let scale = bound.min(1.0);
+        // Pairs that can come within their contact distance along the (capped) segment.
+        let (cands, _) = candidates(&x, &|a, b| {
+            self.distance(a, b) + scale * (moved[a] + moved[b])
+        });
         for c in cands {
             let d0: [f64; 3] = std::array::from_fn(|k| x[c.a][c.i][k] - x[c.b][c.j][k]);
             let v: [f64; 3] = std::array::from_fn(|k| dx[c.a][c.i][k] - dx[c.b][c.j][k]);
