@@ -85,6 +85,7 @@ struct Row {
     island_max: usize,
     pairs_mean: f64,
     penetration: f64,
+    over_tolerance: usize,
     unconverged: usize,
 }
 
@@ -133,6 +134,7 @@ fn measure(n: usize, steps: usize) -> Row {
         island_max,
         pairs_mean,
         penetration: contact.worst_penetration_fraction,
+        over_tolerance: contact.steps_over_tolerance,
         unconverged,
     }
 }
@@ -213,12 +215,12 @@ fn main() {
     };
     let rows: Vec<Row> = counts.iter().map(|&n| measure(n, steps)).collect();
     println!(
-        "| N | world step, ms (mean) | max | CPU ms per step | CPU ms per object | islands (mean) | largest island | sample pairs active (mean) | worst penetration (of the smaller diagonal) | unconverged object steps |"
+        "| N | world step, ms (mean) | max | CPU ms per step | CPU ms per object | islands (mean) | largest island | sample pairs active (mean) | worst penetration (of the smaller diagonal) | steps over the tolerance | unconverged object steps |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
     for r in &rows {
         println!(
-            "| {} | {:.1} | {:.1} | {:.1} | {:.2} | {:.1} | {} | {:.0} | {:.2}% | {} |",
+            "| {} | {:.1} | {:.1} | {:.1} | {:.2} | {:.1} | {} | {:.0} | {:.3}% | {} | {} |",
             r.n,
             r.step_ms,
             r.step_ms_max,
@@ -228,6 +230,7 @@ fn main() {
             r.island_max,
             r.pairs_mean,
             100.0 * r.penetration,
+            r.over_tolerance,
             r.unconverged
         );
     }
