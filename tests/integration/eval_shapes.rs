@@ -233,7 +233,16 @@ fn one_tiny_shape_end_to_end_gives_finite_metrics() {
     opts.tetgen.max_volume = 0.01;
     opts.fem.order = ElementOrder::Linear;
     let files = shape_files(dir.path(), &[]).unwrap();
-    let report = evaluate_dir(&files, &opts, None, &dir.path().join("tg"), &Silent);
+    let mut seen = Vec::new();
+    let report = evaluate_dir(
+        &files,
+        &opts,
+        None,
+        &dir.path().join("tg"),
+        &Silent,
+        &mut |r| seen.push(r.shapes.len() + r.failures.len()),
+    );
+    assert_eq!(seen, vec![1], "one report after the one shape");
     assert!(report.failures.is_empty(), "{:?}", report.failures);
     let shape = &report.shapes[0];
     assert!(shape.failures.is_empty(), "{:?}", shape.failures);
@@ -276,7 +285,34 @@ fn bad_shapes_are_listed_with_their_reason_and_the_others_go_on() {
     let opts = EvalOptions::default();
     let files = shape_files(dir.path(), &[]).unwrap();
     assert_eq!(files.len(), 3);
-    let report = evaluate_dir(&files, &opts, None, &dir.path().join("tg"), &Silent);
+    // `only` keeps the order asked for; an unknown name is an error that names it.
+    let stems = |names: &[&str]| -> Vec<String> { names.iter().map(|s| s.to_string()).collect() };
+    let chosen = shape_files(dir.path(), &stems(&["open_box", "cloud"])).unwrap();
+    assert_eq!(
+        chosen,
+        vec![
+            dir.path().join("open_box.off"),
+            dir.path().join("cloud.ply")
+        ]
+    );
+    let e = shape_files(dir.path(), &stems(&["cloud", "bunny", "armadillo"]))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("bunny,armadillo") && e.contains("no shape file"),
+        "{e}"
+    );
+    let mut seen = Vec::new();
+    let report = evaluate_dir(
+        &files,
+        &opts,
+        None,
+        &dir.path().join("tg"),
+        &Silent,
+        &mut |r| seen.push(r.failures.len()),
+    );
+    // One partial report after each shape, each with one more failure.
+    assert_eq!(seen, vec![1, 2, 3]);
     assert!(report.shapes.is_empty());
     let reason = |n: &str| {
         report

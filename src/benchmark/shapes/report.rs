@@ -60,11 +60,11 @@ pub struct EvalReport {
 }
 
 /// The shape files of `dir` (extensions off, obj, stl, ply), sorted by name; with `only`,
-/// just the stems listed there.
+/// just the stems listed there, in the order listed.
 ///
 /// # Errors
 /// [`Error::Io`] when the folder cannot be read; [`Error::InvalidParameter`] when it holds
-/// no shape file (or none of `only`).
+/// no shape file, or a name of `only` matches none (the error lists them).
 pub fn shape_files(dir: &Path, only: &[String]) -> Result<Vec<PathBuf>> {
     let entries = std::fs::read_dir(dir).map_err(|source| Error::Io {
         path: dir.to_path_buf(),
@@ -76,57 +76,81 @@ pub fn shape_files(dir: &Path, only: &[String]) -> Result<Vec<PathBuf>> {
             let ext = p.extension().map(|e| e.to_string_lossy().to_lowercase());
             matches!(ext.as_deref(), Some("off" | "obj" | "stl" | "ply"))
         })
-        .filter(|p| {
-            only.is_empty()
-                || p.file_stem()
-                    .is_some_and(|s| only.iter().any(|o| *o == s.to_string_lossy()))
-        })
         .collect();
     files.sort();
     if files.is_empty() {
         return Err(Error::param(
             "shapes",
             dir.display().to_string(),
-            "no shape file (.off, .obj, .stl, .ply) to evaluate there (or none of the names asked for)",
+            "no shape file (.off, .obj, .stl, .ply) to evaluate there",
         ));
     }
-    Ok(files)
+    if only.is_empty() {
+        return Ok(files);
+    }
+    let stem = |p: &PathBuf| p.file_stem().map(|s| s.to_string_lossy().into_owned());
+    let mut chosen = Vec::new();
+    let mut missing = Vec::new();
+    for name in only {
+        let matching: Vec<&PathBuf> = files
+            .iter()
+            .filter(|p| stem(p).as_deref() == Some(name.as_str()))
+            .collect();
+        if matching.is_empty() {
+            missing.push(name.as_str());
+        }
+        chosen.extend(matching.into_iter().cloned());
+    }
+    if !missing.is_empty() {
+        return Err(Error::param(
+            "only",
+            missing.join(","),
+            format!(
+                "no shape file with that name in {} (names are file stems, e.g. bunny for bunny.off)",
+                dir.display()
+            ),
+        ));
+    }
+    Ok(chosen)
 }
 
-/// Evaluate every file of `files` ([`evaluate_shape`]); a shape that fails is listed in
-/// [`EvalReport::failures`] with its reason and the others go on. TetGen works in
-/// `work_dir`; FEM references are cached in `cache_dir`.
+/// Evaluate every file of `files` ([`evaluate_shape`]) in order; a shape that fails is
+/// listed in [`EvalReport::failures`] with its reason and the others go on. TetGen works in
+/// `work_dir`; FEM references are cached in `cache_dir`. `after_each` sees the report of the
+/// shapes done so far after every shape (a long run can write its outputs as it goes).
 pub fn evaluate_dir(
     files: &[PathBuf],
     opts: &EvalOptions,
     cache_dir: Option<&Path>,
     work_dir: &Path,
     progress: &dyn Progress,
+    after_each: &mut dyn FnMut(&EvalReport),
 ) -> EvalReport {
     let clock = Stopwatch::start();
-    let mut shapes = Vec::new();
-    let mut failures = Vec::new();
+    let mut report = EvalReport {
+        options: opts.clone(),
+        shapes: Vec::new(),
+        failures: Vec::new(),
+        averages: Vec::new(),
+        total_s: 0.0,
+    };
     for (i, f) in files.iter().enumerate() {
         let name = f
             .file_stem()
             .map_or("shape".into(), |s| s.to_string_lossy().into_owned());
         progress.message(&format!("shape {}/{}: {name}", i + 1, files.len()));
         match evaluate_shape(f, opts, cache_dir, work_dir, progress) {
-            Ok(s) => shapes.push(s),
-            Err(e) => failures.push(ShapeFailure {
+            Ok(s) => report.shapes.push(s),
+            Err(e) => report.failures.push(ShapeFailure {
                 name,
                 reason: e.to_string(),
             }),
         }
+        report.averages = averages(&report.shapes, opts);
+        report.total_s = clock.elapsed();
+        after_each(&report);
     }
-    let averages = averages(&shapes, opts);
-    EvalReport {
-        options: opts.clone(),
-        shapes,
-        failures,
-        averages,
-        total_s: clock.elapsed(),
-    }
+    report
 }
 
 fn averages(shapes: &[ShapeEval], opts: &EvalOptions) -> Vec<Average> {

@@ -1,6 +1,6 @@
 //! `freeform eval SHAPES_DIR`: the real-shape protocol (issue 18, docs/evaluation.md) over a
 //! folder of closed meshes against TetGen FEM references; writes `eval.csv`, `eval.json` and
-//! `eval_mse.png` to `--out`.
+//! `eval_mse.png` to `--out`, rewritten after every shape.
 
 use crate::beam::{progress, BoundariesArg};
 use crate::{emit, set_threads, CliResult};
@@ -29,7 +29,7 @@ pub struct EvalArgs {
     /// Folder of closed surface meshes (.off, .obj, .stl, .ply), e.g. the output of
     /// scripts/cgal_shapes.sh.
     shapes: PathBuf,
-    /// Only these shapes (file stems, comma-separated) [default: all].
+    /// Only these shapes, in this order (file stems, comma-separated) [default: all, by name].
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
     /// Boundary conditions (comma-separated).
@@ -122,14 +122,22 @@ pub fn run(args: EvalArgs) -> CliResult {
         args.cache.display()
     );
     let bar = progress();
+    // The outputs are rewritten (atomically) after every shape: an interrupted run keeps what
+    // it finished, and a long one can be watched.
+    let mut written: CliResult = Ok(());
     let report = evaluate_dir(
         &files,
         &opts,
         Some(&args.cache),
         &args.out.join("tetgen"),
         bar.as_ref(),
+        &mut |partial| {
+            if written.is_ok() {
+                written = write_outputs(partial, &args.out);
+            }
+        },
     );
-    write_outputs(&report, &args.out)?;
+    written?;
     if args.json {
         emit(&(serde_json::to_string_pretty(&report)? + "\n"))?;
     } else {
