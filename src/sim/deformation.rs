@@ -41,3 +41,22 @@ pub fn deformation_gradients(
         })
         .collect()
 }
+
+/// B(X) z = sum_j w_j Z_j [X; 1] for one point: the displacement, metres, of rest position
+/// `x` (metres) with skinning weights `w` (m + 1) under the state (or state change) `z`
+/// (three rows of `row_len` = 4 (m + 1) entries, [`Layout::row_len`]).
+pub fn skinned_offset(x: Point3, w: &[f64], z: &[f64], row_len: usize) -> Point3 {
+    std::array::from_fn(|r| {
+        let row = &z[r * row_len..(r + 1) * row_len];
+        w.iter()
+            .zip(row.chunks_exact(4))
+            .map(|(wj, zj)| wj * (zj[0] * x[0] + zj[1] * x[1] + zj[2] * x[2] + zj[3]))
+            .sum()
+    })
+}
+
+/// x(X) = X + B(X) z for one point ([`skinned_offset`]), metres.
+pub fn skinned_position(x: Point3, w: &[f64], z: &[f64], row_len: usize) -> Point3 {
+    let d = skinned_offset(x, w, z, row_len);
+    [x[0] + d[0], x[1] + d[1], x[2] + d[2]]
+}

@@ -343,7 +343,7 @@ pub struct QuasiNewtonState {
     /// Factor of the latest refreshed Hessian (None: the rest matrix S).
     base: Option<Llt<f64>>,
     /// The latest Newton system solved in the potential's own structure
-    /// ([`NewtonSystem::Solver`]), used like `base`.
+    /// ([`NewtonSystem::Solved`]), used like `base`.
     structured: Option<Box<dyn RestSolve + Send>>,
 }
 
@@ -367,8 +367,6 @@ fn refreshed_base(
     factor
 }
 
-/// The dense Newton direction H(z)^-1 `grad` (the step `delta` of the best model at hand
-/// when the Hessian does not factorize), with its time and factorization counted in `rep`.
 /// f(), its wall time added to `seconds`.
 fn timed<T>(seconds: &mut f64, f: impl FnOnce() -> T) -> T {
     let sw = crate::report::Stopwatch::start();
@@ -377,6 +375,8 @@ fn timed<T>(seconds: &mut f64, f: impl FnOnce() -> T) -> T {
     out
 }
 
+/// The dense Newton direction H(z)^-1 `grad` (the step `delta` of the best model at hand
+/// when the Hessian does not factorize), with its time and factorization counted in `rep`.
 fn newton_direction(
     pot: &dyn Potential,
     z: &[f64],

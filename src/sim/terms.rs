@@ -384,16 +384,15 @@ impl ContactTerm {
         (0..4 * self.handles).map(move |k| (k, self.w[c * self.handles + k / 4] * xh[k % 4]))
     }
 
-    /// Current position of cubature point `c`.
+    /// Current position of cubature point `c`: X + B(X) z, handle by handle (the hot loop of
+    /// every collider query).
     fn position(&self, layout: Layout, c: usize, z: &[f64]) -> Point3 {
-        let n4 = layout.row_len();
-        let mut x = self.points[c];
-        for (k, bk) in self.b(c) {
-            for (r, xr) in x.iter_mut().enumerate() {
-                *xr += bk * z[r * n4 + k];
-            }
-        }
-        x
+        crate::sim::deformation::skinned_position(
+            self.points[c],
+            &self.w[c * self.handles..(c + 1) * self.handles],
+            z,
+            layout.row_len(),
+        )
     }
 
     /// Every penetration at `z` and time `t`: (cubature point, obstacle, penetration).
@@ -631,26 +630,18 @@ impl ContactTerm {
         h: &mut Mat<f64>,
     ) {
         use crate::sim::contact::friction;
-        let n4 = layout.row_len();
-        for l in lag {
-            let x = self.position(layout, l.point, z);
-            let d: [f64; 3] = std::array::from_fn(|k| x[k] - l.carried[k]);
-            let hx = friction::hessian(l.mu_lambda, eps, &l.projector, &d);
-            let b: Vec<(usize, f64)> = self.b(l.point).collect();
-            for r in 0..3 {
-                for s in 0..3 {
-                    let coef = hx[r][s];
-                    if coef == 0.0 {
-                        continue;
-                    }
-                    for &(i, bi) in &b {
-                        for &(j, bj) in &b {
-                            h[(r * n4 + i, s * n4 + j)] += coef * bi * bj;
-                        }
-                    }
-                }
-            }
-        }
+        let blocks: Vec<(usize, crate::linalg3::Mat3)> = lag
+            .iter()
+            .map(|l| {
+                let x = self.position(layout, l.point, z);
+                let d: [f64; 3] = std::array::from_fn(|k| x[k] - l.carried[k]);
+                (
+                    l.point,
+                    friction::hessian(l.mu_lambda, eps, &l.projector, &d),
+                )
+            })
+            .collect();
+        self.add_point_blocks(layout, &blocks, h);
     }
 
     /// Add the Hessian of the active penalties at time `t` to `h`: k v B^T H B per
@@ -663,26 +654,55 @@ impl ContactTerm {
         which: ContactHessian,
         h: &mut Mat<f64>,
     ) {
+        let blocks: Vec<(usize, crate::linalg3::Mat3)> = self
+            .penetrations(layout, t, z)
+            .into_iter()
+            .map(|(c, o, p)| {
+                let kv = self.stiffness[o] * self.volumes[c];
+                let hx = match which {
+                    ContactHessian::Psd => p.hessian_psd,
+                    ContactHessian::Exact => p.hessian,
+                };
+                (c, hx.map(|row| row.map(|v| kv * v)))
+            })
+            .collect();
+        self.add_point_blocks(layout, &blocks, h);
+    }
+
+    /// Add sum over `blocks` of (b_c b_c^T) (x) H_c (H_c a 3 x 3 matrix per cubature point c)
+    /// to `h`: the block (r, s) of `h` gains B^T diag(H_c[r][s]) B, one matrix product per
+    /// block with B the b rows of the points.
+    fn add_point_blocks(
+        &self,
+        layout: Layout,
+        blocks: &[(usize, crate::linalg3::Mat3)],
+        h: &mut Mat<f64>,
+    ) {
+        if blocks.is_empty() {
+            return;
+        }
         let n4 = layout.row_len();
-        for (c, o, p) in self.penetrations(layout, t, z) {
-            let kv = self.stiffness[o] * self.volumes[c];
-            let hx = match which {
-                ContactHessian::Psd => p.hessian_psd,
-                ContactHessian::Exact => p.hessian,
-            };
-            let b: Vec<(usize, f64)> = self.b(c).collect();
-            for r in 0..3 {
-                for s in 0..3 {
-                    let coef = kv * hx[r][s];
-                    if coef == 0.0 {
-                        continue;
-                    }
-                    for &(i, bi) in &b {
-                        for &(j, bj) in &b {
-                            h[(r * n4 + i, s * n4 + j)] += coef * bi * bj;
-                        }
-                    }
+        let mut rows = Mat::<f64>::zeros(blocks.len(), n4);
+        for (p, &(c, _)) in blocks.iter().enumerate() {
+            for (k, bk) in self.b(c) {
+                rows[(p, k)] = bk;
+            }
+        }
+        for r in 0..3 {
+            for s in 0..3 {
+                if blocks.iter().all(|(_, m)| m[r][s] == 0.0) {
+                    continue;
                 }
+                let scaled =
+                    Mat::from_fn(blocks.len(), n4, |p, k| blocks[p].1[r][s] * rows[(p, k)]);
+                faer::linalg::matmul::matmul(
+                    h.as_mut().submatrix_mut(r * n4, s * n4, n4, n4),
+                    Accum::Add,
+                    rows.transpose(),
+                    scaled.as_ref(),
+                    1.0,
+                    Par::Seq,
+                );
             }
         }
     }

@@ -183,20 +183,17 @@ impl ContactSamples {
     /// B(X_i) d for every sample: the displacement of the samples for a change `d` of z
     /// (with `rest` added when `with_rest`), N x 3, metres.
     fn apply(&self, layout: Layout, d: &[f64], with_rest: bool) -> Vec<Point3> {
+        use crate::sim::deformation::{skinned_offset, skinned_position};
         let n4 = layout.row_len();
-        let mut b = vec![0.0; n4];
+        let h = self.handles;
         (0..self.len())
             .map(|i| {
-                self.b(i, &mut b);
-                std::array::from_fn(|r| {
-                    let dr = &d[r * n4..(r + 1) * n4];
-                    let s: f64 = b.iter().zip(dr).map(|(x, y)| x * y).sum();
-                    if with_rest {
-                        self.rest[i][r] + s
-                    } else {
-                        s
-                    }
-                })
+                let w = &self.weights[i * h..(i + 1) * h];
+                if with_rest {
+                    skinned_position(self.rest[i], w, d, n4)
+                } else {
+                    skinned_offset(self.rest[i], w, d, n4)
+                }
             })
             .collect()
     }
