@@ -943,12 +943,6 @@ impl StepPotential<'_> {
         }
         h
     }
-
-    /// The exact Hessian at z (may be indefinite): Newton, alone or in an island, tries it
-    /// before the projected one ([`Potential::exact_hessian`]).
-    pub fn hessian_exact(&self, z: &[f64]) -> Mat<f64> {
-        self.assembled_hessian(z, 1, Precision::Double, true)
-    }
 }
 
 impl Potential for StepPotential<'_> {
@@ -1009,7 +1003,7 @@ impl Potential for StepPotential<'_> {
     }
 
     fn exact_hessian(&self, z: &[f64]) -> Option<Mat<f64>> {
-        Some(self.hessian_exact(z))
+        Some(self.assembled_hessian(z, 1, Precision::Double, true))
     }
 
     /// The colliders' swept bound ([`crate::sim::terms::ContactTerm::max_step`]): no cubature

@@ -13,7 +13,8 @@ use crate::sim::collider::{Kinematics, Penetration};
 use crate::sim::elastic::Layout;
 use crate::sim::motion::{Motion, Rigid};
 use crate::Point3;
-use faer::{Accum, Mat, Par};
+use faer::prelude::ReborrowMut;
+use faer::{Accum, Mat, MatMut, MatRef, Par};
 
 /// Weighted moments of the map b over a point set.
 #[derive(Debug, Clone)]
@@ -117,6 +118,33 @@ pub fn add_block_product(layout: Layout, a: &Mat<f64>, scale: f64, z: &[f64], y:
                     *yi += scale * col[i] * zj;
                 }
             }
+        }
+    }
+}
+
+/// Add sum_p (b_p b_p^T) (x) H_p to `target` (3 n4 x 3 n4, the layout of z): its block (r, s)
+/// (n4 x n4) gains B^T diag(H_p[r][s]) B, one matrix product per block, with B = `rows`
+/// (P x n4, row p = b_p) and H_p = `blocks[p]` (3 x 3). Blocks zero for every p are skipped.
+pub fn add_outer_blocks(
+    mut target: MatMut<'_, f64>,
+    rows: MatRef<'_, f64>,
+    blocks: &[crate::linalg3::Mat3],
+) {
+    let n4 = rows.ncols();
+    for r in 0..3 {
+        for s in 0..3 {
+            if blocks.iter().all(|m| m[r][s] == 0.0) {
+                continue;
+            }
+            let scaled = Mat::from_fn(rows.nrows(), n4, |p, k| blocks[p][r][s] * rows[(p, k)]);
+            faer::linalg::matmul::matmul(
+                target.rb_mut().submatrix_mut(r * n4, s * n4, n4, n4),
+                Accum::Add,
+                rows.transpose(),
+                scaled.as_ref(),
+                1.0,
+                Par::Seq,
+            );
         }
     }
 }
@@ -670,8 +698,7 @@ impl ContactTerm {
     }
 
     /// Add sum over `blocks` of (b_c b_c^T) (x) H_c (H_c a 3 x 3 matrix per cubature point c)
-    /// to `h`: the block (r, s) of `h` gains B^T diag(H_c[r][s]) B, one matrix product per
-    /// block with B the b rows of the points.
+    /// to `h` ([`add_outer_blocks`] with the b rows of the points).
     fn add_point_blocks(
         &self,
         layout: Layout,
@@ -681,29 +708,13 @@ impl ContactTerm {
         if blocks.is_empty() {
             return;
         }
-        let n4 = layout.row_len();
-        let mut rows = Mat::<f64>::zeros(blocks.len(), n4);
+        let mut rows = Mat::<f64>::zeros(blocks.len(), layout.row_len());
         for (p, &(c, _)) in blocks.iter().enumerate() {
             for (k, bk) in self.b(c) {
                 rows[(p, k)] = bk;
             }
         }
-        for r in 0..3 {
-            for s in 0..3 {
-                if blocks.iter().all(|(_, m)| m[r][s] == 0.0) {
-                    continue;
-                }
-                let scaled =
-                    Mat::from_fn(blocks.len(), n4, |p, k| blocks[p].1[r][s] * rows[(p, k)]);
-                faer::linalg::matmul::matmul(
-                    h.as_mut().submatrix_mut(r * n4, s * n4, n4, n4),
-                    Accum::Add,
-                    rows.transpose(),
-                    scaled.as_ref(),
-                    1.0,
-                    Par::Seq,
-                );
-            }
-        }
+        let hs: Vec<crate::linalg3::Mat3> = blocks.iter().map(|&(_, m)| m).collect();
+        add_outer_blocks(h.as_mut(), rows.as_ref(), &hs);
     }
 }

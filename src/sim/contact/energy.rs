@@ -16,6 +16,7 @@ use super::samples::ContactSamples;
 use super::system::BlockHessian;
 use crate::linalg3::Mat3;
 use crate::sim::elastic::Layout;
+use crate::sim::terms::add_outer_blocks;
 use crate::Point3;
 use faer::prelude::ReborrowMut;
 use faer::{Accum, Mat, Par};
@@ -391,25 +392,9 @@ impl<'a> PairContact<'a> {
             if samples.is_empty() {
                 continue;
             }
-            let body = &self.bodies[a];
-            let n4 = body.layout.row_len();
             let rows = self.b_rows(a, samples.keys().copied());
-            let blocks: Vec<&Mat3> = samples.values().collect();
-            let mut target = h.block_mut(a, a);
-            for r in 0..3 {
-                for s in 0..3 {
-                    let scaled =
-                        Mat::from_fn(rows.nrows(), n4, |p, k| blocks[p][r][s] * rows[(p, k)]);
-                    faer::linalg::matmul::matmul(
-                        target.rb_mut().submatrix_mut(r * n4, s * n4, n4, n4),
-                        Accum::Add,
-                        rows.transpose(),
-                        scaled.as_ref(),
-                        1.0,
-                        Par::Seq,
-                    );
-                }
-            }
+            let blocks: Vec<Mat3> = samples.values().copied().collect();
+            add_outer_blocks(h.block_mut(a, a), rows.as_ref(), &blocks);
         }
         // Coupling blocks, per pair of bodies (a < b): -sum_pairs H_p[r][s] b_i b_j^T,
         // formed as B_a^T C with C's row for sample i = sum_j H_p[r][s] b_j.

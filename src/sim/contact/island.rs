@@ -43,11 +43,8 @@ impl IslandPotential<'_> {
             .zip(&self.offsets)
             .map(|(p, &o)| {
                 let zp = &z[o..o + p.dofs()];
-                if exact {
-                    p.hessian_exact(zp)
-                } else {
-                    p.hessian(zp)
-                }
+                let h = if exact { p.exact_hessian(zp) } else { None };
+                h.unwrap_or_else(|| p.hessian(zp))
             })
             .collect();
         let mut h = BlockHessian::new(diag);
