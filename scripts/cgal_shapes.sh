@@ -3,13 +3,17 @@
 # meshes of CGAL's data set (Debian package libcgal-demo, data/meshes/*.off) into OUT_DIR and
 # keeps those freeform accepts as solids (closed, edge-manifold, a finite non-zero volume) and
 # TetGen can mesh for the FEM reference (no self-intersecting faces, `tetgen -d`). The others
-# are listed with the library's or TetGen's own reason. Writes OUT_DIR/shapes.csv:
-#   name,vertices,faces,status,reason
+# are listed with the library's or TetGen's own reason. A mesh with more than MAX_FACES
+# faces (default 4096) is first reduced to MAX_FACES by scripts/decimate_off.py (MeshLab's
+# quadric edge collapse through pymeshlab, installed into OUT_DIR/.venv): the FEM reference
+# keeps every surface triangle, so a large input would cost hours of FEM; the reduced mesh is
+# then checked like any other. Writes OUT_DIR/shapes.csv:
+#   name,input_faces,vertices,faces,status,reason
 #
 #   scripts/cgal_shapes.sh OUT_DIR [FREEFORM_BIN]
 #
 # FREEFORM_BIN defaults to target/release/freeform (built when missing). Installing the
-# packages (libcgal-demo, tetgen) needs root (apt-get).
+# packages (libcgal-demo, tetgen) needs root (apt-get); pymeshlab comes from PyPI.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -35,16 +39,29 @@ if [[ ! -x $bin ]]; then
     cargo build --release --quiet
 fi
 
+max_faces=${MAX_FACES:-4096}
 mkdir -p "$out"
 members=()
 for s in "${shapes[@]}"; do members+=("data/meshes/$s.off"); done
 tar -xzf "$tarball" -C "$out" --strip-components=2 "${members[@]}"
 
 csv=$out/shapes.csv
-echo "name,vertices,faces,status,reason" > "$csv"
+echo "name,input_faces,vertices,faces,status,reason" > "$csv"
+venv=$out/.venv
 kept=0
 for s in "${shapes[@]}"; do
     file=$out/$s.off
+    read -r _ nf_in _ < <(grep -v '^\s*#' "$file" | sed -n 2p)
+    if ((nf_in > max_faces)); then
+        if [[ ! -x $venv/bin/python ]] || ! "$venv/bin/python" -c 'import pymeshlab' 2>/dev/null; then
+            echo "installing pymeshlab into $venv ..." >&2
+            python3 -m venv "$venv"
+            "$venv/bin/pip" install -q pymeshlab
+        fi
+        "$venv/bin/python" scripts/decimate_off.py "$file" "$out/$s.decimated.off" "$max_faces" >/dev/null
+        mv "$out/$s.decimated.off" "$file"
+        echo "$s: $nf_in faces reduced to at most $max_faces" >&2
+    fi
     read -r nv nf _ < <(grep -v '^\s*#' "$file" | sed -n 2p)
     # The library's own check: a tiny basis (64 kernels, 2 modes) reads the mesh, welds it,
     # checks it is closed and edge-manifold, and samples its inside.
@@ -60,11 +77,11 @@ for s in "${shapes[@]}"; do
         fi
     fi
     if [[ -z $reason ]]; then
-        echo "$s,$nv,$nf,kept," >> "$csv"
+        echo "$s,$nf_in,$nv,$nf,kept," >> "$csv"
         kept=$((kept + 1))
     else
         reason=${reason//,/;}
-        echo "$s,$nv,$nf,skipped,$reason" >> "$csv"
+        echo "$s,$nf_in,$nv,$nf,skipped,$reason" >> "$csv"
         rm -f "$file"
         echo "skipped $s: $reason" >&2
     fi

@@ -10,12 +10,16 @@
 //! After the solves, any two objects of different islands whose samples ended within
 //! contact distance (the bound was too tight: a collider or a pile pushed harder than the
 //! guess) are undone and solved again as one island, until none are left.
+//!
+//! Self-contact (`self_contact`): an object whose own samples, far apart at rest, come within
+//! reach in a step is solved as an island of one (or within its island), with the same pair
+//! energy between its own samples; one whose samples stay apart steps alone as before.
 
 use super::world::SceneObject;
 use crate::geometry::Shape;
 use crate::report::Stopwatch;
 use crate::sim::contact::island::step_island;
-use crate::sim::contact::pairs::candidates;
+use crate::sim::contact::pairs::{candidates, self_candidates};
 use crate::sim::contact::samples::default_count;
 use crate::sim::contact::{
     Body, ContactSamples, ContactSettings, ContactStats, IslandSolver, PairContact,
@@ -53,7 +57,8 @@ pub struct ContactStepRow {
     pub penetration: f64,
     /// The same relative to the smaller rest diagonal of the two objects.
     pub penetration_fraction: f64,
-    /// Sizes of the islands of two or more objects, largest first.
+    /// Sizes of the islands solved together (two or more objects, or one object in
+    /// self-contact), largest first.
     pub islands: Vec<usize>,
     /// Objects solved again because they ended in contact with another island's.
     pub regrouped: usize,
@@ -71,6 +76,8 @@ pub struct ContactSummary {
     pub samples: Vec<usize>,
     /// Contact thickness per object, metres.
     pub thickness: Vec<f64>,
+    /// Whether each object has self-contact, in object order.
+    pub self_contact: Vec<bool>,
     /// Penalty stiffness of each object pair at the end of the run, Pa/m^2 (row-major,
     /// objects x objects; raised where a pair went deeper than the tolerance).
     pub stiffness: Vec<f64>,
@@ -97,6 +104,11 @@ pub(super) struct WorldContact {
     solver: IslandSolver,
     /// Sample positions at the current state, per object.
     positions: Vec<Vec<Point3>>,
+    /// Self-contact exclusion per object, metres (None: no self-contact).
+    self_exclusion: Vec<Option<f64>>,
+    /// Objects with self-contact whose own samples may touch within this step: solved as an
+    /// island even when alone.
+    self_near: Vec<bool>,
     warned: std::collections::BTreeSet<(usize, usize)>,
     pub(super) summary: ContactSummary,
 }
@@ -242,11 +254,22 @@ impl WorldContact {
             .zip(&samples)
             .map(|(o, s)| s.positions(o.sim().layout(), &o.sim().z))
             .collect();
+        let self_exclusion: Vec<Option<f64>> = objects
+            .iter()
+            .zip(&samples)
+            .map(|(o, s)| {
+                o.spec()
+                    .self_contact
+                    .unwrap_or(settings.self_contact)
+                    .then(|| settings.self_exclusion * 2.0 * s.thickness)
+            })
+            .collect();
         let contact = WorldContact {
             summary: ContactSummary {
                 penetration_tolerance: settings.penetration_tolerance,
                 samples: samples.iter().map(ContactSamples::len).collect(),
                 thickness: samples.iter().map(|s| s.thickness).collect(),
+                self_contact: self_exclusion.iter().map(Option::is_some).collect(),
                 stiffness: stiffness.clone(),
                 worst_penetration: 0.0,
                 worst_penetration_fraction: 0.0,
@@ -261,6 +284,8 @@ impl WorldContact {
             tolerance: settings.penetration_tolerance,
             solver: settings.solver,
             positions,
+            self_near: vec![false; n],
+            self_exclusion,
             warned: Default::default(),
         };
         contact.check_start(objects, shapes)?;
@@ -271,6 +296,42 @@ impl WorldContact {
     /// placed shape, or two samples overlapping by more than the tolerance.
     fn check_start(&self, objects: &[SceneObject], shapes: &[Option<Shape>]) -> Result<()> {
         let n = objects.len();
+        for (a, o) in objects.iter().enumerate() {
+            let Some(ex) = self.self_exclusion[a] else {
+                continue;
+            };
+            let d = 2.0 * self.samples[a].thickness;
+            let x = &self.positions[a];
+            let limit = self.tolerance * o.sim().diagonal();
+            let deep = self_candidates(a, x, &self.samples[a].rest, d, ex)
+                .into_iter()
+                .find(|c| {
+                    let r = (0..3).map(|k| (x[c.i][k] - x[c.j][k]).powi(2)).sum::<f64>();
+                    d - r.sqrt() > limit
+                });
+            if let Some(c) = deep {
+                let p = x[c.i];
+                return Err(Error::Scene {
+                    message: format!(
+                        "object '{}' starts in self-contact: its surface overlaps itself at \
+                         ({:.4}, {:.4}, {:.4}) m, between samples {:.4} m apart at rest, by more \
+                         than the penetration tolerance ({:.3e} m); raise contact.self_exclusion \
+                         (now {:.4} m) above that distance or lower contact.radius",
+                        o.name(),
+                        p[0],
+                        p[1],
+                        p[2],
+                        (0..3)
+                            .map(|k| (self.samples[a].rest[c.i][k] - self.samples[a].rest[c.j][k])
+                                .powi(2))
+                            .sum::<f64>()
+                            .sqrt(),
+                        limit,
+                        ex
+                    ),
+                });
+            }
+        }
         for a in 0..n {
             for b in 0..n {
                 if a == b {
@@ -340,16 +401,19 @@ impl WorldContact {
         Ok(())
     }
 
-    /// Step one group: a single object alone (as without contact), several as an island.
+    /// Step one group: a single object alone (as without contact) unless its own samples may
+    /// touch, several as an island.
     fn solve(&self, group: &[usize], objs: Vec<&mut SceneObject>) -> Solved {
-        if let [only] = group {
-            let mut objs = objs;
-            let rep = objs[0].sim_mut().step();
-            return Solved {
-                reports: vec![(*only, rep)],
-                stats: None,
-                stiffened: None,
-            };
+        if let [only] = *group {
+            if !self.self_near[only] {
+                let mut objs = objs;
+                let rep = objs[0].sim_mut().step();
+                return Solved {
+                    reports: vec![(only, rep)],
+                    stats: None,
+                    stiffened: None,
+                };
+            }
         }
         let mut offset = 0;
         let bodies: Vec<Body> = group
@@ -361,6 +425,7 @@ impl WorldContact {
                     layout: o.sim().layout(),
                     offset,
                     diagonal: o.sim().diagonal(),
+                    self_exclusion: self.self_exclusion[i],
                 };
                 offset += body.layout.dofs();
                 body
@@ -399,7 +464,9 @@ impl WorldContact {
                 let end: Vec<f64> = sims.iter().flat_map(|s| s.z.iter().copied()).collect();
                 for (a, b) in contact.pairs_deeper_than(&end, self.tolerance) {
                     stiffness[a * m + b] *= STIFFENING_FACTOR;
-                    stiffness[b * m + a] *= STIFFENING_FACTOR;
+                    if a != b {
+                        stiffness[b * m + a] *= STIFFENING_FACTOR;
+                    }
                 }
                 start = Some(end);
                 for (s, snap) in sims.iter_mut().zip(&snapshots) {
@@ -488,6 +555,10 @@ impl WorldContact {
                 }
             }
         }
+        for (a, (_, moved)) in swept.iter().enumerate() {
+            // Two samples of one object move apart by at most twice its largest move.
+            self.self_near[a] = self.self_within(a, 4.0 * moved);
+        }
         let snapshots: Vec<_> = objects.iter().map(|o| o.sim().snapshot()).collect();
         let mut current = groups(&mut parent);
         let mut solved: Vec<Option<Solved>> = self
@@ -521,8 +592,15 @@ impl WorldContact {
                     }
                 }
             }
-            if !merged {
+            // Objects that stepped alone but ended touching themselves: again, as islands.
+            let self_redo: Vec<usize> = (0..n)
+                .filter(|&a| !self.self_near[a] && self.self_within(a, 0.0))
+                .collect();
+            if !merged && self_redo.is_empty() {
                 break;
+            }
+            for &a in &self_redo {
+                self.self_near[a] = true;
             }
             // Undo the groups that merged and solve the merged ones again.
             let next = groups(&mut parent);
@@ -530,8 +608,10 @@ impl WorldContact {
             let mut redo = Vec::new();
             for g in next {
                 match current.iter().position(|c| *c == g) {
-                    Some(k) => keep.push((g, solved[k].take())),
-                    None => redo.push(g),
+                    Some(k) if !(g.len() == 1 && self_redo.contains(&g[0])) => {
+                        keep.push((g, solved[k].take()))
+                    }
+                    _ => redo.push(g),
                 }
             }
             for g in &redo {
@@ -594,7 +674,18 @@ impl WorldContact {
         if row.penetration_fraction > self.tolerance {
             self.summary.steps_over_tolerance += 1;
             if let Some((a, b)) = deepest_pair {
-                if self.warned.insert((a, b)) {
+                if a == b && self.warned.insert((a, b)) {
+                    warnings.push(format!(
+                        "object '{}': step {}: self-penetration {:.3e} m, {:.2}% of its \
+                         diagonal, above the tolerance ({:.2}%); raise contact.stiffness or \
+                         shorten the time step",
+                        objects[a].name(),
+                        row.step,
+                        row.penetration,
+                        100.0 * row.penetration_fraction,
+                        100.0 * self.tolerance
+                    ));
+                } else if self.warned.insert((a, b)) {
                     warnings.push(format!(
                         "objects '{}' and '{}': step {}: penetration {:.3e} m, {:.2}% of the \
                          smaller diagonal, above the tolerance ({:.2}%); raise \
@@ -617,6 +708,17 @@ impl WorldContact {
         s.step_ms_mean = (s.step_ms_mean * k + row.wall_ms) / (k + 1.0);
         s.steps.push(row);
         reports
+    }
+
+    /// Whether object `a` has self-contact and a pair of its own samples (far apart at rest)
+    /// within contact distance plus `margin` (metres) now.
+    fn self_within(&self, a: usize, margin: f64) -> bool {
+        let Some(ex) = self.self_exclusion[a] else {
+            return false;
+        };
+        let s = &self.samples[a];
+        !self_candidates(a, &self.positions[a], &s.rest, 2.0 * s.thickness + margin, ex)
+            .is_empty()
     }
 
     /// Whether objects `a` and `b` have samples within contact distance now.

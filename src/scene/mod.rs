@@ -168,6 +168,7 @@ impl ObjectSpec {
             cubature: None,
             render: Vec::new(),
             contact_samples: None,
+            self_contact: None,
         }
     }
 

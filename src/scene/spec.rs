@@ -226,6 +226,9 @@ pub struct ObjectSpec {
     /// `contact.samples`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub contact_samples: Option<usize>,
+    /// Self-contact of this object (with `[contact]`; default `contact.self_contact`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub self_contact: Option<bool>,
 }
 
 /// An object's voxel image (`[object.image]`): a NIfTI (`.nii`, `.nii.gz`) or NumPy (`.npy`)

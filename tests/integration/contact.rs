@@ -91,6 +91,7 @@ fn pair_energy_gradient_and_hessian_match_finite_differences() {
             layout,
             offset: i * n,
             diagonal: w.object(i).sim().diagonal(),
+            self_exclusion: None,
         })
         .collect();
     let contact = PairContact::new(bodies, vec![1e9; 4]);
@@ -220,6 +221,98 @@ fn pair_energy_gradient_and_hessian_match_finite_differences() {
         "{alpha} moves {} of {smallest}",
         alpha * (moved(0) + moved(1))
     );
+}
+
+/// Self-contact pairs (one body's own samples) through the same energy: gradient and exact
+/// Hessian against central differences, the PSD Hessian semi-definite, and the pairs found
+/// deeper than a tolerance. The exclusion is set below the sample spacing so that neighbours
+/// at rest form pairs: a configuration a scene would never make, but the same algebra as a
+/// fold closing, with many pairs.
+#[test]
+fn self_pair_energy_gradient_and_hessian_match_finite_differences() {
+    let scene = SceneBuilder::new(0.01, 1)
+        .cache(no_cache())
+        .object(block("a", 0.2, [0.0; 3], [0.0; 3]))
+        .build()
+        .unwrap();
+    let w = world(&scene);
+    // 300 samples on the 0.24 m^2 surface are s = 28 mm apart on a grid; a thickness of
+    // 0.8 s puts the contact distance 1.6 s between the grid's distances s, 1.41 s and 2 s,
+    // so no pair sits on the kink at r = d where central differences would fail.
+    let spacing = (0.24f64 / 300.0).sqrt();
+    let shape = Shape::Box { size: [0.2; 3] };
+    let samples =
+        ContactSamples::new(&shape, w.object(0).basis(), 300, Some(0.8 * spacing)).unwrap();
+    let layout = w.object(0).sim().layout();
+    let n = layout.dofs();
+    let d = 2.0 * samples.thickness;
+    let body = |ex: Option<f64>| Body {
+        samples: &samples,
+        layout,
+        offset: 0,
+        diagonal: w.object(0).sim().diagonal(),
+        self_exclusion: ex,
+    };
+    let mut z = w.object(0).sim().z.clone();
+    for (k, v) in z.iter_mut().enumerate() {
+        *v += 1e-3 * ((k as f64) * 0.7).sin();
+    }
+    // Without self-contact one body has no pairs at all.
+    let alone = PairContact::new(vec![body(None)], vec![1e9]);
+    assert_eq!(alone.stats(&z).active, 0);
+    let contact = PairContact::new(vec![body(Some(0.3 * d))], vec![1e9]);
+    let mut g = vec![0.0; n];
+    let st = contact.energy_gradient(&z, &mut g);
+    assert!(st.active > 50, "neighbours must form pairs: {st:?}");
+    // Pairs nearer than the exclusion at rest are left out.
+    let wide = PairContact::new(vec![body(Some(0.9 * d))], vec![1e9]);
+    assert!(wide.stats(&z).active < st.active);
+    let mut h = faer::Mat::<f64>::zeros(n, n);
+    contact.add_hessian(&z, PairHessian::Exact, &mut h);
+    let energy = |z: &[f64]| contact.stats(z).energy;
+    // As in the two-body check above: eps = 1e-7 keeps truncation and rounding below 1e-6.
+    let eps = 1e-7;
+    for trial in 0..6 {
+        let v: Vec<f64> = (0..n).map(|k| ((k * (trial + 3)) as f64 * 1.3).cos()).collect();
+        let plus: Vec<f64> = z.iter().zip(&v).map(|(a, b)| a + eps * b).collect();
+        let minus: Vec<f64> = z.iter().zip(&v).map(|(a, b)| a - eps * b).collect();
+        let fd = (energy(&plus) - energy(&minus)) / (2.0 * eps);
+        let an: f64 = g.iter().zip(&v).map(|(a, b)| a * b).sum();
+        assert!(
+            (fd - an).abs() <= 1e-5 * an.abs().max(1e-9),
+            "gradient: fd {fd} analytic {an}"
+        );
+        let (mut gp, mut gm) = (vec![0.0; n], vec![0.0; n]);
+        contact.energy_gradient(&plus, &mut gp);
+        contact.energy_gradient(&minus, &mut gm);
+        let hv: Vec<f64> = (0..n)
+            .map(|i| (0..n).map(|j| h[(i, j)] * v[j]).sum())
+            .collect();
+        let scale = hv.iter().map(|x| x.abs()).fold(0.0, f64::max);
+        for i in 0..n {
+            let fd = (gp[i] - gm[i]) / (2.0 * eps);
+            assert!(
+                (fd - hv[i]).abs() <= 1e-5 * scale,
+                "Hessian row {i}: fd {fd} analytic {}",
+                hv[i]
+            );
+        }
+    }
+    let mut psd = faer::Mat::<f64>::zeros(n, n);
+    contact.add_hessian(&z, PairHessian::Psd, &mut psd);
+    let eig = psd.self_adjoint_eigenvalues(faer::Side::Lower).unwrap();
+    let top = eig.iter().cloned().fold(0.0, f64::max);
+    // Rounding of the assembled sum, as above.
+    assert!(eig.iter().all(|&l| l >= -1e-12 * top), "{eig:?}");
+    // A rigid translation moves no pair: the Hessian has it in its null space.
+    let mut t = vec![0.0; n];
+    t[layout.index(1, 0, 3)] = 1.0;
+    let ht: f64 = (0..n)
+        .map(|i| (0..n).map(|j| h[(i, j)] * t[j]).sum::<f64>().abs())
+        .fold(0.0, f64::max);
+    assert!(ht <= 1e-10 * top, "{ht} against {top}");
+    let depth = st.deepest_fraction;
+    assert_eq!(contact.pairs_deeper_than(&z, 0.5 * depth), vec![(0, 0)]);
 }
 
 /// Two free blocks meet head-on without gravity or friction and bounce apart: the total
@@ -532,5 +625,87 @@ fn a_block_on_an_incline_sticks_below_the_friction_angle_and_slides_above() {
     assert!(
         (accel - expected).abs() < 0.05 * expected,
         "sliding block accelerates at {accel:.4} m/s^2, expected {expected:.4}"
+    );
+}
+
+/// A soft U-shaped clip (examples/data/clip.obj: arms 0.5 m long, 0.04 m thick, 0.1 m apart)
+/// lies on the floor; its upper arm sags under gravity onto its lower arm. With self-contact
+/// the arms touch and the upper one stays above the lower within the penetration tolerance;
+/// with `[contact]` but without self-contact the same upper arm sinks into the lower one, so
+/// the scene does exercise what self-contact prevents.
+#[test]
+fn a_clip_closing_on_itself_stops_at_its_own_arm() {
+    let clip = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/data/clip.obj");
+    let run = |self_contact: bool| -> (f64, World) {
+        let mut o = ObjectSpec::new("clip", clip)
+            .kernels(400)
+            .modes(12)
+            .points(8000)
+            .material(Material {
+                youngs: 1e6,
+                poisson: 0.35,
+                density: 1000.0,
+            });
+        o.placement.translation = [0.0, 0.001, 0.0];
+        let scene = SceneBuilder::new(0.01, 30)
+            .cache(no_cache())
+            .gravity([0.0, -9.81, 0.0])
+            .hessian(freeform::sim::HessianStrategy::Newton)
+            .object(o)
+            .collider(Collider::new(ColliderShape::Plane {
+                point: [0.0; 3],
+                normal: [0.0, 1.0, 0.0],
+            }))
+            .contact(ContactSettings {
+                self_contact,
+                // Below half the 0.1 m gap: the facing samples take part (docs/scenes.md).
+                radius: Some(0.008),
+                ..ContactSettings::default()
+            })
+            .build()
+            .unwrap();
+        let mut w = world(&scene);
+        // The lowest point of the upper arm's tip minus the highest of the lower arm's tip
+        // (rest x > 0.4 m; the arms' rest y are [0, 0.04] and [0.14, 0.18]), over the run.
+        let rest = w.object(0).rest_points().points.clone();
+        let mut gap = f64::INFINITY;
+        for _ in 0..30 {
+            w.step().unwrap();
+            let x = w.object(0).integration_positions().unwrap();
+            let tip = |lo: f64, hi: f64| {
+                rest.iter()
+                    .zip(&x)
+                    .filter(move |(r, _)| r[0] > 0.4 && r[1] >= lo && r[1] <= hi)
+                    .map(|(_, p)| p[1])
+            };
+            let upper = tip(0.14, 0.19).fold(f64::INFINITY, f64::min);
+            let lower = tip(-0.01, 0.04).fold(f64::NEG_INFINITY, f64::max);
+            gap = gap.min(upper - lower);
+        }
+        (gap, w)
+    };
+    let (gap_on, w) = run(true);
+    let c = w.contact_summary().unwrap();
+    assert_eq!(c.self_contact, vec![true]);
+    assert!(
+        c.steps.iter().any(|r| r.sample_pairs_active > 0 && r.islands == [1]),
+        "the arms never touched: {:?}",
+        c.steps.last()
+    );
+    assert!(c.worst_penetration_fraction <= c.penetration_tolerance, "{c:?}");
+    assert_eq!(w.object(0).summary().monitors.newton_nonconverged_steps, Some(0));
+    // Integration points lie inside the arms, so touching arms leave their points apart;
+    // the tolerance (1% of the 0.52 m diagonal) is all the overlap allowed.
+    let diag = w.object(0).sim().diagonal();
+    assert!(
+        gap_on >= -c.penetration_tolerance * diag,
+        "the upper arm went {:.3e} m into the lower",
+        -gap_on
+    );
+    let (gap_off, w) = run(false);
+    assert!(w.contact_summary().unwrap().steps.iter().all(|r| r.islands.is_empty()));
+    assert!(
+        gap_off < -0.02,
+        "without self-contact the upper arm should sink into the lower: gap {gap_off:.3e} m"
     );
 }

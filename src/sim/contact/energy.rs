@@ -1,6 +1,6 @@
 //! The object-object contact energy of an island: a one-sided quadratic penalty on every
-//! pair of samples of two different objects closer than their contact distance
-//! d = t_a + t_b,
+//! pair of samples of two different objects (or, with self-contact, of one object's samples
+//! far apart at rest) closer than their contact distance d = t_a + t_b,
 //!
 //!   E = sum_pairs kappa_ab / 2 w_ij (d - r_ij)^2,  w_ij = A_i A_j / (pi d),  r_ij = |x_i - x_j|,
 //!
@@ -11,7 +11,7 @@
 //! terms by the chain rule; the step bound keeps every pair from closing by more than half
 //! its distance within one line-search segment.
 
-use super::pairs::{candidates, BroadStats, Candidate};
+use super::pairs::{candidates, self_candidates, BroadStats, Candidate};
 use super::samples::ContactSamples;
 use super::system::BlockHessian;
 use crate::linalg3::Mat3;
@@ -41,6 +41,9 @@ pub struct Body<'a> {
     /// Its rest bounding-box diagonal, metres (penetrations are reported relative to the
     /// smaller of a pair's).
     pub diagonal: f64,
+    /// Self-contact: pairs of its own samples at least this far apart at rest (metres) are
+    /// penalized like pairs of two objects. None: no self-contact.
+    pub self_exclusion: Option<f64>,
 }
 
 /// Which Hessian of the pair penalties to build.
@@ -128,6 +131,22 @@ impl<'a> PairContact<'a> {
         &z[b.offset..b.offset + b.layout.dofs()]
     }
 
+    /// Sample pairs closer than `reach(a, b)` metres at positions `x`: those of two bodies
+    /// (the broad phase), then those of each body with self-contact, in a fixed order.
+    fn candidates(
+        &self,
+        x: &[Vec<Point3>],
+        reach: &dyn Fn(usize, usize) -> f64,
+    ) -> (Vec<Candidate>, BroadStats) {
+        let (mut cands, broad) = candidates(x, reach);
+        for (a, body) in self.bodies.iter().enumerate() {
+            if let Some(ex) = body.self_exclusion {
+                cands.extend(self_candidates(a, &x[a], &body.samples.rest, reach(a, a), ex));
+            }
+        }
+        (cands, broad)
+    }
+
     /// Deformed sample positions of every body at the stacked `z`, metres.
     pub fn positions(&self, z: &[f64]) -> Vec<Vec<Point3>> {
         (0..self.bodies.len())
@@ -139,7 +158,7 @@ impl<'a> PairContact<'a> {
     }
 
     fn active(&self, x: &[Vec<Point3>]) -> (Vec<Active>, ContactStats) {
-        let (cands, broad) = candidates(x, &|a, b| self.distance(a, b));
+        let (cands, broad) = self.candidates(x, &|a, b| self.distance(a, b));
         let n = self.bodies.len();
         let mut stats = ContactStats {
             broad,
@@ -370,7 +389,8 @@ impl<'a> PairContact<'a> {
 
     /// Add sum over `blocks` of the Hessian of a function of x_i - x_j whose 3 x 3 Hessian is
     /// H: [[H, -H], [-H, H]] in (x_i, x_j), through the samples' b rows into z: into each
-    /// body's diagonal block and the coupling block of each pair of bodies in contact.
+    /// body's diagonal block and the coupling block of each pair of bodies in contact (a
+    /// body's own pairs couple within its diagonal block).
     pub fn add_pair_blocks(&self, blocks: &[(Candidate, Mat3)], h: &mut BlockHessian) {
         if blocks.is_empty() {
             return;
@@ -396,7 +416,7 @@ impl<'a> PairContact<'a> {
             let blocks: Vec<Mat3> = samples.values().copied().collect();
             add_outer_blocks(h.block_mut(a, a), rows.as_ref(), &blocks);
         }
-        // Coupling blocks, per pair of bodies (a < b): -sum_pairs H_p[r][s] b_i b_j^T,
+        // Coupling blocks, per pair of bodies (a <= b): -sum_pairs H_p[r][s] b_i b_j^T,
         // formed as B_a^T C with C's row for sample i = sum_j H_p[r][s] b_j.
         let mut by_bodies: std::collections::BTreeMap<(usize, usize), Vec<&(Candidate, Mat3)>> =
             Default::default();
@@ -428,7 +448,13 @@ impl<'a> PairContact<'a> {
                     }
                 }
             }
-            let mut target = h.block_mut(a, b);
+            // Pairs of one body's own samples (self-contact): the coupling -b_i b_j^T (x) H
+            // lands in its diagonal block together with its transpose -b_j b_i^T (x) H.
+            let mut own_coupling = (a == b).then(|| Mat::<f64>::zeros(3 * n4a, 3 * n4b));
+            let mut target = match own_coupling.as_mut() {
+                Some(m) => m.as_mut(),
+                None => h.block_mut(a, b),
+            };
             for r in 0..3 {
                 for s in 0..3 {
                     faer::linalg::matmul::matmul(
@@ -440,6 +466,11 @@ impl<'a> PairContact<'a> {
                         Par::Seq,
                     );
                 }
+            }
+            if let Some(m) = own_coupling {
+                let mut block = h.block_mut(a, a);
+                block += m.as_ref();
+                block += m.transpose();
             }
         }
     }
@@ -461,7 +492,7 @@ impl<'a> PairContact<'a> {
     }
 
     /// The largest alpha such that along z + alpha' dir, 0 <= alpha' <= alpha, no sample pair
-    /// of two bodies comes closer than [`STEP_FLOOR`] times the smaller of its distance at
+    /// of two bodies (or of one body's own, with self-contact) comes closer than [`STEP_FLOOR`] times the smaller of its distance at
     /// `z` and its contact distance (infinite when nothing limits the step). Sample paths are
     /// straight lines in alpha, so the distance along the segment is exact: the first alpha
     /// where |x_i - x_j + alpha (dx_i - dx_j)| reaches the floor is a root of a quadratic.
@@ -499,7 +530,7 @@ impl<'a> PairContact<'a> {
         };
         let scale = bound.min(1.0);
         // Pairs that can come within their contact distance along the (capped) segment.
-        let (cands, _) = candidates(&x, &|a, b| {
+        let (cands, _) = self.candidates(&x, &|a, b| {
             self.distance(a, b) + scale * (moved[a] + moved[b])
         });
         for c in cands {

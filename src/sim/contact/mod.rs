@@ -1,7 +1,8 @@
 //! Object-object contact: the objects of a scene pushing each other (issue 15).
 //!
 //! - [`samples`]: contact samples on each object's surface with their skinning weights.
-//! - [`pairs`]: the broad phase (object boxes, then a k-d tree over the samples).
+//! - [`pairs`]: the broad phase (object boxes, then a k-d tree over the samples; an object's
+//!   own samples for self-contact).
 //! - [`energy`]: the pair penalty with its gradient, Hessian and line-search step bound, in
 //!   the stacked reduced coordinates of an island.
 //! - [`island`]: objects that can touch within a step, solved together by Newton.
@@ -62,7 +63,22 @@ pub struct ContactSettings {
     pub pairs: Vec<FrictionPair>,
     /// How an island's Newton systems are solved (default `blocks`).
     pub solver: IslandSolver,
+    /// Self-contact for every object (default false): an object's own surface samples
+    /// push each other apart like two objects' (folds, coils, arms closing). An object's
+    /// `self_contact` overrides it.
+    pub self_contact: bool,
+    /// Self-contact exclusion, in multiples of the object's contact distance 2t (default 2,
+    /// more than 1): two samples of one object nearer than this at rest never form a
+    /// self-contact pair (the material between them already holds them apart). Two facing
+    /// surfaces of one object take part only where their rest gap is at least
+    /// (self_exclusion - 1) 2t: set `radius` below gap / 2 for narrow gaps.
+    pub self_exclusion: f64,
 }
+
+/// Default self-contact exclusion, multiples of the contact distance: a patch of surface
+/// must shrink 2-fold before its own samples would touch, and facing surfaces 2t apart
+/// at rest already take part.
+pub const DEFAULT_SELF_EXCLUSION: f64 = 2.0;
 
 /// How the Newton system of an island of objects in contact is solved.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -104,6 +120,8 @@ impl Default for ContactSettings {
             friction_velocity: DEFAULT_FRICTION_VELOCITY,
             pairs: Vec::new(),
             solver: IslandSolver::default(),
+            self_contact: false,
+            self_exclusion: DEFAULT_SELF_EXCLUSION,
         }
     }
 }
@@ -169,6 +187,15 @@ impl ContactSettings {
                 "contact.friction_velocity",
                 v,
                 "the friction smoothing velocity (m/s) must be positive and finite (default 1e-3)",
+            ));
+        }
+        let ex = self.self_exclusion;
+        if !(ex > 1.0 && ex.is_finite()) {
+            return Err(Error::param(
+                "contact.self_exclusion",
+                ex,
+                "the self-contact exclusion is a multiple of the contact distance, above 1 \
+                 (nearer samples would touch at rest; default 2)",
             ));
         }
         let tol = self.penetration_tolerance;

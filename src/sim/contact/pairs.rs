@@ -1,16 +1,18 @@
 //! Broad phase between the objects of an island: the boxes of each object's deformed samples
 //! first, then, for each pair of objects whose boxes come within reach, a k-d tree over one
-//! object's samples queried with the other's.
+//! object's samples queried with the other's; for self-contact, a k-d tree over one object's
+//! samples queried with its own, keeping the pairs that are far apart at rest.
 
 use crate::Point3;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
-/// A candidate sample pair: sample `i` of body `a` and sample `j` of body `b` (a < b).
+/// A candidate sample pair: sample `i` of body `a` and sample `j` of body `b` (a < b; or
+/// a == b and i < j for a pair of one body's samples, self-contact).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Candidate {
     /// First body (index into the island's bodies).
     pub a: usize,
-    /// Second body, > `a`.
+    /// Second body, >= `a`.
     pub b: usize,
     /// Sample of body `a`.
     pub i: usize,
@@ -86,4 +88,43 @@ pub fn candidates(
         }
     }
     (out, stats)
+}
+
+/// Every pair (i < j) of body `a`'s samples closer than `reach` metres at positions `x` whose
+/// rest positions `rest` are at least `exclusion` metres apart (nearer samples belong to one
+/// patch of surface, held apart by the material itself), in the order (i, j).
+pub fn self_candidates(
+    a: usize,
+    x: &[Point3],
+    rest: &[Point3],
+    reach: f64,
+    exclusion: f64,
+) -> Vec<Candidate> {
+    let mut out = Vec::new();
+    if x.len() < 2 {
+        return out;
+    }
+    // As in `candidates`: finite positions always build; non-finite ones leave no pairs.
+    let Ok(tree) = ImmutableKdTree::<f64, 3>::new_from_slice(x) else {
+        return out;
+    };
+    let (r2, ex2) = (reach * reach, exclusion * exclusion);
+    for (i, p) in x.iter().enumerate() {
+        let mut found: Vec<usize> = tree
+            .query(p)
+            .within::<SquaredEuclidean<f64>>(r2)
+            .unsorted()
+            .execute()
+            .iter()
+            .filter(|n| n.distance < r2 && (n.item as usize) > i)
+            .map(|n| n.item as usize)
+            .filter(|&j| {
+                let (u, v) = (rest[i], rest[j]);
+                (0..3).map(|k| (u[k] - v[k]).powi(2)).sum::<f64>() >= ex2
+            })
+            .collect();
+        found.sort_unstable();
+        out.extend(found.into_iter().map(|j| Candidate { a, b: a, i, j }));
+    }
+    out
 }
