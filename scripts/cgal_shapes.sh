@@ -4,7 +4,7 @@
 # keeps those freeform accepts as solids (closed, edge-manifold, a finite non-zero volume) and
 # TetGen can mesh for the FEM reference (no self-intersecting faces, `tetgen -d`). The others
 # are listed with the library's or TetGen's own reason. A mesh with more than MAX_FACES
-# faces (default 4096) is first reduced to MAX_FACES by scripts/decimate_off.py (MeshLab's
+# faces (default 2500) is first reduced to MAX_FACES by scripts/decimate_off.py (MeshLab's
 # quadric edge collapse through pymeshlab, installed into OUT_DIR/.venv): the FEM reference
 # keeps every surface triangle, so a large input would cost hours of FEM; the reduced mesh is
 # then checked like any other. Writes OUT_DIR/shapes.csv:
@@ -39,7 +39,7 @@ if [[ ! -x $bin ]]; then
     cargo build --release --quiet
 fi
 
-max_faces=${MAX_FACES:-4096}
+max_faces=${MAX_FACES:-2500}
 mkdir -p "$out"
 members=()
 for s in "${shapes[@]}"; do members+=("data/meshes/$s.off"); done

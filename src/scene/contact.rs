@@ -296,42 +296,6 @@ impl WorldContact {
     /// placed shape, or two samples overlapping by more than the tolerance.
     fn check_start(&self, objects: &[SceneObject], shapes: &[Option<Shape>]) -> Result<()> {
         let n = objects.len();
-        for (a, o) in objects.iter().enumerate() {
-            let Some(ex) = self.self_exclusion[a] else {
-                continue;
-            };
-            let d = 2.0 * self.samples[a].thickness;
-            let x = &self.positions[a];
-            let limit = self.tolerance * o.sim().diagonal();
-            let deep = self_candidates(a, x, &self.samples[a].rest, d, ex)
-                .into_iter()
-                .find(|c| {
-                    let r = (0..3).map(|k| (x[c.i][k] - x[c.j][k]).powi(2)).sum::<f64>();
-                    d - r.sqrt() > limit
-                });
-            if let Some(c) = deep {
-                let p = x[c.i];
-                return Err(Error::Scene {
-                    message: format!(
-                        "object '{}' starts in self-contact: its surface overlaps itself at \
-                         ({:.4}, {:.4}, {:.4}) m, between samples {:.4} m apart at rest, by more \
-                         than the penetration tolerance ({:.3e} m); raise contact.self_exclusion \
-                         (now {:.4} m) above that distance or lower contact.radius",
-                        o.name(),
-                        p[0],
-                        p[1],
-                        p[2],
-                        (0..3)
-                            .map(|k| (self.samples[a].rest[c.i][k] - self.samples[a].rest[c.j][k])
-                                .powi(2))
-                            .sum::<f64>()
-                            .sqrt(),
-                        limit,
-                        ex
-                    ),
-                });
-            }
-        }
         for a in 0..n {
             for b in 0..n {
                 if a == b {

@@ -191,6 +191,7 @@ const RUN_SCENES: &[Case] = &[
     (&["@scene/contact_negative_stiffness.toml"], "contact.stiffness = -1: the contact penalty stiffness (Pa/m^2) must be positive"),
     (&["@scene/contact_zero_samples.toml"], "contact_samples must be at least 1"),
     (&["@scene/contact_bad_tolerance.toml"], "contact.penetration_tolerance = 2"),
+    (&["@scene/contact_self_exclusion.toml"], "contact.self_exclusion = 0.5: the self-contact exclusion is a multiple of the contact distance, above 1"),
     (&["@scene/contact_huge_radius.toml"], "below half the object's smallest extent"),
     (&["@scene/contact_negative_friction.toml"], "contact.friction = -0.2: a friction coefficient must be >= 0"),
     (&["@scene/contact_nan_friction.toml"], "contact.pair.friction = NaN: a friction coefficient must be >= 0"),
