@@ -681,8 +681,14 @@ impl WorldContact {
             return false;
         };
         let s = &self.samples[a];
-        !self_candidates(a, &self.positions[a], &s.rest, 2.0 * s.thickness + margin, ex)
-            .is_empty()
+        !self_candidates(
+            a,
+            &self.positions[a],
+            &s.rest,
+            2.0 * s.thickness + margin,
+            ex,
+        )
+        .is_empty()
     }
 
     /// Whether objects `a` and `b` have samples within contact distance now.

@@ -273,7 +273,9 @@ fn self_pair_energy_gradient_and_hessian_match_finite_differences() {
     // As in the two-body check above: eps = 1e-7 keeps truncation and rounding below 1e-6.
     let eps = 1e-7;
     for trial in 0..6 {
-        let v: Vec<f64> = (0..n).map(|k| ((k * (trial + 3)) as f64 * 1.3).cos()).collect();
+        let v: Vec<f64> = (0..n)
+            .map(|k| ((k * (trial + 3)) as f64 * 1.3).cos())
+            .collect();
         let plus: Vec<f64> = z.iter().zip(&v).map(|(a, b)| a + eps * b).collect();
         let minus: Vec<f64> = z.iter().zip(&v).map(|(a, b)| a - eps * b).collect();
         let fd = (energy(&plus) - energy(&minus)) / (2.0 * eps);
@@ -688,12 +690,20 @@ fn a_clip_closing_on_itself_stops_at_its_own_arm() {
     let c = w.contact_summary().unwrap();
     assert_eq!(c.self_contact, vec![true]);
     assert!(
-        c.steps.iter().any(|r| r.sample_pairs_active > 0 && r.islands == [1]),
+        c.steps
+            .iter()
+            .any(|r| r.sample_pairs_active > 0 && r.islands == [1]),
         "the arms never touched: {:?}",
         c.steps.last()
     );
-    assert!(c.worst_penetration_fraction <= c.penetration_tolerance, "{c:?}");
-    assert_eq!(w.object(0).summary().monitors.newton_nonconverged_steps, Some(0));
+    assert!(
+        c.worst_penetration_fraction <= c.penetration_tolerance,
+        "{c:?}"
+    );
+    assert_eq!(
+        w.object(0).summary().monitors.newton_nonconverged_steps,
+        Some(0)
+    );
     // Integration points lie inside the arms, so touching arms leave their points apart;
     // the tolerance (1% of the 0.52 m diagonal) is all the overlap allowed.
     let diag = w.object(0).sim().diagonal();
@@ -703,7 +713,12 @@ fn a_clip_closing_on_itself_stops_at_its_own_arm() {
         -gap_on
     );
     let (gap_off, w) = run(false);
-    assert!(w.contact_summary().unwrap().steps.iter().all(|r| r.islands.is_empty()));
+    assert!(w
+        .contact_summary()
+        .unwrap()
+        .steps
+        .iter()
+        .all(|r| r.islands.is_empty()));
     assert!(
         gap_off < -0.02,
         "without self-contact the upper arm should sink into the lower: gap {gap_off:.3e} m"

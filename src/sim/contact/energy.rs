@@ -141,7 +141,13 @@ impl<'a> PairContact<'a> {
         let (mut cands, broad) = candidates(x, reach);
         for (a, body) in self.bodies.iter().enumerate() {
             if let Some(ex) = body.self_exclusion {
-                cands.extend(self_candidates(a, &x[a], &body.samples.rest, reach(a, a), ex));
+                cands.extend(self_candidates(
+                    a,
+                    &x[a],
+                    &body.samples.rest,
+                    reach(a, a),
+                    ex,
+                ));
             }
         }
         (cands, broad)
