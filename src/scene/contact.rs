@@ -261,7 +261,7 @@ impl WorldContact {
                 o.spec()
                     .self_contact
                     .unwrap_or(settings.self_contact)
-                    .then(|| settings.self_exclusion * 2.0 * s.thickness)
+                    .then_some(settings.self_exclusion * 2.0 * s.thickness)
             })
             .collect();
         let contact = WorldContact {
