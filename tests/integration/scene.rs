@@ -81,12 +81,17 @@ fn example_scenes_parse() {
         "stack.toml",
         "plinko.toml",
         "container.toml",
+        "self_contact.toml",
     ] {
         let s = Scene::load(&dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert!(!s.objects.is_empty());
         n += 1;
     }
-    assert_eq!(n, 8);
+    assert_eq!(n, 9);
+    // Self-contact: on for the clip, with a thickness below half its 0.1 m slot.
+    let clip = Scene::load(&dir.join("self_contact.toml")).unwrap();
+    let contact = clip.contact.as_ref().unwrap();
+    assert!(contact.self_contact && contact.radius.is_some_and(|r| r < 0.05));
     // Plinko: the 18 objects of K = 500, m = 12, with contact, through 20 pegs.
     let plinko = Scene::load(&dir.join("plinko.toml")).unwrap();
     assert_eq!(plinko.objects.len(), 18);
