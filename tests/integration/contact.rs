@@ -61,6 +61,51 @@ fn positions(w: &World) -> Vec<Vec<[f64; 3]>> {
         .collect()
 }
 
+/// The gradient `g` and exact Hessian `h` of `contact`'s energy at `z` against central
+/// differences along 6 fixed directions.
+fn assert_derivatives_match_central_differences(
+    contact: &PairContact,
+    z: &[f64],
+    g: &[f64],
+    h: &faer::Mat<f64>,
+) {
+    let n = z.len();
+    let energy = |z: &[f64]| contact.stats(z).energy;
+    // Central differences with eps = 1e-7 (z is O(0.1)): truncation ~ eps^2 E''' and
+    // rounding ~ 1e-16 E / eps, both far below 1e-6 of the derivatives checked; a pair
+    // crossing its contact distance within eps would show as a kink of size ~eps, and the
+    // tolerance 1e-5 leaves room for a few.
+    let eps = 1e-7;
+    for trial in 0..6 {
+        let v: Vec<f64> = (0..n)
+            .map(|k| ((k * (trial + 3)) as f64 * 1.3).cos())
+            .collect();
+        let plus: Vec<f64> = z.iter().zip(&v).map(|(a, b)| a + eps * b).collect();
+        let minus: Vec<f64> = z.iter().zip(&v).map(|(a, b)| a - eps * b).collect();
+        let fd = (energy(&plus) - energy(&minus)) / (2.0 * eps);
+        let an: f64 = g.iter().zip(&v).map(|(a, b)| a * b).sum();
+        assert!(
+            (fd - an).abs() <= 1e-5 * an.abs().max(1e-9),
+            "gradient: fd {fd} analytic {an}"
+        );
+        let (mut gp, mut gm) = (vec![0.0; n], vec![0.0; n]);
+        contact.energy_gradient(&plus, &mut gp);
+        contact.energy_gradient(&minus, &mut gm);
+        let hv: Vec<f64> = (0..n)
+            .map(|i| (0..n).map(|j| h[(i, j)] * v[j]).sum())
+            .collect();
+        let scale = hv.iter().map(|x| x.abs()).fold(0.0, f64::max);
+        for i in 0..n {
+            let fd = (gp[i] - gm[i]) / (2.0 * eps);
+            assert!(
+                (fd - hv[i]).abs() <= 1e-5 * scale,
+                "Hessian row {i}: fd {fd} analytic {}",
+                hv[i]
+            );
+        }
+    }
+}
+
 /// The energy's gradient and exact Hessian in the stacked reduced coordinates of two
 /// overlapping blocks match central differences, the PSD Hessian is positive semi-definite,
 /// the pair is found deeper than a tolerance below its depth, and the step bound caps a
@@ -105,40 +150,7 @@ fn pair_energy_gradient_and_hessian_match_finite_differences() {
     assert!(st.active > 20, "the blocks must touch: {st:?}");
     let mut h = faer::Mat::<f64>::zeros(2 * n, 2 * n);
     contact.add_hessian(&z, PairHessian::Exact, &mut h);
-    let energy = |z: &[f64]| contact.stats(z).energy;
-    // Central differences with eps = 1e-7 (z is O(0.1)): truncation ~ eps^2 E''' and
-    // rounding ~ 1e-16 E / eps, both far below 1e-6 of the derivatives checked; a pair
-    // crossing its contact distance within eps would show as a kink of size ~eps, and the
-    // tolerance 1e-5 leaves room for a few.
-    let eps = 1e-7;
-    for trial in 0..6 {
-        let v: Vec<f64> = (0..2 * n)
-            .map(|k| ((k * (trial + 3)) as f64 * 1.3).cos())
-            .collect();
-        let plus: Vec<f64> = z.iter().zip(&v).map(|(a, b)| a + eps * b).collect();
-        let minus: Vec<f64> = z.iter().zip(&v).map(|(a, b)| a - eps * b).collect();
-        let fd = (energy(&plus) - energy(&minus)) / (2.0 * eps);
-        let an: f64 = g.iter().zip(&v).map(|(a, b)| a * b).sum();
-        assert!(
-            (fd - an).abs() <= 1e-5 * an.abs().max(1e-9),
-            "gradient: fd {fd} analytic {an}"
-        );
-        let (mut gp, mut gm) = (vec![0.0; 2 * n], vec![0.0; 2 * n]);
-        contact.energy_gradient(&plus, &mut gp);
-        contact.energy_gradient(&minus, &mut gm);
-        let hv: Vec<f64> = (0..2 * n)
-            .map(|i| (0..2 * n).map(|j| h[(i, j)] * v[j]).sum())
-            .collect();
-        let scale = hv.iter().map(|x| x.abs()).fold(0.0, f64::max);
-        for i in 0..2 * n {
-            let fd = (gp[i] - gm[i]) / (2.0 * eps);
-            assert!(
-                (fd - hv[i]).abs() <= 1e-5 * scale,
-                "Hessian row {i}: fd {fd} analytic {}",
-                hv[i]
-            );
-        }
-    }
+    assert_derivatives_match_central_differences(&contact, &z, &g, &h);
     // Lagged friction: contacts kept from z, evaluated after a sideways slide of block b
     // (both below and above the smoothing displacement eps).
     let mu = vec![0.0, 0.4, 0.4, 0.0];
@@ -269,37 +281,7 @@ fn self_pair_energy_gradient_and_hessian_match_finite_differences() {
     assert!(wide.stats(&z).active < st.active);
     let mut h = faer::Mat::<f64>::zeros(n, n);
     contact.add_hessian(&z, PairHessian::Exact, &mut h);
-    let energy = |z: &[f64]| contact.stats(z).energy;
-    // As in the two-body check above: eps = 1e-7 keeps truncation and rounding below 1e-6.
-    let eps = 1e-7;
-    for trial in 0..6 {
-        let v: Vec<f64> = (0..n)
-            .map(|k| ((k * (trial + 3)) as f64 * 1.3).cos())
-            .collect();
-        let plus: Vec<f64> = z.iter().zip(&v).map(|(a, b)| a + eps * b).collect();
-        let minus: Vec<f64> = z.iter().zip(&v).map(|(a, b)| a - eps * b).collect();
-        let fd = (energy(&plus) - energy(&minus)) / (2.0 * eps);
-        let an: f64 = g.iter().zip(&v).map(|(a, b)| a * b).sum();
-        assert!(
-            (fd - an).abs() <= 1e-5 * an.abs().max(1e-9),
-            "gradient: fd {fd} analytic {an}"
-        );
-        let (mut gp, mut gm) = (vec![0.0; n], vec![0.0; n]);
-        contact.energy_gradient(&plus, &mut gp);
-        contact.energy_gradient(&minus, &mut gm);
-        let hv: Vec<f64> = (0..n)
-            .map(|i| (0..n).map(|j| h[(i, j)] * v[j]).sum())
-            .collect();
-        let scale = hv.iter().map(|x| x.abs()).fold(0.0, f64::max);
-        for i in 0..n {
-            let fd = (gp[i] - gm[i]) / (2.0 * eps);
-            assert!(
-                (fd - hv[i]).abs() <= 1e-5 * scale,
-                "Hessian row {i}: fd {fd} analytic {}",
-                hv[i]
-            );
-        }
-    }
+    assert_derivatives_match_central_differences(&contact, &z, &g, &h);
     let mut psd = faer::Mat::<f64>::zeros(n, n);
     contact.add_hessian(&z, PairHessian::Psd, &mut psd);
     let eig = psd.self_adjoint_eigenvalues(faer::Side::Lower).unwrap();

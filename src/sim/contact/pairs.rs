@@ -41,6 +41,22 @@ fn bounds(x: &[Point3]) -> (Point3, Point3) {
     (lo, hi)
 }
 
+/// The points of `tree` strictly closer than sqrt(`r2`) metres to `p`, in increasing index
+/// order (so sums over pairs do not depend on the tree's traversal).
+fn within(tree: &ImmutableKdTree<f64, 3>, p: &Point3, r2: f64) -> impl Iterator<Item = usize> {
+    let mut found: Vec<usize> = tree
+        .query(p)
+        .within::<SquaredEuclidean<f64>>(r2)
+        .unsorted()
+        .execute()
+        .iter()
+        .filter(|n| n.distance < r2)
+        .map(|n| n.item as usize)
+        .collect();
+    found.sort_unstable();
+    found.into_iter()
+}
+
 /// Every sample pair (i of body a, j of body b, a < b) closer than `reach(a, b)` metres,
 /// for sample positions `x` (one list per body), in the order (a, b, i, j): sums over the
 /// result do not depend on the thread count.
@@ -73,17 +89,7 @@ pub fn candidates(
                 if (0..3).any(|d| p[d] < lb[d] - r || p[d] > hb[d] + r) {
                     continue;
                 }
-                let mut found: Vec<usize> = tree
-                    .query(p)
-                    .within::<SquaredEuclidean<f64>>(r2)
-                    .unsorted()
-                    .execute()
-                    .iter()
-                    .filter(|n| n.distance < r2)
-                    .map(|n| n.item as usize)
-                    .collect();
-                found.sort_unstable();
-                out.extend(found.into_iter().map(|j| Candidate { a, b, i, j }));
+                out.extend(within(tree, p, r2).map(|j| Candidate { a, b, i, j }));
             }
         }
     }
@@ -110,21 +116,16 @@ pub fn self_candidates(
     };
     let (r2, ex2) = (reach * reach, exclusion * exclusion);
     for (i, p) in x.iter().enumerate() {
-        let mut found: Vec<usize> = tree
-            .query(p)
-            .within::<SquaredEuclidean<f64>>(r2)
-            .unsorted()
-            .execute()
-            .iter()
-            .filter(|n| n.distance < r2 && (n.item as usize) > i)
-            .map(|n| n.item as usize)
-            .filter(|&j| {
-                let (u, v) = (rest[i], rest[j]);
-                (0..3).map(|k| (u[k] - v[k]).powi(2)).sum::<f64>() >= ex2
-            })
-            .collect();
-        found.sort_unstable();
-        out.extend(found.into_iter().map(|j| Candidate { a, b: a, i, j }));
+        let far_at_rest = |j: &usize| {
+            let (u, v) = (rest[i], rest[*j]);
+            (0..3).map(|k| (u[k] - v[k]).powi(2)).sum::<f64>() >= ex2
+        };
+        out.extend(
+            within(&tree, p, r2)
+                .filter(|&j| j > i)
+                .filter(far_at_rest)
+                .map(|j| Candidate { a, b: a, i, j }),
+        );
     }
     out
 }
