@@ -58,15 +58,25 @@ for s in "${shapes[@]}"; do
             python3 -m venv "$venv"
             "$venv/bin/pip" install -q pymeshlab
         fi
-        "$venv/bin/python" scripts/decimate_off.py "$file" "$out/$s.decimated.off" "$max_faces" >/dev/null
-        mv "$out/$s.decimated.off" "$file"
-        echo "$s: $nf_in faces reduced to at most $max_faces" >&2
+        # A mesh MeshLab cannot reduce is skipped with its message, like any failed check.
+        if msg=$("$venv/bin/python" scripts/decimate_off.py "$file" "$out/$s.decimated.off" \
+            "$max_faces" 2>&1 >/dev/null); then
+            mv "$out/$s.decimated.off" "$file"
+            echo "$s: $nf_in faces reduced to at most $max_faces" >&2
+        else
+            status=$?
+            rm -f "$out/$s.decimated.off"
+            reduce_error="decimation failed (exit $status): $(printf '%s' "$msg" | tail -n1)"
+        fi
     fi
     read -r nv nf _ < <(grep -v '^\s*#' "$file" | sed -n 2p)
     # The library's own check: a tiny basis (64 kernels, 2 modes) reads the mesh, welds it,
     # checks it is closed and edge-manifold, and samples its inside.
     reason=
-    if ! msg=$("$bin" modes "$file" --kernels 64 --modes 2 --out /dev/null 2>&1 >/dev/null); then
+    if [[ -n ${reduce_error:-} ]]; then
+        reason=$reduce_error
+        unset reduce_error
+    elif ! msg=$("$bin" modes "$file" --kernels 64 --modes 2 --out /dev/null 2>&1 >/dev/null); then
         reason=$(printf '%s' "$msg" | grep -m1 '^error' | sed "s|$file: ||; s|^error: ||")
     else
         # TetGen's self-intersection check (-d) writes only the surface; no tetrahedra.
