@@ -37,11 +37,16 @@ pub(crate) fn temp_path_for(path: &Path) -> PathBuf {
 }
 
 /// Run `write` on a temporary file next to `path`, then rename it to `path`: a failed or
-/// interrupted write never leaves a partial file under the final name.
+/// interrupted write never leaves a partial file under the final name. A `path` that exists
+/// and is not a regular file (`/dev/null`, a FIFO) is written directly: renaming onto it
+/// would replace the device with a plain file.
 pub fn write_atomically(
     path: &Path,
     write: impl FnOnce(&Path) -> crate::Result<()>,
 ) -> crate::Result<()> {
+    if std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir()) {
+        return write(path);
+    }
     let tmp = temp_path_for(path);
     let result = write(&tmp).and_then(|()| {
         std::fs::rename(&tmp, path).map_err(|source| crate::Error::Io {
@@ -69,5 +74,33 @@ pub(crate) fn check_triangle_indices(
             "triangle {f} = {t:?} refers past the {vertex_count} vertices"
         ))),
         None => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `--out /dev/null` (scripts/cgal_shapes.sh does it) must not rename a file over the
+    /// device: that left /dev/null a plain file for every later process on the machine.
+    #[cfg(unix)]
+    #[test]
+    fn writing_to_a_device_keeps_the_device() {
+        use std::os::unix::fs::FileTypeExt;
+        let null = Path::new("/dev/null");
+        let mut given = None;
+        write_atomically(null, |p| {
+            given = Some(p.to_path_buf());
+            std::fs::write(p, b"data").map_err(|source| crate::Error::Io {
+                path: p.to_path_buf(),
+                source,
+            })
+        })
+        .unwrap();
+        assert_eq!(given.as_deref(), Some(null));
+        assert!(std::fs::metadata(null)
+            .unwrap()
+            .file_type()
+            .is_char_device());
     }
 }
