@@ -14,11 +14,13 @@
 pub mod compare;
 pub mod dense;
 pub mod lobpcg;
+pub mod operator;
 #[cfg(feature = "slepc")]
 pub mod slepc;
 mod slepc_options;
 pub mod testing;
 
+pub use operator::{LinearOperator, OperatorError, Preconditioner};
 pub use slepc_options::{SlepcOptions, SlepcPreset};
 
 use crate::progress::Progress;
