@@ -111,11 +111,15 @@ fn col(m: &Mat3, c: usize) -> [f64; 3] {
     [m[0][c], m[1][c], m[2][c]]
 }
 
-fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+/// a . b.
+#[inline]
+pub fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
-fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
+/// a x b.
+#[inline]
+pub fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
     [
         a[1] * b[2] - a[2] * b[1],
         a[2] * b[0] - a[0] * b[2],
@@ -123,9 +127,40 @@ fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
     ]
 }
 
-fn normalize(a: [f64; 3]) -> Option<[f64; 3]> {
+/// a - b.
+#[inline]
+pub fn sub(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+/// |a|, the Euclidean norm.
+#[inline]
+pub fn norm(a: &[f64; 3]) -> f64 {
+    dot(a, a).sqrt()
+}
+
+/// a / |a|, or `None` for a zero or non-finite length.
+pub fn normalize(a: [f64; 3]) -> Option<[f64; 3]> {
     let n = dot(&a, &a).sqrt();
     (n > 0.0 && n.is_finite()).then(|| [a[0] / n, a[1] / n, a[2] / n])
+}
+
+/// The outer product u u^T.
+#[inline]
+pub fn outer(u: &[f64; 3]) -> Mat3 {
+    std::array::from_fn(|r| std::array::from_fn(|s| u[r] * u[s]))
+}
+
+/// A v (for a rotation R: v rotated into the outer frame).
+#[inline]
+pub fn mat_vec(a: &Mat3, v: &[f64; 3]) -> [f64; 3] {
+    std::array::from_fn(|i| dot(&a[i], v))
+}
+
+/// A^T v (for a rotation R: v rotated back into the rotated frame).
+#[inline]
+pub fn mat_t_vec(a: &Mat3, v: &[f64; 3]) -> [f64; 3] {
+    std::array::from_fn(|i| a[0][i] * v[0] + a[1][i] * v[1] + a[2][i] * v[2])
 }
 
 /// Any unit vector orthogonal to the unit vector `a`.

@@ -7,7 +7,9 @@
 //! docs/splats.md gives the math and the conventions.
 
 use crate::linalg3::Mat3;
-use crate::linalg3::{det3, matrix_to_quat, mul, quat_to_matrix, svd3_rv, sym_eig3, transpose};
+use crate::linalg3::{
+    cross, det3, matrix_to_quat, mul, quat_to_matrix, svd3_rv, sym_eig3, transpose,
+};
 use rayon::prelude::*;
 use std::sync::OnceLock;
 
@@ -204,14 +206,6 @@ fn matched_eigenvectors(m: &Mat3) -> Mat3 {
         }
     }
     out
-}
-
-fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
 }
 
 // --- Spherical harmonics -------------------------------------------------------------------

@@ -7,6 +7,7 @@
 //! weighted sum of |x - target|^2 over fixed points is a quadratic in z whose coefficients
 //! are the moments sum c b b^T, sum c b Xh^T and sum c Xh Xh^T, computed once.
 
+use crate::linalg3::dot;
 use crate::precompute::skinning::SkinningWeights;
 pub use crate::sim::collider::ColliderShape;
 use crate::sim::collider::{Kinematics, Penetration};
@@ -308,10 +309,6 @@ struct Sweep {
     obstacle: usize,
     delta: f64,
     sphere: Option<(Point3, f64)>,
-}
-
-fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 /// Distance from `c` to the segment from `x` to `x + dx`, metres.

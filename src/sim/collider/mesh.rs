@@ -22,9 +22,10 @@
 //! one triangle each), a solid mesh that is open, non-manifold or inconsistently oriented, a
 //! surface with non-manifold or inconsistently oriented edges.
 
-use super::{dot, ColliderShape, MeshCollider, Penetration};
+use super::{ColliderShape, MeshCollider, Penetration};
 use crate::error::GeometryError;
 use crate::geometry::{weld_exact, Aabb, EdgeReport, ShapeFileFormat, ShapeOptions, ShapeSpec};
+use crate::linalg3::{cross, dot, norm, sub};
 use crate::{Error, Point3, Result};
 use parry3d_f64::math::Vector;
 use parry3d_f64::query::PointQueryWithLocation;
@@ -88,22 +89,6 @@ fn to_vec(p: &Point3) -> Vector {
 
 fn from_vec(v: Vector) -> Point3 {
     [v.x, v.y, v.z]
-}
-
-fn sub(a: &Point3, b: &Point3) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn norm(a: &[f64; 3]) -> f64 {
-    dot(a, a).sqrt()
 }
 
 fn identity_minus(e: &[f64; 3]) -> crate::linalg3::Mat3 {

@@ -24,7 +24,7 @@
 
 pub mod mesh;
 
-use crate::linalg3::{mul, transpose, Mat3};
+use crate::linalg3::{dot, mat_t_vec, mat_vec, mul, outer, transpose, Mat3};
 use crate::sim::motion::{rotation_matrix, AxisAngle, Motion, Rigid};
 use crate::{Error, Point3, Result};
 pub use mesh::{MeshObstacle, Sided};
@@ -469,22 +469,6 @@ pub struct Penetration {
     pub hessian_psd: Mat3,
 }
 
-fn outer(u: &[f64; 3]) -> Mat3 {
-    std::array::from_fn(|r| std::array::from_fn(|s| u[r] * u[s]))
-}
-
-fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn rotate(r: &Mat3, v: &[f64; 3]) -> [f64; 3] {
-    std::array::from_fn(|i| dot(&r[i], v))
-}
-
-fn rotate_t(r: &Mat3, v: &[f64; 3]) -> [f64; 3] {
-    std::array::from_fn(|i| r[0][i] * v[0] + r[1][i] * v[1] + r[2][i] * v[2])
-}
-
 impl Penetration {
     /// A penetration whose d^2/2 is linear-squared along `u` (planes, boxes): Hessian u u^T.
     fn flat(depth: f64, u: [f64; 3]) -> Penetration {
@@ -524,7 +508,7 @@ impl Penetration {
         let turn = |h: &Mat3| mul(&mul(r, h), &rt);
         Penetration {
             depth: self.depth,
-            normal: rotate(r, &self.normal),
+            normal: mat_vec(r, &self.normal),
             hessian: turn(&self.hessian),
             hessian_psd: turn(&self.hessian_psd),
         }
@@ -633,7 +617,7 @@ impl Obstacle {
     /// `pose` (x -> R x + t of its rest frame), or None outside.
     pub fn penetration(&self, pose: &Rigid, x: &Point3) -> Option<Penetration> {
         let d: [f64; 3] = std::array::from_fn(|i| x[i] - pose.translation[i]);
-        let y = rotate_t(&pose.rotation, &d);
+        let y = mat_t_vec(&pose.rotation, &d);
         let p = self.penetration_local(&y)?;
         if pose.rotation == Rigid::IDENTITY.rotation {
             Some(p)
@@ -655,7 +639,7 @@ impl Obstacle {
                     None => *y,
                     Some(r) => {
                         let c: [f64; 3] = std::array::from_fn(|d| 0.5 * (min[d] + max[d]));
-                        let local = rotate_t(r, &std::array::from_fn(|d| y[d] - c[d]));
+                        let local = mat_t_vec(r, &std::array::from_fn(|d| y[d] - c[d]));
                         std::array::from_fn(|d| c[d] + local[d])
                     }
                 };
@@ -677,7 +661,7 @@ impl Obstacle {
                         best = (hi, u);
                     }
                 }
-                let u = rotation.as_ref().map_or(best.1, |r| rotate(r, &best.1));
+                let u = rotation.as_ref().map_or(best.1, |r| mat_vec(r, &best.1));
                 Some(Penetration::flat(best.0, u))
             }
             Obstacle::Sphere { center, radius } => {
@@ -769,7 +753,7 @@ impl Obstacle {
                     .iter()
                     .map(|p| {
                         let local: [f64; 3] = std::array::from_fn(|d| p[d] + min[d] - c[d]);
-                        let turned = rotation.as_ref().map_or(local, |r| rotate(r, &local));
+                        let turned = rotation.as_ref().map_or(local, |r| mat_vec(r, &local));
                         std::array::from_fn(|d| c[d] + turned[d])
                     })
                     .collect();

@@ -15,17 +15,13 @@
 //! is positive semi-definite (eigenvalues mu lambda (2/eps - 2y/eps^2) >= 0 along s, mu lambda
 //! f1/y across it, 0 along n): Newton needs no projection.
 
-use crate::linalg3::Mat3;
+use crate::linalg3::{norm, Mat3};
 
 /// The smoothed friction potential of one contact: its lagged mu lambda (N), normal
 /// projector P and the tangential displacement s it sees.
 pub fn potential(mu_lambda: f64, eps: f64, s: &[f64; 3]) -> f64 {
     let y = norm(s);
     mu_lambda * f0(y, eps)
-}
-
-fn norm(s: &[f64; 3]) -> f64 {
-    (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt()
 }
 
 fn f0(y: f64, eps: f64) -> f64 {
