@@ -971,7 +971,6 @@ const CYCLIC_FOLDERS: &[&str] = &[
     "fem/readers",
     "geometry",
     "io",
-    "precompute",
     "render",
     "scene",
     "sim",
