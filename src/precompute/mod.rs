@@ -26,6 +26,7 @@ pub mod memory;
 mod options;
 mod problem;
 mod quality;
+mod resolution;
 pub mod rkpm;
 pub mod sampling;
 pub mod skinning;

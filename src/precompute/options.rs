@@ -1,8 +1,8 @@
 //! Every knob of the precomputation ([`BasisOptions`]) with its default and its valid range.
 
 use super::image_material::{GapPolicy, ImageMaterial};
+use super::resolution::{CloudVolumeOptions, Resolution};
 use super::rkpm::{KernelType, ShapeFunctionOptions, SupportOptions};
-use super::sampling::{CloudVolumeOptions, Resolution};
 use super::solver::SolverConfig;
 use crate::geometry::{Shape, VoxelValues};
 use crate::material::{Material, MaterialField, MaterialOverride, Region};

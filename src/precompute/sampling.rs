@@ -8,6 +8,7 @@
 //! scaled to a user-given total.
 
 use super::options::{default_points, BasisOptions};
+pub use super::resolution::{CloudVolumeOptions, Resolution};
 use crate::geometry::{Aabb, Shape};
 use crate::material::MaterialField;
 use crate::{Error, Point3, Result};
@@ -70,43 +71,6 @@ impl IntegrationPoints {
             ));
         }
         Ok(())
-    }
-}
-
-/// How dense the integration grid is.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Resolution {
-    /// Grid spacing h, metres.
-    Spacing(f64),
-    /// Target number of points inside the object (the grid spacing follows from the volume).
-    Count(usize),
-}
-
-impl Resolution {
-    /// Grid spacing for an object of volume `volume` (m^3).
-    pub fn spacing(&self, volume: f64) -> Result<f64> {
-        let h = match *self {
-            Resolution::Spacing(h) => h,
-            Resolution::Count(n) => {
-                if n == 0 {
-                    return Err(Error::param(
-                        "points",
-                        0,
-                        "need at least one integration point",
-                    ));
-                }
-                (volume / n as f64).cbrt()
-            }
-        };
-        if !(h.is_finite() && h > 0.0) {
-            return Err(Error::param(
-                "spacing",
-                h,
-                "grid spacing must be a positive length",
-            ));
-        }
-        Ok(h)
     }
 }
 
@@ -176,16 +140,6 @@ pub fn grid_points(
         volumes: vec![v; points.len()],
         points,
     })
-}
-
-/// Options for point-cloud quadrature weights.
-#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct CloudVolumeOptions {
-    /// Voxel edge, metres. Default: 2 x the median nearest-neighbour distance (over up to
-    /// 20,000 sampled points), so a voxel holds a handful of points where the cloud is solid.
-    pub voxel: Option<f64>,
-    /// Total volume of the object, m^3, if known; the weights are scaled to sum to it.
-    pub total_volume: Option<f64>,
 }
 
 /// Quadrature weights for a point cloud (N x 3, metres), and the voxel edge used.
