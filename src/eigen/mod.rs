@@ -20,7 +20,9 @@ pub mod slepc;
 mod slepc_options;
 pub mod testing;
 
-pub use operator::{LinearOperator, OperatorError, Preconditioner};
+pub use operator::{
+    apply_checked, probe_symmetry, FnOperator, LinearOperator, OperatorError, Preconditioner,
+};
 pub use slepc_options::{SlepcOptions, SlepcPreset};
 
 use crate::progress::Progress;
@@ -276,6 +278,15 @@ pub enum EigenError {
     /// A non-finite value appeared (NaN/Inf in the inputs or a breakdown).
     #[error("non-finite value in the eigensolver: {0}")]
     NonFinite(String),
+    /// A caller's [`LinearOperator`] or [`Preconditioner`] reported an error when applied
+    /// (a failing callback, a wrong block shape); `which` names it ("H", "M", "preconditioner").
+    #[error("operator {which} failed: {message}")]
+    Operator {
+        /// Which operator failed.
+        which: &'static str,
+        /// The operator's message ([`OperatorError::message`]).
+        message: String,
+    },
     /// SLEPc's LOBPCG (`--slepc lobpcg-gamg`, `lobpcg-hypre`, or `-eps_type lobpcg`) broke
     /// down: its search basis [X, preconditioned residuals, directions] lost B-orthogonality
     /// (here B = M), so the projected Rayleigh-Ritz pencil is not definite and LAPACK's
