@@ -354,5 +354,18 @@ mod tests {
         let a = crate::eigen::testing::grid_laplacian([3, 2, 2], 1.5);
         probe_symmetry(&a, "H", 3).expect("assembled Laplacian is symmetric");
         assert!(a.assembled().is_some() && a.diagonal().is_some());
+        // Through the trait, a block gives exactly the dense product (entries are multiples of 1/2,
+        // times small integers: every partial sum is exact in f64, in any order).
+        let k = a.nrows();
+        let dense = crate::sparse::to_dense(&a);
+        let x = faer::Mat::from_fn(k, 2, |i, j| (i as f64) - 3.0 * (j as f64));
+        let mut y = faer::Mat::<f64>::zeros(k, 2);
+        apply_checked(&a, "H", x.as_ref(), y.as_mut()).expect("assembled apply");
+        for j in 0..2 {
+            for i in 0..k {
+                let want: f64 = (0..k).map(|l| dense[(i, l)] * x[(l, j)]).sum();
+                assert_eq!(y[(i, j)], want, "entry ({i}, {j})");
+            }
+        }
     }
 }
