@@ -15,17 +15,22 @@ pub mod compare;
 pub mod dense;
 pub mod lobpcg;
 pub mod operator;
+pub mod operator_problem;
+pub mod q1_operator;
 #[cfg(feature = "slepc")]
 pub mod slepc;
 mod slepc_options;
+mod solver;
 pub mod testing;
 
 pub use operator::{
-    apply_checked, probe_symmetry, FnOperator, LinearOperator, OperatorError, Preconditioner,
+    apply_checked, apply_preconditioner_checked, probe_symmetry, FnOperator, LinearOperator,
+    OperatorError, Preconditioner,
 };
+pub use operator_problem::OperatorProblem;
 pub use slepc_options::{SlepcOptions, SlepcPreset};
+pub use solver::Eigensolver;
 
-use crate::progress::Progress;
 use crate::sparse::{self, SparseMatrix};
 use faer::Mat;
 
@@ -513,42 +518,6 @@ fn slepc_lobpcg_advice(
     }
 }
 
-/// A generalized symmetric-definite eigensolver for the m + 1 smallest pairs.
-pub trait Eigensolver {
-    /// Short name used in reports ("lobpcg", "dense").
-    fn name(&self) -> &'static str;
-    /// Solve H x = lambda M x for the `request.nev` smallest pairs. H, M: K x K symmetric.
-    /// A solve that stops before every pair meets the tolerance returns `Ok` with
-    /// [`EigenInfo::status`] saying so (and possibly fewer than `nev` pairs, for an external
-    /// solver); see [`EigenError`] for the rule.
-    ///
-    /// # Errors
-    /// Failures without a usable result ([`EigenError`]).
-    fn solve(
-        &self,
-        h: &SparseMatrix,
-        m: &SparseMatrix,
-        request: &EigenRequest,
-        progress: &dyn Progress,
-    ) -> Result<EigenSolution, EigenError>;
-
-    /// [`Eigensolver::solve`], then [`EigenSolution::into_converged`]: a converged solution
-    /// or an error (the not-converged ones carry the partial result).
-    ///
-    /// # Errors
-    /// As [`Eigensolver::solve`], plus [`EigenError::NotConverged`] /
-    /// [`EigenError::SlepcLobpcgNotConverged`] for a solve that stopped short.
-    fn solve_converged(
-        &self,
-        h: &SparseMatrix,
-        m: &SparseMatrix,
-        request: &EigenRequest,
-        progress: &dyn Progress,
-    ) -> Result<EigenSolution, EigenError> {
-        self.solve(h, m, request, progress)?.into_converged()
-    }
-}
-
 /// Parameters for faer's dense self-adjoint eigendecomposition that force the tridiagonal QR
 /// algorithm. faer 0.24's default switches to divide and conquer at n >= 128, which we measured
 /// to lose accuracy on graded spectra (the normal case here: a zero eigenvalue next to
@@ -588,12 +557,25 @@ pub fn check_solution(
         vectors.nrows() == k && m.nrows() == k && values.len() == nev,
         "check_solution: shape mismatch"
     );
-    let norm_h = sparse::norm_1(h);
-    let norm_m = sparse::norm_1(m);
+    let norms = (sparse::norm_1(h), sparse::norm_1(m));
     let mut hx = Mat::<f64>::zeros(k, nev);
     let mut mx = Mat::<f64>::zeros(k, nev);
     sparse::sym_mul_block(h, vectors.as_ref(), hx.as_mut());
     sparse::sym_mul_block(m, vectors.as_ref(), mx.as_mut());
+    fill_residual_report(values, vectors, &hx, &mx, norms, info);
+}
+
+/// The residuals and M-orthonormality error of [`check_solution`] from the products
+/// `hx = H X`, `mx = M X` (both K x nev) and the 1-norms `(||H||_1, ||M||_1)`.
+pub(crate) fn fill_residual_report(
+    values: &[f64],
+    vectors: &Mat<f64>,
+    hx: &Mat<f64>,
+    mx: &Mat<f64>,
+    (norm_h, norm_m): (f64, f64),
+    info: &mut EigenInfo,
+) {
+    let (k, nev) = (vectors.nrows(), vectors.ncols());
     info.residuals = (0..nev)
         .map(|j| {
             let lambda = values[j];
@@ -672,19 +654,7 @@ pub fn validate_problem(
             m.ncols()
         )));
     }
-    if request.nev == 0 || request.nev.saturating_add(2) > k {
-        return Err(EigenError::InvalidRequest(format!(
-            "nev = {} pairs (m = nev - 1 modes plus the constant one) requested for K = {k}: need \
-             1 <= nev <= K - 2 (m <= K - 3)",
-            request.nev
-        )));
-    }
-    if !(request.tol.is_finite() && request.tol > 0.0) {
-        return Err(EigenError::InvalidRequest(format!(
-            "tol = {} must be finite and > 0",
-            request.tol
-        )));
-    }
+    validate_request(k, request)?;
     for (name, a) in [("H", h), ("M", m)] {
         if let Some((i, j)) = sparse::first_non_finite(a) {
             return Err(EigenError::NonFinite(format!(
@@ -699,6 +669,28 @@ pub fn validate_problem(
                 "{name} is not symmetric: max |a_ij - a_ji| = {defect:.3e} (||{name}||_1 = {scale:.3e})"
             )));
         }
+    }
+    Ok(())
+}
+
+/// The request checks of [`validate_problem`] for a problem of size K: `1 <= nev <= K - 2`,
+/// `tol` finite and > 0.
+///
+/// # Errors
+/// [`EigenError::InvalidRequest`] saying which.
+pub fn validate_request(k: usize, request: &EigenRequest) -> Result<(), EigenError> {
+    if request.nev == 0 || request.nev.saturating_add(2) > k {
+        return Err(EigenError::InvalidRequest(format!(
+            "nev = {} pairs (m = nev - 1 modes plus the constant one) requested for K = {k}: need \
+             1 <= nev <= K - 2 (m <= K - 3)",
+            request.nev
+        )));
+    }
+    if !(request.tol.is_finite() && request.tol > 0.0) {
+        return Err(EigenError::InvalidRequest(format!(
+            "tol = {} must be finite and > 0",
+            request.tol
+        )));
     }
     Ok(())
 }

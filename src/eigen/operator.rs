@@ -97,6 +97,16 @@ pub trait Preconditioner: Sync {
     fn apply(&self, r: MatRef<'_, f64>, z: MatMut<'_, f64>) -> Result<(), OperatorError>;
 }
 
+/// A closure `f(r, z)` (`z = T r`) is a preconditioner.
+impl<F> Preconditioner for F
+where
+    F: Fn(MatRef<'_, f64>, MatMut<'_, f64>) -> Result<(), OperatorError> + Sync,
+{
+    fn apply(&self, r: MatRef<'_, f64>, z: MatMut<'_, f64>) -> Result<(), OperatorError> {
+        self(r, z)
+    }
+}
+
 /// An error unless `x` and `out` are both `rows x b` for one `b`: a caller's operator that
 /// receives or returns the wrong shape is refused with the shapes in the message.
 ///
@@ -184,6 +194,31 @@ pub fn apply_checked(
     };
     check_block_shapes(op.dim(), &x, &out).map_err(to_error)?;
     op.apply(x, out.as_mut()).map_err(to_error)?;
+    first_non_finite(out.as_ref(), which)
+}
+
+/// `z = T r` through a caller's preconditioner, with the checks of [`apply_checked`]: `z` the
+/// shape of `r`, the preconditioner's own error, a finite output.
+///
+/// # Errors
+/// [`EigenError::Operator`] (named "preconditioner") for a shape mismatch or a failing
+/// preconditioner; [`EigenError::NonFinite`] for a NaN or infinite output entry.
+pub fn apply_preconditioner_checked(
+    pre: &dyn Preconditioner,
+    r: MatRef<'_, f64>,
+    mut z: MatMut<'_, f64>,
+) -> Result<(), EigenError> {
+    let to_error = |e: OperatorError| EigenError::Operator {
+        which: "preconditioner",
+        message: e.message,
+    };
+    check_block_shapes(r.nrows(), &r, &z).map_err(to_error)?;
+    pre.apply(r, z.as_mut()).map_err(to_error)?;
+    first_non_finite(z.as_ref(), "preconditioner")
+}
+
+/// An error for the first NaN or infinite entry of `out`, naming `which`.
+fn first_non_finite(out: MatRef<'_, f64>, which: &str) -> Result<(), EigenError> {
     for j in 0..out.ncols() {
         for i in 0..out.nrows() {
             let v = out[(i, j)];

@@ -26,6 +26,7 @@ mod extremes;
 mod fem;
 mod geometry;
 mod images;
+mod matrix_free;
 mod pipeline;
 mod properties;
 mod render;

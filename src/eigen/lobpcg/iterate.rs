@@ -14,14 +14,14 @@
 //! Convergence is declared only after an explicit check: H X and M X recomputed, Rayleigh-Ritz
 //! on X alone, residuals recomputed; otherwise the iteration continues.
 
+use super::operators::{Operators, Which};
 use super::orthogonalize::{ortho_against_basis, project_constant, svqb, Small};
 use super::precondition::Preconditioner;
 use super::rayleigh_ritz::{next_p, solve_projected, Projected, RrScratch};
 use super::workspace::{inner, transform, Block, ROW_CHUNK};
 use super::LobpcgOptions;
-use crate::eigen::{relative_residual, SplitMix64};
+use crate::eigen::{relative_residual, EigenError, SplitMix64};
 use crate::progress::Progress;
-use crate::sparse::{self, SparseMatrix};
 use faer::{Mat, Par};
 use rayon::prelude::*;
 use std::fmt::Write as _;
@@ -42,6 +42,8 @@ pub(super) enum Stop {
     Indefinite(String),
     /// A breakdown (small eigensolver failure, non-finite values).
     Breakdown(String),
+    /// A caller's operator or preconditioner failed (error, wrong shape, non-finite output).
+    Operator(EigenError),
 }
 
 /// Counters filled during the run.
@@ -62,8 +64,7 @@ pub(super) struct Counters {
 
 /// The whole state of one run; allocated once.
 pub(super) struct State<'a> {
-    h: &'a SparseMatrix,
-    m: &'a SparseMatrix,
+    ops: Operators<'a>,
     k: usize,
     /// Wanted non-constant pairs.
     nwant: usize,
@@ -77,8 +78,6 @@ pub(super) struct State<'a> {
     tmp: Block,
     y0: Block,
     my0: Block,
-    norm_h: f64,
-    norm_m: f64,
     gram_h: Mat<f64>,
     gram_m: Mat<f64>,
     coef: Mat<f64>,
@@ -97,15 +96,17 @@ pub(super) struct State<'a> {
 }
 
 impl<'a> State<'a> {
-    /// Allocate everything for a run with block size `nx` on K x K matrices.
+    /// Allocate everything for a run with block size `nx` on K x K operators.
+    ///
+    /// # Errors
+    /// The operator M failing on the constant mode.
     pub fn new(
-        h: &'a SparseMatrix,
-        m: &'a SparseMatrix,
+        ops: Operators<'a>,
         y0: &[f64],
         nwant: usize,
         nx: usize,
-    ) -> Self {
-        let k = h.nrows();
+    ) -> Result<Self, EigenError> {
+        let k = ops.dim();
         let ld = 3 * nx;
         let par = Par::rayon(0);
         let y0b = Block {
@@ -114,11 +115,10 @@ impl<'a> State<'a> {
             ld: 1,
         };
         let mut my0 = Block::new(k, 1);
-        sparse::sym_mul_row_major(m, y0, 1, &mut my0.data, 1, 1);
+        ops.apply(Which::M, &y0b, &mut my0, 0, 1)?;
         let nchunks = k.div_ceil(ROW_CHUNK);
-        Self {
-            h,
-            m,
+        Ok(Self {
+            ops,
             k,
             nwant,
             nx,
@@ -129,8 +129,6 @@ impl<'a> State<'a> {
             tmp: Block::new(k, 2 * nx),
             y0: y0b,
             my0,
-            norm_h: sparse::norm_1(h),
-            norm_m: sparse::norm_1(m),
             gram_h: Mat::zeros(ld, ld),
             gram_m: Mat::zeros(ld, ld),
             coef: Mat::zeros(ld, ld),
@@ -144,48 +142,38 @@ impl<'a> State<'a> {
             message: String::with_capacity(128),
             par,
             counters: Counters::default(),
-        }
+        })
     }
 
-    fn spmm(&mut self, which: Which, c0: usize, w: usize) {
+    fn spmm(&mut self, which: Which, c0: usize, w: usize) -> Result<(), Stop> {
         if w == 0 {
-            return;
+            return Ok(());
         }
         let t0 = Instant::now();
-        let (a, out) = match which {
-            Which::H => (self.h, &mut self.hs),
-            Which::M => (self.m, &mut self.ms),
+        let out = match which {
+            Which::H => &mut self.hs,
+            Which::M => &mut self.ms,
         };
-        sparse::sym_mul_row_major(
-            a,
-            &self.s.data[c0..],
-            self.s.ld,
-            &mut out.data[c0..],
-            out.ld,
-            w,
-        );
+        self.ops
+            .apply(which, &self.s, out, c0, w)
+            .map_err(Stop::Operator)?;
         self.counters.matvecs += w;
         self.counters.seconds_spmm += t0.elapsed().as_secs_f64();
+        Ok(())
     }
 
     /// H S and M S for the columns `c0..c0 + w`, in one pass when the patterns agree.
-    fn spmm_both(&mut self, c0: usize, w: usize) {
+    fn spmm_both(&mut self, c0: usize, w: usize) -> Result<(), Stop> {
         if w == 0 {
-            return;
+            return Ok(());
         }
         let t0 = Instant::now();
-        sparse::sym_mul_pair_row_major(
-            self.h,
-            self.m,
-            &self.s.data[c0..],
-            self.s.ld,
-            &mut self.hs.data[c0..],
-            &mut self.ms.data[c0..],
-            self.hs.ld,
-            w,
-        );
+        self.ops
+            .apply_both(&self.s, &mut self.hs, &mut self.ms, c0, w)
+            .map_err(Stop::Operator)?;
         self.counters.matvecs += 2 * w;
         self.counters.seconds_spmm += t0.elapsed().as_secs_f64();
+        Ok(())
     }
 
     /// Random start block (fixed seed), constant mode removed, M-orthonormalized, Rayleigh-Ritz.
@@ -198,7 +186,7 @@ impl<'a> State<'a> {
             }
         }
         project_constant(&mut self.s, 0, nx, &self.y0, &self.my0, &mut self.small);
-        self.spmm_both(0, nx);
+        self.spmm_both(0, nx)?;
         let r = svqb(
             &mut self.s,
             &mut self.ms,
@@ -308,8 +296,8 @@ impl<'a> State<'a> {
             self.residuals[j] = relative_residual(
                 rr.sqrt(),
                 self.theta[j],
-                self.norm_h,
-                self.norm_m,
+                self.ops.norm_h,
+                self.ops.norm_m,
                 xx.sqrt(),
             );
         }
@@ -319,7 +307,7 @@ impl<'a> State<'a> {
     fn explicit_refresh(&mut self, opts: &LobpcgOptions) -> Result<(), Stop> {
         let nb = self.nx + self.np;
         project_constant(&mut self.s, 0, nb, &self.y0, &self.my0, &mut self.small);
-        self.spmm_both(0, nb);
+        self.spmm_both(0, nb)?;
         self.rayleigh_ritz_x(opts)?;
         self.residual_norms();
         Ok(())
@@ -331,7 +319,7 @@ impl<'a> State<'a> {
         tol: f64,
         max_iter: usize,
         opts: &LobpcgOptions,
-        pre: &mut Preconditioner,
+        pre: &mut Preconditioner<'_>,
         progress: &dyn Progress,
     ) -> Stop {
         let (nx, nwant) = (self.nx, self.nwant);
@@ -389,10 +377,14 @@ impl<'a> State<'a> {
                     });
             }
             let t0 = Instant::now();
-            pre.apply(&mut self.s, w0, nw, &mut self.tmp, self.par);
+            if let Err(e) = pre.apply(&mut self.s, w0, nw, &mut self.tmp, self.par) {
+                return Stop::Operator(e);
+            }
             self.counters.seconds_precondition += t0.elapsed().as_secs_f64();
             project_constant(&mut self.s, w0, nw, &self.y0, &self.my0, &mut self.small);
-            self.spmm(Which::M, w0, nw);
+            if let Err(stop) = self.spmm(Which::M, w0, nw) {
+                return stop;
+            }
             let t0 = Instant::now();
             nw = ortho_against_basis(
                 &mut self.s,
@@ -420,7 +412,9 @@ impl<'a> State<'a> {
                 return Stop::Stagnated;
             }
             self.counters.seconds_ortho += t0.elapsed().as_secs_f64();
-            self.spmm(Which::H, w0, nw);
+            if let Err(stop) = self.spmm(Which::H, w0, nw) {
+                return stop;
+            }
             let t0 = Instant::now();
 
             // 3. Rayleigh-Ritz on [X | P | W].
@@ -500,7 +494,9 @@ impl<'a> State<'a> {
                 since_refresh = 0;
                 let nb = nx + self.np;
                 project_constant(&mut self.s, 0, nb, &self.y0, &self.my0, &mut self.small);
-                self.spmm_both(0, nb);
+                if let Err(stop) = self.spmm_both(0, nb) {
+                    return stop;
+                }
             }
             self.residual_norms();
             if !self
@@ -543,12 +539,6 @@ impl<'a> State<'a> {
     pub fn finalize(&mut self, opts: &LobpcgOptions) -> Result<(), Stop> {
         self.explicit_refresh(opts)
     }
-}
-
-#[derive(Clone, Copy)]
-enum Which {
-    H,
-    M,
 }
 
 fn indefinite_block(relative: f64) -> Stop {

@@ -41,21 +41,22 @@
 //! iterations) while the exact factor stays at 15-16: `Auto` then keeps the exact factor when
 //! it fits, and switches to it after [`LobpcgOptions::escalate_after`] slow IC(0) iterations.
 
+mod assembled_preconditioner;
+mod driver;
 mod incomplete_cholesky;
 mod iterate;
+mod operators;
 mod orthogonalize;
 mod precondition;
 mod rayleigh_ritz;
 mod workspace;
 
-use super::{
-    check_solution, constant_mode, validate_problem, EigenError, EigenInfo, EigenRequest,
-    EigenSolution, EigenStatus, Eigensolver,
-};
+pub use assembled_preconditioner::AssembledPreconditioner;
+
+use super::operator_problem::{validate_operators, OperatorProblem};
+use super::{validate_problem, EigenError, EigenRequest, EigenSolution, Eigensolver};
 use crate::progress::Progress;
-use crate::sparse::{self, SparseMatrix};
-use faer::{Mat, Par};
-use iterate::{State, Stop};
+use crate::sparse::SparseMatrix;
 
 /// Which preconditioner LOBPCG applies to the residuals.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -200,186 +201,32 @@ impl Eigensolver for Lobpcg {
         progress: &dyn Progress,
     ) -> Result<EigenSolution, EigenError> {
         validate_problem(h, m, request)?;
-        let opts = &self.options;
-        let k = h.nrows();
-        let nev = request.nev;
-        let nwant = nev - 1;
-        if let Some((i, d)) = sparse::diagonal(m)
-            .iter()
-            .enumerate()
-            .find(|(_, &d)| d.is_nan() || d <= 0.0)
-        {
-            return Err(EigenError::NotPositiveDefinite {
-                what: "M",
-                detail: format!("diagonal entry M[{i}, {i}] = {d:e}"),
-            });
-        }
-        let y0 = constant_mode(m)?;
-        let mut info = EigenInfo {
-            solver: "lobpcg".into(),
-            ..EigenInfo::default()
-        };
-        if nwant == 0 {
-            let vectors = Mat::from_fn(k, 1, |i, _| y0[i]);
-            let values = vec![0.0];
-            info.locked = 1;
-            check_solution(h, m, &values, &vectors, &mut info);
-            return Ok(EigenSolution {
-                values,
-                vectors,
-                info,
-            });
-        }
-        let guard = opts.guard_for(nwant);
-        let nx = (nwant + guard).min(k - 1);
-        let par = Par::rayon(0);
-        progress.begin("eigen (lobpcg)", Some(request.max_iter as u64));
-        let (mut pre, mut report) = match precondition::build(h, m, opts, nx, par) {
-            Ok(built) => built,
-            Err(e) => {
-                progress.finish();
-                return Err(e);
-            }
-        };
-        info.notes.extend(report.notes.iter().cloned());
-        info.notes.push(format!(
-            "block: {nwant} wanted + {} guard = {nx} columns; constant mode deflated; seed {:#x}",
-            nx - nwant,
-            opts.seed
-        ));
+        driver::solve(
+            &self.options,
+            &OperatorProblem::new(h, m),
+            request,
+            progress,
+        )
+    }
 
-        let mut state = State::new(h, m, &y0, nwant, nx);
-        // Auto with IC(0) may switch to the exact factor after `escalate_after` iterations if
-        // that factor fits in `max_factor_entries` (IC(0) degrades when M is ill-conditioned).
-        let can_escalate = opts.preconditioner == PreconditionerKind::Auto
-            && matches!(pre, precondition::Preconditioner::Incomplete(_))
-            && report
-                .exact_entries
-                .is_some_and(|e| e <= opts.max_factor_entries);
-        let first_cap = match (can_escalate, opts.escalate_after) {
-            (true, Some(after)) => after.min(request.max_iter),
-            _ => request.max_iter,
-        };
-        let mut stop = match state.start(opts.seed, opts) {
-            Ok(()) => state.run(request.tol, first_cap, opts, &mut pre, progress),
-            Err(stop) => stop,
-        };
-        if matches!(stop, Stop::MaxIter) && first_cap < request.max_iter {
-            let notes_before = report.notes.len();
-            if let Some(exact) = precondition::escalate(h, m, opts, nx, par, &mut report) {
-                pre = exact;
-                info.notes.push(format!(
-                    "preconditioner: IC(0) not converged after {first_cap} iterations; switched to the exact Cholesky"
-                ));
-            }
-            info.notes
-                .extend(report.notes[notes_before..].iter().cloned());
-            stop = state.run(request.tol, request.max_iter, opts, &mut pre, progress);
+    /// Matrix-free LOBPCG: H and M are applied only through [`crate::eigen::LinearOperator`]
+    /// (a `SparseMatrix` operator takes the assembled path, bit for bit). Preconditioner: the
+    /// problem's own if given; else, with both operators assembled, the one
+    /// [`LobpcgOptions::preconditioner`] builds; else Jacobi from the operators' diagonals
+    /// (`Auto` or `Jacobi`, when both give one) or none (`Auto`, `Identity`). The relative
+    /// residuals then use estimated 1-norms (see the solution's notes). One process only:
+    /// operators must own all rows.
+    fn solve_operators(
+        &self,
+        problem: &OperatorProblem<'_>,
+        request: &EigenRequest,
+        progress: &dyn Progress,
+    ) -> Result<EigenSolution, EigenError> {
+        if let (Some(h), Some(m)) = (problem.h.assembled(), problem.m.assembled()) {
+            validate_problem(h, m, request)?;
         }
-        progress.finish();
-        // Make the returned vectors consistent with explicitly computed products.
-        let stop = match stop {
-            Stop::MaxIter | Stop::Stagnated => match state.finalize(opts) {
-                Ok(()) => stop,
-                Err(other) => other,
-            },
-            other => other,
-        };
-        let counters = &state.counters;
-        info.iterations = counters.iterations;
-        info.restarts = counters.restarts;
-        info.matvecs = counters.matvecs;
-        info.locked = 1 + state.residuals[..nwant]
-            .iter()
-            .filter(|&&r| r <= request.tol)
-            .count();
-        info.notes.push(format!(
-            "time: preconditioner {:.2} s, sparse products {:.2} s, orthogonalization {:.2} s, \
-             Rayleigh-Ritz and updates {:.2} s",
-            counters.seconds_precondition,
-            counters.seconds_spmm,
-            counters.seconds_ortho,
-            counters.seconds_rayleigh_ritz
-        ));
-        info.notes.push(format!(
-            "explicit convergence checks: {}; final P width {}",
-            counters.explicit_checks,
-            state.p_width()
-        ));
-        if nx > nwant {
-            let last = state.theta[nwant - 1];
-            let next = state.theta[nwant];
-            if (next - last).abs() <= 1e-8 * last.abs().max(f64::MIN_POSITIVE) {
-                info.notes.push(format!(
-                    "the cut splits a cluster: values[{}] = {last:.12e} and the first guard Ritz value {next:.12e} \
-                     coincide; the returned vectors span part of a multiple eigenvalue's eigenspace",
-                    nwant
-                ));
-            }
-        }
-        match stop {
-            Stop::Indefinite(detail) => {
-                return Err(EigenError::NotPositiveDefinite { what: "M", detail })
-            }
-            Stop::Breakdown(detail) => {
-                return Err(EigenError::NonFinite(format!("LOBPCG breakdown: {detail}")))
-            }
-            Stop::Cancelled => {
-                return Err(EigenError::Cancelled {
-                    iterations: counters.iterations,
-                })
-            }
-            _ => {}
-        }
-        // H must be PSD: a clearly negative Ritz value (beyond the residual tolerance) proves
-        // x^T H x < 0 for some x, and the "constant mode first" ordering would be violated.
-        let norm_h = sparse::norm_1(h);
-        if state.theta[0] < -request.tol * norm_h {
-            return Err(EigenError::NotPositiveDefinite {
-                what: "H",
-                detail: format!(
-                    "Rayleigh quotient {:.3e} < 0 (||H||_1 = {norm_h:.3e}): H is not positive semidefinite",
-                    state.theta[0]
-                ),
-            });
-        }
-        if matches!(stop, Stop::Stagnated) {
-            info.notes.push(
-                "stopped: no new search direction survived the orthogonalization (stagnation)"
-                    .into(),
-            );
-        }
-        let mut values = Vec::with_capacity(nev);
-        values.push(0.0);
-        values.extend_from_slice(&state.theta[..nwant]);
-        let wanted = state.wanted_vectors();
-        let vectors = Mat::from_fn(
-            k,
-            nev,
-            |i, j| if j == 0 { y0[i] } else { wanted[(i, j - 1)] },
-        );
-        check_solution(h, m, &values, &vectors, &mut info);
-        if info.residuals[0] > request.tol {
-            info.notes.push(format!(
-                "the constant vector is not in the null space of H to the tolerance: relative residual {:.3e}",
-                info.residuals[0]
-            ));
-        }
-        let converged = info.residuals.iter().filter(|&&r| r <= request.tol).count();
-        if !(matches!(stop, Stop::Converged) && converged == nev) {
-            info.status = EigenStatus::NotConverged {
-                iterations: info.iterations,
-                converged,
-                nev,
-                tol: request.tol,
-                max_residual: info.max_relative_residual,
-            };
-        }
-        Ok(EigenSolution {
-            values,
-            vectors,
-            info,
-        })
+        validate_operators(problem, request)?;
+        driver::solve(&self.options, problem, request, progress)
     }
 }
 

@@ -7,6 +7,8 @@
 //!   the shallow-fill option when the exact factor is too large.
 //! - Jacobi: diag(H + sigma M)^-1.
 //! - Identity: no preconditioning.
+//! - User: a caller's [`crate::eigen::Preconditioner`], applied through a copy of the
+//!   residual columns and checked for shape, error and finite output.
 //!
 //! Fallbacks (recorded in the notes): a failed Cholesky is retried with sigma x 100, then
 //! replaced by Jacobi; an IC(0) breakdown is retried with growing diagonal shifts, then
@@ -15,7 +17,7 @@
 use super::incomplete_cholesky::{Breakdown, IncompleteCholesky};
 use super::workspace::{Block, ROW_CHUNK};
 use super::{LobpcgOptions, PreconditionerKind};
-use crate::eigen::EigenError;
+use crate::eigen::{self, EigenError};
 use crate::sparse::{self, SparseMatrix};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::cholesky::{
@@ -26,11 +28,12 @@ use rayon::prelude::*;
 use std::time::Instant;
 
 /// A built preconditioner.
-pub(super) enum Preconditioner {
+pub(super) enum Preconditioner<'a> {
     Cholesky(Box<Factor>),
     Incomplete(Box<IncompleteCholesky>),
     Jacobi { inv_diag: Vec<f64> },
     Identity,
+    User(&'a dyn eigen::Preconditioner),
 }
 
 /// A sparse Cholesky factor with its solve workspace.
@@ -40,13 +43,14 @@ pub(super) struct Factor {
     mem: MemBuffer,
 }
 
-impl std::fmt::Debug for Preconditioner {
+impl std::fmt::Debug for Preconditioner<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Self::Cholesky(factor) => write!(f, "Cholesky({} factor entries)", factor.values.len()),
             Self::Incomplete(ic) => write!(f, "IC(0)({} factor entries)", ic.entries()),
             Self::Jacobi { .. } => write!(f, "Jacobi"),
             Self::Identity => write!(f, "Identity"),
+            Self::User(_) => write!(f, "caller's preconditioner"),
         }
     }
 }
@@ -80,7 +84,7 @@ pub(super) fn build(
     opts: &LobpcgOptions,
     max_cols: usize,
     par: Par,
-) -> Result<(Preconditioner, SetupReport), EigenError> {
+) -> Result<(Preconditioner<'static>, SetupReport), EigenError> {
     let mut report = SetupReport {
         sigma: shift(h, m, opts),
         ..SetupReport::default()
@@ -176,6 +180,73 @@ pub(super) fn build(
     Ok((Preconditioner::Jacobi { inv_diag }, report))
 }
 
+/// The preconditioner for operators without assembled matrices: Jacobi from their diagonals
+/// (`Auto`, `Jacobi`) when both give one, otherwise none (`Auto`, `Identity`). The shift is
+/// `shift_factor * tr(H) / tr(M)` as for matrices, the traces estimated when the diagonals
+/// are unknown.
+///
+/// # Errors
+/// [`EigenError::InvalidRequest`] for a factorization kind (there is no matrix to factor) or
+/// for `Jacobi` without both diagonals; [`EigenError::NotPositiveDefinite`] for a
+/// non-positive diagonal of H + sigma M.
+pub(super) fn build_matrix_free(
+    h: &dyn eigen::LinearOperator,
+    m: &dyn eigen::LinearOperator,
+    opts: &LobpcgOptions,
+) -> Result<(Preconditioner<'static>, SetupReport), EigenError> {
+    let kind = opts.preconditioner;
+    let mut report = SetupReport::default();
+    if matches!(
+        kind,
+        PreconditionerKind::Cholesky | PreconditionerKind::IncompleteCholesky
+    ) {
+        return Err(EigenError::InvalidRequest(format!(
+            "preconditioner {kind:?} factors H + sigma M, but H and M are matrix-free \
+             operators: pass your own preconditioner (OperatorProblem::with_preconditioner), \
+             or choose auto, jacobi or identity"
+        )));
+    }
+    let diagonals = h.diagonal().zip(m.diagonal());
+    match (kind, diagonals) {
+        (PreconditionerKind::Identity, _) => {
+            report.notes.push("preconditioner: none (identity)".into());
+            Ok((Preconditioner::Identity, report))
+        }
+        (PreconditionerKind::Auto, None) => {
+            report.notes.push(
+                "preconditioner: none; the operators give no diagonal to build Jacobi from \
+                 and no preconditioner was passed (expect many more iterations)"
+                    .into(),
+            );
+            Ok((Preconditioner::Identity, report))
+        }
+        (_, Some((dh, dm))) => {
+            report.sigma = opts.shift_factor * eigen::operator_problem::trace_ratio(h, m)?;
+            if !(report.sigma.is_finite() && report.sigma > 0.0) {
+                return Err(EigenError::NotPositiveDefinite {
+                    what: "H + sigma M",
+                    detail: format!(
+                        "shift sigma = {:e} from tr(H)/tr(M) is not positive",
+                        report.sigma
+                    ),
+                });
+            }
+            let inv_diag = jacobi_from_diagonals(&dh, &dm, report.sigma)?;
+            report.notes.push(format!(
+                "preconditioner: Jacobi from the operators' diagonals, diag(H + sigma M)^-1, \
+                 sigma = {:.3e}",
+                report.sigma
+            ));
+            Ok((Preconditioner::Jacobi { inv_diag }, report))
+        }
+        (_, None) => Err(EigenError::InvalidRequest(
+            "preconditioner Jacobi needs the diagonals of H and M, and an operator gives none \
+             (LinearOperator::diagonal): give them, or choose auto or identity"
+                .into(),
+        )),
+    }
+}
+
 /// The exact Cholesky preconditioner with the shift already in `report`, for an `Auto` run
 /// that chose IC(0) and then converged too slowly; `None` (with a note) if the factor does
 /// not fit in `max_factor_entries` or fails.
@@ -186,7 +257,7 @@ pub(super) fn escalate(
     max_cols: usize,
     par: Par,
     report: &mut SetupReport,
-) -> Option<Preconditioner> {
+) -> Option<Preconditioner<'static>> {
     let budget = Budget {
         entries: opts.max_factor_entries,
         fill_ratio: f64::INFINITY,
@@ -276,7 +347,7 @@ fn cholesky(
     max_cols: usize,
     par: Par,
     report: &mut SetupReport,
-) -> Result<Preconditioner, CholeskyFailure> {
+) -> Result<Preconditioner<'static>, CholeskyFailure> {
     let a = sparse::add_scaled(1.0, h, sigma, m);
     let lower = (a.val().len() + a.nrows()) / 2;
     let least = (lower as f64 * MIN_FILL) as usize;
@@ -356,10 +427,17 @@ fn cholesky(
 }
 
 fn jacobi(h: &SparseMatrix, m: &SparseMatrix, sigma: f64) -> Result<Vec<f64>, EigenError> {
-    let dh = sparse::diagonal(h);
-    let dm = sparse::diagonal(m);
+    jacobi_from_diagonals(&sparse::diagonal(h), &sparse::diagonal(m), sigma)
+}
+
+/// diag(H + sigma M)^-1 from the two diagonals (both length K).
+pub(super) fn jacobi_from_diagonals(
+    dh: &[f64],
+    dm: &[f64],
+    sigma: f64,
+) -> Result<Vec<f64>, EigenError> {
     dh.iter()
-        .zip(&dm)
+        .zip(dm)
         .enumerate()
         .map(|(i, (&a, &b))| {
             let d = a + sigma * b;
@@ -375,11 +453,22 @@ fn jacobi(h: &SparseMatrix, m: &SparseMatrix, sigma: f64) -> Result<Vec<f64>, Ei
         .collect()
 }
 
-impl Preconditioner {
-    /// Replace columns `c0..c0 + w` of `s` by T applied to them.
-    pub fn apply(&mut self, s: &mut Block, c0: usize, w: usize, tmp: &mut Block, par: Par) {
+impl Preconditioner<'_> {
+    /// Replace columns `c0..c0 + w` of `s` by T applied to them (`tmp` has at least `w`
+    /// columns).
+    ///
+    /// # Errors
+    /// Only a caller's preconditioner fails: its error, a wrong shape, a non-finite output.
+    pub fn apply(
+        &mut self,
+        s: &mut Block,
+        c0: usize,
+        w: usize,
+        tmp: &mut Block,
+        par: Par,
+    ) -> Result<(), EigenError> {
         if w == 0 {
-            return;
+            return Ok(());
         }
         match self {
             Self::Cholesky(factor) => {
@@ -404,6 +493,18 @@ impl Preconditioner {
                     });
             }
             Self::Identity => {}
+            Self::User(user) => {
+                let ld = tmp.ld;
+                for (dst, src) in tmp.data.chunks_mut(ld).zip(s.data.chunks(s.ld)) {
+                    dst[..w].copy_from_slice(&src[c0..c0 + w]);
+                }
+                eigen::operator::apply_preconditioner_checked(
+                    *user,
+                    tmp.cols(0, w),
+                    s.cols_mut(c0, w),
+                )?;
+            }
         }
+        Ok(())
     }
 }

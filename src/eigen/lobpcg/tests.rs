@@ -3,7 +3,10 @@
 use super::*;
 use crate::eigen::dense::DenseSolver;
 use crate::eigen::testing;
+use crate::eigen::EigenStatus;
 use crate::progress::Silent;
+use crate::sparse;
+use faer::Mat;
 
 fn request(nev: usize, tol: f64) -> EigenRequest {
     EigenRequest {

@@ -29,7 +29,6 @@ impl Block {
     }
 
     /// View of columns `c0..c0 + w` (K x w, row stride `ld`).
-    #[cfg(test)]
     pub fn cols(&self, c0: usize, w: usize) -> MatRef<'_, f64> {
         MatRef::from_row_major_slice_with_stride(&self.data[c0..], self.rows, w, self.ld)
     }
