@@ -21,7 +21,9 @@ mod petsc {
         "Petsc(Initialized|Finalized|PushErrorHandler|PopErrorHandler|PopSignalHandler)",
         "PetscOptions(InsertString|ClearValue|SetValue|HasName)",
         "PetscViewer(BinaryOpen|Destroy)",
-        "Mat(Create|CreateVecs|SetSizes|SetType|SeqAIJSetPreallocation|MPIAIJSetPreallocation|SetValues|AssemblyBegin|AssemblyEnd|Destroy|GetOwnershipRange|GetSize|SetOption|View|Load|Mult|SetFromOptions)",
+        "MatShell(SetOperation|GetContext|SetContextDestroy)",
+        "PCShell(SetApply|SetContext|GetContext|SetDestroy|SetName)",
+        "Mat(CreateShell|Create|CreateVecs|SetSizes|SetType|SeqAIJSetPreallocation|MPIAIJSetPreallocation|SetValues|AssemblyBegin|AssemblyEnd|Destroy|GetOwnershipRange|GetSize|SetOption|View|Load|Mult|Norm|SetFromOptions)",
         "Vec(Create|CreateMPI|SetSizes|SetFromOptions|Destroy|GetArrayRead|RestoreArrayRead|GetArray|RestoreArray|GetOwnershipRange|GetSize|GetLocalSize|Duplicate|Set|AssemblyBegin|AssemblyEnd)",
         "VecScatter(CreateToAll|Begin|End|Destroy)",
         "EPS(Create|SetOperators|SetProblemType|SetDimensions|SetTolerances|SetWhichEigenpairs|SetTarget|SetType|GetType|GetST|SetFromOptions|Solve|GetConverged|GetEigenpair|GetIterationNumber|GetConvergedReason|Destroy|SetConvergenceTest|GetDimensions|GetTolerances)",
@@ -54,6 +56,7 @@ mod petsc {
                 "ompi_mpi_(comm_world|comm_self|double|int|long_long_int|op_sum|op_max|op_min)",
             )
             .allowlist_var("PETSC_COMM_WORLD")
+            .allowlist_var("PETSC_ERR_USER")
             .allowlist_type("PetscErrorType");
         for f in FUNCTIONS {
             builder = builder.allowlist_function(f);

@@ -21,6 +21,10 @@
 mod safe;
 #[cfg(feature = "petsc")]
 pub use safe::*;
+#[cfg(feature = "petsc")]
+mod shell;
+#[cfg(feature = "petsc")]
+pub use shell::{ShellApply, ShellFailure};
 
 /// Raw bindgen output (PETSc, SLEPc and the MPI functions they need). Unsafe to use directly;
 /// prefer the safe layer.

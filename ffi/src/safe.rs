@@ -91,7 +91,7 @@ fn mpi_check(call: &'static str, code: c_int) -> Result<()> {
     }
 }
 
-fn cstring(call: &'static str, s: &str) -> Result<CString> {
+pub(crate) fn cstring(call: &'static str, s: &str) -> Result<CString> {
     CString::new(s).map_err(|_| PetscError {
         code: -1,
         call,
@@ -223,6 +223,13 @@ pub fn session() -> Result<Session> {
 #[derive(Debug, Clone, Copy)]
 pub struct Comm(sys::MPI_Comm);
 
+impl Comm {
+    /// The raw communicator, for the crate's own calls.
+    pub(crate) fn raw(self) -> sys::MPI_Comm {
+        self.0
+    }
+}
+
 impl Session {
     /// `PETSC_COMM_WORLD` (all ranks of the run; `MPI_COMM_WORLD` unless changed before
     /// initialization).
@@ -310,8 +317,8 @@ impl Session {
 
 /// A PETSc matrix (`Mat`), destroyed on drop.
 pub struct Mat<'s> {
-    raw: sys::Mat,
-    _session: PhantomData<&'s Session>,
+    pub(crate) raw: sys::Mat,
+    pub(crate) _session: PhantomData<&'s Session>,
 }
 
 impl Drop for Mat<'_> {
@@ -790,7 +797,7 @@ impl<'s> Eps<'s> {
         check("STSetShift", unsafe { sys::STSetShift(st, shift) })
     }
 
-    fn st_ksp_pc(&self) -> Result<(sys::ST, sys::KSP, sys::PC)> {
+    pub(crate) fn st_ksp_pc(&self) -> Result<(sys::ST, sys::KSP, sys::PC)> {
         let mut st: sys::ST = std::ptr::null_mut();
         let mut ksp: sys::KSP = std::ptr::null_mut();
         let mut pc: sys::PC = std::ptr::null_mut();
