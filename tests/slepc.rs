@@ -611,3 +611,105 @@ fn an_aware_basis_through_slepc_equals_the_native_one() {
     let diff = max_rel_diff(&slepc.basis.eigenvalues, &native.basis.eigenvalues);
     assert!(diff < 1e-8, "eigenvalue diff {diff:e}");
 }
+
+/// Matrix-free through SLEPc: the element-loop Q1 operators on shell matrices give the
+/// closed-form eigenvalues, with Jacobi from their diagonals and with the caller's
+/// preconditioner; a failing operator and a failing preconditioner stop the solve with their
+/// own message; row ranges that do not tile are refused.
+#[test]
+fn shell_matrices_solve_the_matrix_free_q1_laplacian() {
+    use faer::{MatMut, MatRef};
+    use freeform::eigen::q1_operator::{Q1Operator, Q1Part};
+    use freeform::eigen::{FnOperator, LinearOperator, OperatorError, OperatorProblem};
+    let hq = Q1Operator::new(N, H, Q1Part::Stiffness).unwrap();
+    let mq = Q1Operator::new(N, H, Q1Part::Mass).unwrap();
+    let exact = q1_fem_eigenvalues(N, H, 8);
+    let solver = SlepcSolver::default();
+    let jacobi = solver
+        .solve_operators(&OperatorProblem::new(&hq, &mq), &request(1e-9), &Silent)
+        .unwrap()
+        .into_converged()
+        .unwrap();
+    // Residuals <= 1e-9 bound the eigenvalue errors far below 1e-8 (the bar).
+    assert!(
+        max_rel_diff(&jacobi.values, &exact) < 1e-8,
+        "{:?}",
+        jacobi.values
+    );
+    assert!(jacobi
+        .info
+        .notes
+        .iter()
+        .any(|n| n.contains("Jacobi from the operators")));
+    // The caller's preconditioner: diag(H)^-1 from the assembled copy, as a closure.
+    let (ha, _) = q1_fem(N, H);
+    let inv: Vec<f64> = freeform::sparse::diagonal(&ha)
+        .iter()
+        .map(|d| 1.0 / d)
+        .collect();
+    let pre = |r: MatRef<'_, f64>, mut z: MatMut<'_, f64>| -> Result<(), OperatorError> {
+        for j in 0..r.ncols() {
+            for i in 0..r.nrows() {
+                z[(i, j)] = r[(i, j)] * inv[i];
+            }
+        }
+        Ok(())
+    };
+    let hn = hq.clone().without_diagonal();
+    let mn = mq.clone().without_diagonal();
+    let with_pre = OperatorProblem::new(&hn, &mn).with_preconditioner(&pre);
+    let caller = solver
+        .solve_operators(&with_pre, &request(1e-9), &Silent)
+        .unwrap()
+        .into_converged()
+        .unwrap();
+    assert!(max_rel_diff(&caller.values, &exact) < 1e-8);
+    assert!(caller.info.notes.iter().any(|n| n.contains("the caller's")));
+    // Failures inside SLEPc come back with the operator's own words.
+    let k = hq.dim();
+    let failing = FnOperator::new(k, |_: MatRef<'_, f64>, _: MatMut<'_, f64>| {
+        Err(OperatorError::new("device lost"))
+    });
+    match solver.solve_operators(
+        &OperatorProblem::new(&hq, &failing),
+        &request(1e-9),
+        &Silent,
+    ) {
+        Err(EigenError::Operator {
+            which: "M",
+            message,
+        }) => {
+            assert!(message.contains("device lost"), "{message}")
+        }
+        other => panic!("{other:?}"),
+    }
+    let bad_pre = |_: MatRef<'_, f64>, _: MatMut<'_, f64>| -> Result<(), OperatorError> {
+        Err(OperatorError::new("no factor"))
+    };
+    let problem = OperatorProblem::new(&hn, &mn).with_preconditioner(&bad_pre);
+    match solver.solve_operators(&problem, &request(1e-9), &Silent) {
+        Err(EigenError::Operator {
+            which: "preconditioner",
+            message,
+        }) => assert!(message.contains("no factor"), "{message}"),
+        other => panic!("{other:?}"),
+    }
+    // One rank claiming only half the rows: the ranges do not tile 0..K.
+    struct Half(Q1Operator);
+    impl LinearOperator for Half {
+        fn dim(&self) -> usize {
+            self.0.dim()
+        }
+        fn local_rows(&self) -> std::ops::Range<usize> {
+            0..self.0.dim() / 2
+        }
+        fn apply(&self, x: MatRef<'_, f64>, y: MatMut<'_, f64>) -> Result<(), OperatorError> {
+            self.0.apply(x, y)
+        }
+    }
+    let (hh, mh) = (Half(hq.clone()), Half(mq.clone()));
+    match solver.solve_operators(&OperatorProblem::new(&hh, &mh), &request(1e-9), &Silent) {
+        Err(EigenError::InvalidRequest(msg)) => assert!(msg.contains("do not tile"), "{msg}"),
+        other => panic!("{other:?}"),
+    }
+}

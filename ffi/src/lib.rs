@@ -24,7 +24,7 @@ pub use safe::*;
 #[cfg(feature = "petsc")]
 mod shell;
 #[cfg(feature = "petsc")]
-pub use shell::{ShellApply, ShellFailure};
+pub use shell::{callback_allreduce_sum, ShellApply, ShellFailure};
 
 /// Raw bindgen output (PETSc, SLEPc and the MPI functions they need). Unsafe to use directly;
 /// prefer the safe layer.

@@ -300,3 +300,48 @@ impl<'s> Eps<'s> {
         Ok(failure)
     }
 }
+
+/// Element-wise sum of `values` over the ranks of `PETSC_COMM_WORLD`, for a shell callback
+/// that needs its halo while PETSc is inside a solve (the solve holds the [`Session`], so the
+/// session's own `allreduce_sum` cannot be reached). Collective: every rank's callback must
+/// make the same calls in the same order. Call it only from a shell callback (the thread
+/// that runs the solve).
+///
+/// # Errors
+/// PETSc not initialized; MPI's error.
+pub fn callback_allreduce_sum(values: &mut [f64]) -> Result<()> {
+    let mut initialized: sys::PetscBool = 0;
+    // SAFETY: a plain query of PETSc's state.
+    check("PetscInitialized", unsafe {
+        sys::PetscInitialized(&mut initialized)
+    })?;
+    if initialized == 0 {
+        return Err(crate::safe::PetscError {
+            code: -1,
+            call: "callback_allreduce_sum",
+            message: "PETSc is not initialized (call it only from a shell callback)".into(),
+        });
+    }
+    let send = values.to_vec();
+    // SAFETY: PETSc (hence MPI) is initialized; buffers of equal length; collective on the
+    // world communicator, which PETSc set at initialization.
+    let code = unsafe {
+        sys::MPI_Allreduce(
+            send.as_ptr().cast(),
+            values.as_mut_ptr().cast(),
+            std::ffi::c_int::try_from(values.len()).unwrap_or(std::ffi::c_int::MAX),
+            std::ptr::addr_of_mut!(sys::ompi_mpi_double).cast(),
+            std::ptr::addr_of_mut!(sys::ompi_mpi_op_sum).cast(),
+            sys::PETSC_COMM_WORLD,
+        )
+    };
+    if code == 0 {
+        Ok(())
+    } else {
+        Err(crate::safe::PetscError {
+            code,
+            call: "MPI_Allreduce",
+            message: format!("MPI error code {code}"),
+        })
+    }
+}

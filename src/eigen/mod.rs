@@ -20,6 +20,10 @@ pub mod q1_operator;
 #[cfg(feature = "slepc")]
 pub mod slepc;
 mod slepc_options;
+#[cfg(feature = "slepc")]
+mod slepc_shell;
+#[cfg(feature = "slepc")]
+mod slepc_status;
 mod solver;
 pub mod testing;
 

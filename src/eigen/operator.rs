@@ -176,7 +176,7 @@ where
 }
 
 /// `out = A x` through `op`, with the checks a solver needs on a caller's operator: shapes
-/// (`x`, `out` both `dim x b`), the operator's own error, and a finite output. `which` names
+/// (`x`, `out` both `local_rows().len() x b`), the operator's own error, and a finite output. `which` names
 /// the operator in the error ("H", "M").
 ///
 /// # Errors
@@ -192,7 +192,7 @@ pub fn apply_checked(
         which,
         message: e.message,
     };
-    check_block_shapes(op.dim(), &x, &out).map_err(to_error)?;
+    check_block_shapes(op.local_rows().len(), &x, &out).map_err(to_error)?;
     op.apply(x, out.as_mut()).map_err(to_error)?;
     first_non_finite(out.as_ref(), which)
 }

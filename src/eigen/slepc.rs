@@ -30,13 +30,15 @@
 
 use super::{
     check_solution, validate_problem, EigenError, EigenInfo, EigenRequest, EigenSolution,
-    EigenStatus, Eigensolver, SlepcLobpcgStop,
+    Eigensolver, OperatorProblem,
 };
 use crate::progress::Progress;
 use crate::sparse::SparseMatrix;
 use faer::Mat;
 use freeform_ffi as petsc;
 
+use super::slepc_status::{backend, option_names};
+pub use super::slepc_status::{convergence_status, SolveStatus};
 pub use super::{SlepcOptions, SlepcPreset};
 
 /// The SLEPc eigensolver (name "slepc"). Under `mpirun` every rank calls
@@ -66,6 +68,16 @@ pub fn world_rank() -> Result<(usize, usize), EigenError> {
         session.rank(world).map_err(backend)?,
         session.size(world).map_err(backend)?,
     ))
+}
+
+/// Element-wise sum of `values` over all ranks, from inside a caller's operator while SLEPc
+/// applies it (a distributed operator gathering its halo). Collective: every rank's operator
+/// must make the same calls in the same order.
+///
+/// # Errors
+/// [`crate::eigen::OperatorError`] with MPI's message.
+pub fn operator_allreduce_sum(values: &mut [f64]) -> Result<(), super::OperatorError> {
+    petsc::callback_allreduce_sum(values).map_err(|e| super::OperatorError::new(e.to_string()))
 }
 
 /// Element-wise sum of `values` over all ranks of `PETSC_COMM_WORLD`, in place (collective).
@@ -219,31 +231,6 @@ pub struct RowsSolution {
     pub notes: Vec<String>,
 }
 
-/// How `EPSSolve` ended, beside the pairs: what [`convergence_status`] needs to word a
-/// failure.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct SolveStatus {
-    /// EPS type in use ("krylovschur", "lobpcg", ...).
-    pub eps_type: String,
-    /// SLEPc's iteration count.
-    pub iterations: usize,
-    /// Pairs SLEPc reported converged (`EPSGetConverged`; may exceed nev).
-    pub converged: usize,
-    /// SLEPc's `EPSConvergedReason` (> 0 converged; -1 iteration cap, -2 breakdown).
-    pub reason: i32,
-    /// LOBPCG block size in use (LOBPCG only).
-    pub block_size: Option<usize>,
-}
-
-fn backend(e: petsc::PetscError) -> EigenError {
-    EigenError::Backend {
-        library: "PETSc/SLEPc",
-        message: e.to_string(),
-    }
-}
-
-/// A LAPACK failure as SLEPc words it (`SlepcCheckLapackInfo`): "Error in LAPACK subroutine
-/// sygvd: info=74" gives `("sygvd", 74)`.
 fn lapack_failure(message: &str) -> Option<(String, i64)> {
     let rest = message.split("Error in LAPACK subroutine ").nth(1)?;
     let (routine, rest) = rest.split_once(": info=")?;
@@ -285,16 +272,6 @@ fn solve_error(
 }
 
 /// Option names (`-eps_type`) in an options string: tokens starting with `-` and a letter.
-fn option_names(options: &str) -> Vec<&str> {
-    options
-        .split_whitespace()
-        .filter(|t| {
-            let mut c = t.chars();
-            c.next() == Some('-') && c.next().is_some_and(|c| c.is_ascii_alphabetic())
-        })
-        .collect()
-}
-
 /// Solve H x = lambda M x with SLEPc on `PETSC_COMM_WORLD`, where this rank holds rows
 /// `h.first .. h.first + h.rows()` of H and the same rows of M (collective: every rank calls
 /// it with its own block; blocks must tile 0..k in rank order). H, M: K x K symmetric
@@ -457,83 +434,31 @@ fn configure<'s>(
 /// messages can use it without the `slepc` feature).
 pub const RESIDUAL_SLACK: f64 = super::SLEPC_RESIDUAL_SLACK;
 
-/// Judge SLEPc's pairs (`solution`, with freeform's recomputed residuals in `solution.info`):
-/// converged when `request.nev` of them came back and each residual is at most
-/// [`RESIDUAL_SLACK`] x tol. Otherwise, with SLEPc's LOBPCG,
-/// [`EigenStatus::SlepcLobpcgNotConverged`] naming what happened (SLEPc reported `nev` pairs
-/// converged but some are not, the worst one named; it stopped at its iteration cap; or it
-/// stopped for another reason, `status.reason`); with any other EPS type,
-/// [`EigenStatus::NotConverged`]. [`EigenSolution::into_converged`] turns either into its
-/// error.
-pub fn convergence_status(
-    k: usize,
-    request: &EigenRequest,
-    status: &SolveStatus,
-    solution: &EigenSolution,
-) -> EigenStatus {
-    let limit = RESIDUAL_SLACK * request.tol;
-    let residuals = &solution.info.residuals;
-    let good = residuals.iter().filter(|&&r| r <= limit).count();
-    let complete = solution.values.len() >= request.nev;
-    if complete && good >= request.nev {
-        return EigenStatus::Converged;
-    }
-    if status.eps_type != "lobpcg" {
-        return EigenStatus::NotConverged {
-            iterations: status.iterations,
-            converged: good,
-            nev: request.nev,
-            tol: request.tol,
-            // Pairs SLEPc did not converge are not available at all: their residual is unknown.
-            max_residual: if complete {
-                solution.info.max_relative_residual
-            } else {
-                f64::INFINITY
-            },
-        };
-    }
-    let stop =
-        if complete {
-            // The worst pair; NaN residuals are +inf after check_solution.
-            let (pair, residual) = residuals.iter().copied().enumerate().fold(
-                (0, f64::NEG_INFINITY),
-                |best, (j, r)| {
-                    if r > best.1 {
-                        (j, r)
-                    } else {
-                        best
-                    }
-                },
-            );
-            SlepcLobpcgStop::ClaimedConverged {
-                pair,
-                lambda: solution.values[pair],
-                residual,
-                above: residuals.len() - good,
-            }
-        } else if status.reason == -1 {
-            SlepcLobpcgStop::IterationCap
-        } else {
-            SlepcLobpcgStop::Stopped {
-                reason: status.reason,
-            }
-        };
-    EigenStatus::SlepcLobpcgNotConverged {
-        stop,
-        iterations: status.iterations,
-        reported: status.converged,
-        converged: good,
-        nev: request.nev,
-        tol: request.tol,
-        max_iter: request.max_iter,
-        k,
-        block_size: status.block_size,
-    }
-}
-
 impl Eigensolver for SlepcSolver {
     fn name(&self) -> &'static str {
         "slepc"
+    }
+
+    /// Operators backed by assembled matrices (and no caller's preconditioner) take
+    /// [`Eigensolver::solve`]'s path with the configured preset; anything else goes to SLEPc's
+    /// LOBPCG on shell matrices (`slepc_shell.rs`; `SlepcOptions::petsc_options` apply).
+    fn solve_operators(
+        &self,
+        problem: &OperatorProblem<'_>,
+        request: &EigenRequest,
+        progress: &dyn Progress,
+    ) -> Result<EigenSolution, EigenError> {
+        if let (Some(h), Some(m), None) = (
+            problem.h.assembled(),
+            problem.m.assembled(),
+            problem.preconditioner,
+        ) {
+            return self.solve(h, m, request, progress);
+        }
+        progress.begin("eigen (slepc, matrix-free)", None);
+        let result = super::slepc_shell::solve(problem, request, &self.options);
+        progress.finish();
+        result
     }
 
     fn solve(
@@ -578,6 +503,7 @@ impl Eigensolver for SlepcSolver {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::eigen::{EigenStatus, SlepcLobpcgStop};
 
     #[test]
     fn block_ranges_tile() {
