@@ -21,7 +21,9 @@ use freeform::progress::Silent;
 use std::cell::RefCell;
 use std::ffi::{c_char, c_int, CString};
 
+pub mod eigen;
 pub mod world;
+pub use eigen::*;
 pub use world::*;
 
 /// Status codes (the `FF_*` constants of the header).

@@ -235,6 +235,28 @@ int ff_world_set_state(ff_world *world, size_t object, const double *z, const do
 size_t ff_world_warning_count(const ff_world *world);
 const char *ff_world_warning(const ff_world *world, size_t index);
 
+/* ---- The eigensolver over your own operators (docs/c-api.md "Operators") ---- */
+
+/* y = A x for a block of ncols vectors of length k, column-major (column j at x + j k). Return
+ * 0 on success; anything else stops the solve (call ff_callback_error first to give the
+ * message). y arrives filled with NaN: a callback that writes too little is caught. */
+typedef int (*ff_apply_fn)(void *ctx, const double *x, double *y, size_t k, size_t ncols);
+
+/* The message of the failure a callback is about to report (call from inside it). */
+void ff_callback_error(const char *message);
+
+/* The nev smallest pairs of H x = lambda M x (K x K symmetric; H PSD with the constant vector
+ * in its null space, M SPD) by the native LOBPCG, H and M applied only through h and m (with
+ * contexts h_ctx, m_ctx). pre (may be NULL; context pre_ctx): T ~ (H + sigma M)^-1 on residual
+ * blocks; if NULL, Jacobi when both h_diag and m_diag (k doubles each, may be NULL) are given,
+ * else none. Writes values[nev] (ascending, first 0) and vectors[k nev] (row-major, M-
+ * orthonormal); *iterations (may be NULL) gets LOBPCG's count. Callbacks run on the calling
+ * thread, one at a time. FF_ERR_EIGENSOLVER carries a failing callback's message. */
+int ff_eigen_solve_operators(size_t k, size_t nev, double tol, size_t max_iter, ff_apply_fn h,
+                             void *h_ctx, ff_apply_fn m, void *m_ctx, ff_apply_fn pre,
+                             void *pre_ctx, const double *h_diag, const double *m_diag,
+                             double *values, double *vectors, size_t *iterations);
+
 #ifdef __cplusplus
 }
 #endif
