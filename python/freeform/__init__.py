@@ -5,6 +5,8 @@ eigenmodes, from Python.
 - ``Basis.from_shape("box:2,1,1", kernels=1000, modes=16)`` or
   ``Basis.from_points(points, youngs, poisson, density, volumes=None)``: the eigenmodes;
   ``basis.weights(points)`` evaluates them anywhere in the object.
+- ``eigsh(h, m, nev)``: the native eigensolver on your own H and M (``scipy.sparse``
+  matrices, or objects with ``matmat``/``matvec`` and ``shape``).
 - ``Scene.from_file("scene.toml")`` / ``Scene.from_dict({...})`` and ``World(scene)``: the
   live simulation (``world.step()``, ``world.positions(i)``, targets and poses between
   steps).
@@ -21,13 +23,14 @@ from ._errors import (
     NotConvergedError,
     StrictModeError,
 )
-from ._native import Basis, Scene, World, __version__, sample
+from ._native import Basis, Scene, World, __version__, eigsh, sample
 
 __all__ = [
     "Basis",
     "Scene",
     "World",
     "sample",
+    "eigsh",
     "FreeformError",
     "InvalidInputError",
     "CoverageError",

@@ -22,6 +22,25 @@ def sample(
 ) -> tuple[Float2, npt.NDArray[np.float64]]:
     """Points inside a shape (N, 3), metres, and their volumes (N,), m^3."""
 
+def eigsh(
+    h: Any,
+    m: Any,
+    nev: int,
+    *,
+    tol: float = 1e-8,
+    max_iter: int = 1000,
+    preconditioner: Any = None,
+    check_symmetry: bool = False,
+    progress: bool = False,
+) -> tuple[npt.NDArray[np.float64], Float2]:
+    """The nev smallest pairs of H x = lambda M x by freeform's native LOBPCG: values (nev,),
+    ascending, the first 0 for the constant mode; vectors (K, nev), M-orthonormal. H and M
+    (K x K, symmetric; H PSD with the constant vector in its null space, M SPD): scipy.sparse
+    matrices (anything with tocoo()), or objects with shape and matmat(X) (K x b -> K x b) or
+    matvec(x), like scipy.sparse.linalg.LinearOperator; an optional diagonal() enables
+    Jacobi. preconditioner: such an object applying T ~ (H + sigma M)^-1. An exception raised
+    by a callback stops the solve and is re-raised as is."""
+
 class Basis:
     """Skinning eigenmodes: K RKPM kernels and the coefficients of m + 1 modes."""
 

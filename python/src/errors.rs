@@ -17,9 +17,13 @@ fn class_name(e: &Error) -> &'static str {
         Error::Geometry(GeometryError::Io { .. }) | Error::Fem(FemError::Io { .. }) => {
             "FreeformIOError"
         }
-        Error::Eigen(EigenError::InvalidRequest(_) | EigenError::TooLarge { .. }) => {
-            "InvalidInputError"
-        }
+        Error::Eigen(
+            EigenError::InvalidRequest(_)
+            | EigenError::TooLarge { .. }
+            | EigenError::Operator { .. }
+            | EigenError::NonFinite(_)
+            | EigenError::NotPositiveDefinite { .. },
+        ) => "InvalidInputError",
         Error::Eigen(_) => "NotConvergedError",
         Error::Fem(FemError::NotConverged { .. } | FemError::LineSearch { .. }) => {
             "NotConvergedError"

@@ -3,6 +3,7 @@
 
 mod basis;
 mod convert;
+mod eigen;
 mod errors;
 mod progress;
 mod sampling;
@@ -17,6 +18,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<world::PyScene>()?;
     m.add_class::<world::PyWorld>()?;
     m.add_function(wrap_pyfunction!(sampling::sample, m)?)?;
+    m.add_function(wrap_pyfunction!(eigen::eigsh, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -4,9 +4,9 @@
 //! precondition with a factor of assembled copies (or of a simpler operator), and the cost of
 //! the operator interface can be measured against the direct path with the same factor.
 
+use super::options::LobpcgOptions;
 use super::precondition::{self, Preconditioner};
 use super::workspace::Block;
-use super::LobpcgOptions;
 use crate::eigen::{self, validate_problem, EigenError, EigenRequest, OperatorError};
 use crate::sparse::SparseMatrix;
 use faer::{MatMut, MatRef, Par};

@@ -7,8 +7,8 @@
 
 use super::iterate::{State, Stop};
 use super::operators::Operators;
+use super::options::{LobpcgOptions, PreconditionerKind};
 use super::precondition::{self, Preconditioner, SetupReport};
-use super::{LobpcgOptions, PreconditionerKind};
 use crate::eigen::operator_problem::{
     check_solution_operators, constant_mode_of, estimate_norm_1, OperatorProblem,
 };

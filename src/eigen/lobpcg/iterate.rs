@@ -15,11 +15,11 @@
 //! on X alone, residuals recomputed; otherwise the iteration continues.
 
 use super::operators::{Operators, Which};
+use super::options::LobpcgOptions;
 use super::orthogonalize::{ortho_against_basis, project_constant, svqb, Small};
 use super::precondition::Preconditioner;
 use super::rayleigh_ritz::{next_p, solve_projected, Projected, RrScratch};
 use super::workspace::{inner, transform, Block, ROW_CHUNK};
-use super::LobpcgOptions;
 use crate::eigen::{relative_residual, EigenError, SplitMix64};
 use crate::progress::Progress;
 use faer::{Mat, Par};

@@ -15,8 +15,8 @@
 //! replaced by Jacobi; `Auto` over its fill budget uses IC(0).
 
 use super::incomplete_cholesky::{Breakdown, IncompleteCholesky};
+use super::options::{LobpcgOptions, PreconditionerKind};
 use super::workspace::{Block, ROW_CHUNK};
-use super::{LobpcgOptions, PreconditionerKind};
 use crate::eigen::{self, EigenError};
 use crate::sparse::{self, SparseMatrix};
 use faer::dyn_stack::{MemBuffer, MemStack};
