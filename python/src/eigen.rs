@@ -33,8 +33,14 @@ struct PyOperator {
 impl PyOperator {
     fn call(&self, x: MatRef<'_, f64>, mut out: MatMut<'_, f64>) -> Result<(), OperatorError> {
         let (k, b) = (self.k, x.ncols());
-        let result = Python::attach(|py| -> PyResult<Result<Array2<f64>, String>> {
-            let block = Array2::from_shape_fn((k, b), |(i, j)| x[(i, j)]);
+        let result = Python::attach(|py| -> PyResult<Result<(), String>> {
+            // Row by row: the solver's blocks are row-major, as a C-order array is.
+            let mut block = Array2::<f64>::zeros((k, b));
+            for (i, mut row) in block.rows_mut().into_iter().enumerate() {
+                for (j, v) in row.iter_mut().enumerate() {
+                    *v = x[(i, j)];
+                }
+            }
             let object = self.object.bind(py);
             let y: Bound<'_, PyAny> = if self.has_matmat {
                 object.call_method1("matmat", (block.into_pyarray(py),))?
@@ -52,12 +58,16 @@ impl PyOperator {
                 Err(_) => {
                     // A 1-D result of length K for one column is fine.
                     let reshaped = y.call_method1("reshape", ((k, b),));
-                    match reshaped.and_then(|r| r.extract::<PyArrayLike2<'_, f64, AllowTypeChange>>()) {
+                    match reshaped
+                        .and_then(|r| r.extract::<PyArrayLike2<'_, f64, AllowTypeChange>>())
+                    {
                         Ok(a) => a,
-                        Err(_) => return Ok(Err(format!(
-                            "{} returned something that is not a {k} x {b} array of numbers",
-                            self.method()
-                        ))),
+                        Err(_) => {
+                            return Ok(Err(format!(
+                                "{} returned something that is not a {k} x {b} array of numbers",
+                                self.method()
+                            )))
+                        }
                     }
                 }
             };
@@ -69,17 +79,15 @@ impl PyOperator {
                     view.shape()
                 )));
             }
-            Ok(Ok(view.to_owned()))
+            for (i, row) in view.rows().into_iter().enumerate() {
+                for (j, &v) in row.iter().enumerate() {
+                    out[(i, j)] = v;
+                }
+            }
+            Ok(Ok(()))
         });
         match result {
-            Ok(Ok(y)) => {
-                for j in 0..b {
-                    for i in 0..k {
-                        out[(i, j)] = y[(i, j)];
-                    }
-                }
-                Ok(())
-            }
+            Ok(Ok(())) => Ok(()),
             Ok(Err(message)) => Err(OperatorError::new(message)),
             Err(e) => {
                 let message = format!("{} raised {e}", self.method());
@@ -141,13 +149,25 @@ impl Operand {
 fn shape_of(py: Python<'_>, obj: &Bound<'_, PyAny>, what: &str) -> PyResult<(usize, usize)> {
     obj.getattr("shape")
         .and_then(|s| s.extract::<(usize, usize)>())
-        .map_err(|_| invalid(py, format!("{what}: needs a .shape of two non-negative ints")))
+        .map_err(|_| {
+            invalid(
+                py,
+                format!(
+                    "{what}: expected a scipy.sparse matrix (with tocoo) or an operator with matmat or \
+                     matvec and shape (like scipy.sparse.linalg.LinearOperator); it has no .shape \
+                     of two non-negative ints"
+                ),
+            )
+        })
 }
 
 fn operand(py: Python<'_>, obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<Operand> {
     let (rows, cols) = shape_of(py, obj, name)?;
     if rows != cols {
-        return Err(invalid(py, format!("{name} is {rows} x {cols}; it must be square")));
+        return Err(invalid(
+            py,
+            format!("{name} is {rows} x {cols}; it must be square"),
+        ));
     }
     if obj.hasattr("tocoo")? {
         let coo = obj.call_method0("tocoo")?;
@@ -254,9 +274,8 @@ pub fn eigsh<'py>(
         Err(e) => return Err(to_py(py, &Error::Eigen(e))),
     };
     let k = solution.vectors.nrows();
-    let vectors = Array2::from_shape_fn((k, solution.values.len()), |(i, j)| solution.vectors[(i, j)]);
-    Ok((
-        solution.values.into_pyarray(py),
-        vectors.into_pyarray(py),
-    ))
+    let vectors = Array2::from_shape_fn((k, solution.values.len()), |(i, j)| {
+        solution.vectors[(i, j)]
+    });
+    Ok((solution.values.into_pyarray(py), vectors.into_pyarray(py)))
 }
