@@ -131,6 +131,29 @@ fn one_and_two_mpi_ranks_agree() {
     let notes = r2["eigen"]["notes"].to_string();
     assert!(notes.contains("2 MPI rank(s)"), "{notes}");
     assert!(notes.contains("distributed assembly: 2 rank(s)"), "{notes}");
+    // Per-rank figures of the distributed run: every rank's peak memory (a process of this
+    // size holds at least a few MB, at most the machine), rows and points, stage minima.
+    let peaks = r2["peak_memory_bytes_per_rank"]
+        .as_array()
+        .expect("per-rank peaks");
+    assert_eq!(peaks.len(), 2, "{r2}");
+    for p in peaks {
+        let bytes = p.as_u64().unwrap();
+        assert!(bytes > 1 << 20 && bytes < 1 << 40, "{bytes}");
+    }
+    let d = &r2["distributed"];
+    let rows: Vec<u64> = d["rows_per_rank"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_u64().unwrap())
+        .collect();
+    assert_eq!(rows.iter().sum::<u64>() as usize, 400, "{d}");
+    assert!(
+        d["timings_min"]["total"].as_f64().unwrap() <= r2["timings_s"]["total"].as_f64().unwrap(),
+        "{d}"
+    );
+    assert!(r1.get("peak_memory_bytes_per_rank").is_none());
 }
 
 #[test]

@@ -50,6 +50,12 @@ pub struct DistributedReport {
     pub rows_per_rank: Vec<usize>,
     /// Integration points each rank evaluated (its kernels' supports), in rank order.
     pub points_per_rank: Vec<usize>,
+    /// Each rank's peak resident memory (bytes, VmHWM) at the end of the computation, in
+    /// rank order; 0 where the operating system does not tell.
+    pub peak_memory_bytes_per_rank: Vec<u64>,
+    /// The stage times' minimum over ranks, seconds (the report's timings are the maximum):
+    /// a stage whose minimum and maximum differ much is unbalanced.
+    pub timings_min: Timings,
 }
 
 /// [`super::build_basis`] across the ranks of `mpirun` with the SLEPc backend (see
@@ -227,7 +233,19 @@ pub fn build_basis_mpi(
         -(stats.min_cover as f64),
         -stats.min_rcond,
     ];
+    // The minimum over ranks of the seven stage times, as the maximum of their negatives.
+    let mut least: Vec<f64> = t[..7].iter().map(|v| -v).collect();
+    allreduce_max(&mut least)?;
     allreduce_max(&mut t)?;
+    let timings_min = Timings {
+        sampling: -least[0],
+        centers: -least[1],
+        neighbors: -least[2],
+        shape_functions: -least[3],
+        assembly: -least[4],
+        eigensolve: -least[5],
+        total: -least[6],
+    };
     let timings = Timings {
         sampling: t[0],
         centers: t[1],
@@ -243,17 +261,21 @@ pub fn build_basis_mpi(
         gradient_sum: t[9],
         gradient_linear: t[10],
     };
-    let mut counts = vec![0.0; 3 * size];
-    counts[3 * rank] = mine.len() as f64;
-    counts[3 * rank + 1] = local.len() as f64;
-    counts[3 * rank + 2] = h_rows.cols.len() as f64;
+    let mut counts = vec![0.0; 4 * size];
+    counts[4 * rank] = mine.len() as f64;
+    counts[4 * rank + 1] = local.len() as f64;
+    counts[4 * rank + 2] = h_rows.cols.len() as f64;
+    // Bytes as f64 are exact below 2^53 (9 PB).
+    counts[4 * rank + 3] = crate::report::peak_memory_bytes().unwrap_or(0) as f64;
     allreduce_sum(&mut counts)?;
-    let nnz = (0..size).map(|r| counts[3 * r + 2] as usize).sum::<usize>();
+    let nnz = (0..size).map(|r| counts[4 * r + 2] as usize).sum::<usize>();
     let dist = DistributedReport {
         ranks: size,
         rank,
-        rows_per_rank: (0..size).map(|r| counts[3 * r] as usize).collect(),
-        points_per_rank: (0..size).map(|r| counts[3 * r + 1] as usize).collect(),
+        rows_per_rank: (0..size).map(|r| counts[4 * r] as usize).collect(),
+        points_per_rank: (0..size).map(|r| counts[4 * r + 1] as usize).collect(),
+        peak_memory_bytes_per_rank: (0..size).map(|r| counts[4 * r + 3] as u64).collect(),
+        timings_min,
     };
 
     // Every rank holds the same reduced residuals, so all take the same decision; as

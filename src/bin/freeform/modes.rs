@@ -101,9 +101,12 @@ pub fn run(args: ModesArgs) -> CliResult {
     } else {
         &Silent
     };
-    let mut run = match distributed_run(&args, &shape, &opts, progress)? {
+    let (mut run, distributed) = match distributed_run(&args, &shape, &opts, progress)? {
         Some(run) => run,
-        None => Problem::from_shape(&shape, &opts, progress)?.solve(progress)?,
+        None => (
+            Problem::from_shape(&shape, &opts, progress)?.solve(progress)?,
+            None,
+        ),
     };
     // Every printed and JSON warning names the command line's flags.
     localize_all(&mut run.report.warnings, Front::Flags);
@@ -127,6 +130,11 @@ pub fn run(args: ModesArgs) -> CliResult {
         let mut value = serde_json::to_value(r)?;
         value["shape"] = serde_json::Value::String(shape_arg.clone());
         value["basis_file"] = serde_json::Value::String(out.display().to_string());
+        if let Some(d) = distributed {
+            // The name for the check, at the top level, beside the full figures.
+            value["peak_memory_bytes_per_rank"] = d["peak_memory_bytes_per_rank"].clone();
+            value["distributed"] = d;
+        }
         emit(&(serde_json::to_string_pretty(&value)? + "\n"))?;
     } else {
         emit(&summary(r, &shape_arg, &out))?;
@@ -182,6 +190,9 @@ pub fn solver_config(
     }
 }
 
+/// A distributed run: the basis and the per-rank figures (`DistributedReport` as JSON).
+type DistributedRun = (freeform::precompute::BasisRun, Option<serde_json::Value>);
+
 /// The MPI-distributed pipeline when asked for (`--distributed`) or when running on several
 /// ranks with `--solver slepc`; `None` otherwise.
 #[cfg(feature = "slepc")]
@@ -190,7 +201,7 @@ fn distributed_run(
     shape: &freeform::geometry::Shape,
     opts: &BasisOptions,
     progress: &dyn Progress,
-) -> Result<Option<freeform::precompute::BasisRun>, Box<dyn std::error::Error>> {
+) -> Result<Option<DistributedRun>, Box<dyn std::error::Error>> {
     use freeform::eigen::slepc::world_rank;
     let SolverConfig::Slepc(slepc) = &opts.solver else {
         if args.distributed {
@@ -201,9 +212,9 @@ fn distributed_run(
     if !args.distributed && world_rank()?.1 == 1 {
         return Ok(None);
     }
-    let (run, _dist) =
+    let (run, dist) =
         freeform::precompute::distributed::build_basis_mpi(shape, opts, slepc, progress)?;
-    Ok(Some(run))
+    Ok(Some((run, Some(serde_json::to_value(&dist)?))))
 }
 
 #[cfg(not(feature = "slepc"))]
@@ -212,7 +223,7 @@ fn distributed_run(
     _shape: &freeform::geometry::Shape,
     _opts: &BasisOptions,
     _progress: &dyn Progress,
-) -> Result<Option<freeform::precompute::BasisRun>, Box<dyn std::error::Error>> {
+) -> Result<Option<DistributedRun>, Box<dyn std::error::Error>> {
     if args.distributed {
         return Err(crate::no_slepc());
     }
