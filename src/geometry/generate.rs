@@ -113,21 +113,6 @@ pub fn torus(major: f64, minor: f64, n: u32, m: u32) -> (Vec<Point3>, Vec<[u32; 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::{ShapeOptions, TriMesh};
-
-    #[test]
-    fn generated_meshes_are_closed_and_outward() {
-        let opts = ShapeOptions::default();
-        for (v, t) in [
-            box_mesh([1.0, 2.0, 3.0]),
-            icosphere(2.0, 2),
-            torus(2.0, 0.5, 24, 12),
-        ] {
-            let mesh = TriMesh::new(v, t, &opts).unwrap();
-            assert!(!mesh.was_flipped());
-            assert!(mesh.is_closed());
-        }
-    }
 
     #[test]
     fn icosphere_counts_and_radius() {

@@ -257,7 +257,7 @@ fn signed_volume_about(vertices: &[Point3], triangles: &[[u32; 3]], o: &Point3) 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::generate::box_mesh;
+    use crate::geometry::generate::{box_mesh, icosphere, torus};
 
     fn opts() -> ShapeOptions {
         ShapeOptions::default()
@@ -356,5 +356,19 @@ mod tests {
         let m = TriMesh::new(v, mis, &open).unwrap();
         assert!(!m.is_closed());
         assert_eq!(m.volume(), None);
+    }
+
+    #[test]
+    fn generated_meshes_are_closed_and_outward() {
+        let opts = ShapeOptions::default();
+        for (v, t) in [
+            box_mesh([1.0, 2.0, 3.0]),
+            icosphere(2.0, 2),
+            torus(2.0, 0.5, 24, 12),
+        ] {
+            let mesh = TriMesh::new(v, t, &opts).unwrap();
+            assert!(!mesh.was_flipped());
+            assert!(mesh.is_closed());
+        }
     }
 }

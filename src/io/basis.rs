@@ -298,7 +298,7 @@ fn save_json(path: &Path, basis: &Basis, metadata: &Value) -> Result<()> {
             npy_bytes(&[meta.len() as u64], &meta).map_err(io_err)?,
         ),
     ];
-    super::write_atomically(path, |tmp| {
+    super::file::write_atomically(path, |tmp| {
         let io_tmp = |source| Error::Io {
             path: tmp.to_path_buf(),
             source,

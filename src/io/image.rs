@@ -8,7 +8,7 @@
 //! reversing the voxels along it, so spacing is always positive. A `.npy` array of shape
 //! (nx, ny, nz) (axis 0 is x) has no geometry: the caller gives spacing and origin.
 
-use super::shape::parse_error;
+use super::file::parse_error;
 use crate::geometry::{GeometryError, VoxelImage, VoxelValues, MAX_VOXELS};
 use crate::Point3;
 use nifti::{NiftiObject, NiftiType};
@@ -85,7 +85,7 @@ enum Raw {
 /// As [`read_image`].
 pub fn read_nifti(path: &Path, opts: &ImageReadOptions) -> Result<VoxelImage, GeometryError> {
     let bad = |why: String| parse_error(path, format!("NIfTI: {why}"));
-    let meta = std::fs::metadata(path).map_err(|e| super::shape::io_error(path, e))?;
+    let meta = std::fs::metadata(path).map_err(|e| super::file::io_error(path, e))?;
     let header = nifti::NiftiHeader::from_file(path).map_err(|e| bad(nifti_message(e)))?;
     if &header.magic != b"n+1\0" {
         return Err(bad(format!(
@@ -382,7 +382,7 @@ pub fn read_npy(path: &Path, opts: &ImageReadOptions) -> Result<VoxelImage, Geom
                 .into(),
         ));
     };
-    let bytes = super::shape::read_nonempty(path)?;
+    let bytes = super::file::read_nonempty(path)?;
     let mut rest: &[u8] = &bytes;
     let header = npyz::NpyHeader::from_reader(&mut rest).map_err(|e| bad(e.to_string()))?;
     let data_bytes = rest.len();

@@ -74,7 +74,7 @@ fn write_atomically(
     path: &Path,
     write: impl FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Result<()>,
 ) -> Result<(), MatrixFileError> {
-    let tmp = super::temp_path_for(path);
+    let tmp = super::file::temp_path_for(path);
     let result = std::fs::File::create(&tmp)
         .and_then(|file| {
             let mut w = BufWriter::new(file);

@@ -17,7 +17,7 @@
 //! - Coordinates pass through `tobj`'s single-precision `Float` (its `use_f64` feature is
 //!   off in this build), so they are rounded to f32.
 
-use super::shape::{
+use super::file::{
     create, finish, first_non_finite, io_error, mesh_from_file_data, parse_error, read_nonempty,
 };
 use crate::geometry::{GeometryError, ShapeOptions, TriMesh};
@@ -274,7 +274,7 @@ pub fn write_obj(
     vertices: &[Point3],
     triangles: &[[u32; 3]],
 ) -> Result<(), GeometryError> {
-    super::check_triangle_indices(vertices.len(), triangles)?;
+    super::file::check_triangle_indices(vertices.len(), triangles)?;
     let mut w = create(path)?;
     let mut write = |s: String| w.write_all(s.as_bytes()).map_err(|e| io_error(path, e));
     write(format!(

@@ -28,7 +28,7 @@
 //! Writing: [`write_off`] writes `OFF`, the counts, vertices with round-trip precision and
 //! triangles.
 
-use super::shape::{create, finish, io_error, mesh_from_file_data, parse_error, read_nonempty};
+use super::file::{create, finish, io_error, mesh_from_file_data, parse_error, read_nonempty};
 use crate::geometry::{GeometryError, ShapeOptions, TriMesh};
 use crate::Point3;
 use std::io::Write;
@@ -365,7 +365,7 @@ pub fn write_off(
     vertices: &[Point3],
     triangles: &[[u32; 3]],
 ) -> Result<(), GeometryError> {
-    super::check_triangle_indices(vertices.len(), triangles)?;
+    super::file::check_triangle_indices(vertices.len(), triangles)?;
     let mut w = create(path)?;
     let mut write = |s: String| w.write_all(s.as_bytes()).map_err(|e| io_error(path, e));
     write(format!(

@@ -19,7 +19,7 @@
 //! Writing: [`write_ply_points`] (binary little endian, `float` properties) and
 //! [`write_ply_points_with`] / [`write_ply_mesh`] with explicit [`PlyWriteOptions`].
 
-use super::shape::{create, finish, first_non_finite, io_error, mesh_from_file_data, parse_error};
+use super::file::{create, finish, first_non_finite, io_error, mesh_from_file_data, parse_error};
 use crate::geometry::{GeometryError, PointCloud, Shape, ShapeOptions};
 use crate::Point3;
 use ply_rs_bw::parser::{Parser, Reader};
@@ -576,7 +576,7 @@ pub fn write_ply_mesh(
     triangles: &[[u32; 3]],
     opts: PlyWriteOptions,
 ) -> Result<(), GeometryError> {
-    super::check_triangle_indices(vertices.len(), triangles)?;
+    super::file::check_triangle_indices(vertices.len(), triangles)?;
     let mut header = header_start(opts, vertices.len());
     let ty = scalar_name(opts.scalar);
     for n in ["x", "y", "z"] {

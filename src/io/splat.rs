@@ -12,7 +12,7 @@
 //! ([`SplatReadReport`]). Writing ([`write_splats`], [`write_splats_moved`]): binary little
 //! endian in the layout read, atomically (a failed write leaves no file).
 
-use super::shape::{io_error, parse_error};
+use super::file::{io_error, parse_error};
 use crate::geometry::GeometryError;
 use crate::Point3;
 use ply_rs_bw::parser::{Parser, Reader};
@@ -814,7 +814,7 @@ fn write_impl(
         }
         out
     };
-    super::write_atomically(path, |tmp| {
+    super::file::write_atomically(path, |tmp| {
         let file = File::create(tmp).map_err(|e| io_error(tmp, e))?;
         let mut w = std::io::BufWriter::with_capacity(1 << 20, file);
         w.write_all(header.as_bytes())

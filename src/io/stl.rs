@@ -9,7 +9,7 @@
 //! byte 80 is binary; otherwise a file starting with `solid` is ASCII; anything else is read as
 //! binary and rejected with the size mismatch.
 
-use super::shape::{create, finish, io_error, mesh_from_file_data, parse_error, read_nonempty};
+use super::file::{create, finish, io_error, mesh_from_file_data, parse_error, read_nonempty};
 use crate::geometry::{GeometryError, ShapeOptions, TriMesh};
 use crate::Point3;
 use std::io::{Cursor, Write};
@@ -180,7 +180,7 @@ pub fn write_stl(
     triangles: &[[u32; 3]],
     format: StlFormat,
 ) -> Result<(), GeometryError> {
-    super::check_triangle_indices(vertices.len(), triangles)?;
+    super::file::check_triangle_indices(vertices.len(), triangles)?;
     let tris = triangles.iter().map(|t| {
         let [a, b, c] = t.map(|i| vertices[i as usize]);
         let n = crate::geometry::winding::unit_normal(&a, &b, &c);

@@ -51,7 +51,7 @@ pub fn write_vtp(
 ) -> Result<()> {
     let n = points.len();
     if let Some(t) = triangles {
-        super::check_triangle_indices(n, t)?;
+        super::file::check_triangle_indices(n, t)?;
     }
     for d in data {
         let len = match d {
@@ -112,7 +112,7 @@ pub fn write_vtp(
   </PolyData>\n\
   <AppendedData encoding=\"raw\">\n_"
     );
-    super::write_atomically(path, |tmp| {
+    super::file::write_atomically(path, |tmp| {
         let io = |source| Error::Io {
             path: tmp.to_path_buf(),
             source,
@@ -138,7 +138,7 @@ pub fn write_pvd(path: &Path, frames: &[(f64, String)]) -> Result<()> {
         ));
     }
     s.push_str("  </Collection>\n</VTKFile>\n");
-    super::write_atomically(path, |tmp| {
+    super::file::write_atomically(path, |tmp| {
         std::fs::write(tmp, s.as_bytes()).map_err(|source| Error::Io {
             path: tmp.to_path_buf(),
             source,

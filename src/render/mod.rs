@@ -14,11 +14,13 @@ mod colormap;
 mod image;
 mod raster;
 mod splat;
+mod target;
 mod text;
 
 pub use camera::{Camera, CameraOptions, Projection};
 pub use colormap::{draw_colorbar, ColorMap};
 pub use image::{write_png_rgb, Image, Rect};
-pub use raster::{disc_radius_from_spacing, draw, DrawOptions, Ground, Item, Scalars};
+pub use raster::{disc_radius_from_spacing, draw, DrawOptions, Ground, Item};
 pub use splat::{sigmoid, Gaussians, SH_C0};
+pub use target::Scalars;
 pub use text::{draw_text, register_font, FONT_FAMILY};

@@ -3,9 +3,11 @@
 //! then splats, alpha-blended over them ([`super::splat`]).
 
 use super::camera::Camera;
-use super::colormap::{ColorMap, NAN_COLOUR};
+use super::colormap::NAN_COLOUR;
 use super::image::{Image, Rect};
 use super::splat::Gaussians;
+use super::target::{unit, Scalars, Target};
+use crate::linalg3::{cross, dot, sub};
 use crate::{Error, Point3, Result};
 
 /// Something to draw.
@@ -43,15 +45,6 @@ pub enum Item<'a> {
         /// by the splat's shortest axis) instead of the Gaussians' own colours.
         scalars: Option<&'a [f64]>,
     },
-}
-
-/// How scalars become colours.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Scalars {
-    /// The colour map.
-    pub map: ColorMap,
-    /// The values at the map's ends, [min, max].
-    pub range: [f64; 2],
 }
 
 /// A checkered ground square perpendicular to a coordinate axis.
@@ -97,77 +90,6 @@ impl Default for DrawOptions {
             ground: None,
             smooth: true,
             splat_low_pass: 0.3,
-        }
-    }
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-fn unit(a: [f64; 3]) -> [f64; 3] {
-    let n = dot(a, a).sqrt();
-    if n > 0.0 {
-        [a[0] / n, a[1] / n, a[2] / n]
-    } else {
-        a
-    }
-}
-
-/// The viewport's depth buffer and the shading state shared by all items.
-pub(super) struct Target<'a> {
-    pub(super) image: &'a mut Image,
-    pub(super) view: Rect,
-    pub(super) camera: &'a Camera,
-    /// Nearness per viewport pixel: 1 / depth (perspective) or -depth (orthographic), both
-    /// affine in screen space; larger is nearer.
-    pub(super) near: Vec<f64>,
-    light: [f64; 3],
-    ambient: f64,
-}
-
-impl Target<'_> {
-    /// The nearness of `depth` (larger is nearer), as stored in `near`.
-    pub(super) fn key(&self, depth: f64) -> f64 {
-        if self.camera.is_perspective() {
-            1.0 / depth
-        } else {
-            -depth
-        }
-    }
-
-    /// Lambert + ambient of `colour` for a world normal (turned towards the viewer).
-    fn shade(&self, colour: [u8; 3], normal: [f64; 3]) -> [u8; 3] {
-        let f = self.lambert(normal);
-        colour.map(|c| (c as f64 * f).round().clamp(0.0, 255.0) as u8)
-    }
-
-    /// The brightness factor (ambient + Lambert, 0..1) of a world normal, either side lit.
-    pub(super) fn lambert(&self, normal: [f64; 3]) -> f64 {
-        let mut n = unit(normal);
-        if dot(n, self.camera.forward) > 0.0 {
-            n = [-n[0], -n[1], -n[2]];
-        }
-        let lambert = dot(n, self.light).max(0.0);
-        self.ambient + (1.0 - self.ambient) * lambert
-    }
-
-    /// Write `colour` at viewport pixel (x, y) if `key` is nearer than what is there.
-    fn plot(&mut self, x: u32, y: u32, key: f64, colour: impl FnOnce(&Self) -> [u8; 3]) {
-        let i = y as usize * self.view.width as usize + x as usize;
-        if key > self.near[i] {
-            self.near[i] = key;
-            let c = colour(self);
-            self.image.set(self.view.x + x, self.view.y + y, c);
         }
     }
 }
@@ -372,7 +294,7 @@ fn draw_triangles(
     // Area-weighted vertex normals (the raw cross products sum to that).
     let face_normal = |tri: &[u32; 3]| {
         let [a, b, c] = tri.map(|i| positions[i as usize]);
-        cross(sub(b, a), sub(c, a))
+        cross(&sub(&b, &a), &sub(&c, &a))
     };
     let mut normals = vec![[0.0; 3]; if smooth { positions.len() } else { 0 }];
     if smooth {
@@ -395,7 +317,7 @@ fn draw_triangles(
             idx.map(|i| {
                 let n = normals[i];
                 // A vertex whose normals cancel (a sharp fold) takes the face's.
-                if dot(n, n) > 0.0 {
+                if dot(&n, &n) > 0.0 {
                     unit(n)
                 } else {
                     unit(flat)
@@ -414,7 +336,7 @@ fn draw_triangles(
                 if base == NAN_COLOUR && v.is_nan() {
                     return NAN_COLOUR;
                 }
-                t.shade(base, if dot(n, n) > 0.0 { n } else { flat })
+                t.shade(base, if dot(&n, &n) > 0.0 { n } else { flat })
             });
         });
     }
@@ -529,7 +451,7 @@ pub fn disc_radius_from_spacing(positions: &[Point3]) -> f64 {
     use kiddo::{ImmutableKdTree, SquaredEuclidean};
     let fallback = crate::geometry::Aabb::from_points(positions).map_or(0.01, |b| {
         let s = b.size();
-        let d = dot(s, s).sqrt();
+        let d = dot(&s, &s).sqrt();
         if d > 0.0 {
             0.01 * d
         } else {
@@ -566,6 +488,7 @@ pub fn disc_radius_from_spacing(positions: &[Point3]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::super::camera::{CameraOptions, Projection};
+    use super::super::colormap::ColorMap;
     use super::*;
     use crate::geometry::Aabb;
 

@@ -33,6 +33,7 @@ mod render;
 mod rkpm;
 mod scene;
 mod sim;
+mod splat_render;
 mod splats;
 mod streaming;
 mod strict;

@@ -8,7 +8,7 @@
 //! (`gmsh -3 -format msh41 file.geo`, or `Mesh.MshFileVersion = 4.1;` with
 //! `Mesh.Binary = 0;`).
 
-use super::{compact, read_text, NodeIds, Tokens};
+use super::tokens::{compact, read_text, NodeIds, Tokens};
 use crate::fem::{FemError, TetMesh};
 use std::path::Path;
 

@@ -7,7 +7,7 @@
 //! `Required*`, `Normals`, `NormalAtVertices`, `Tangents`, `TangentAtVertices`) are skipped;
 //! an unknown keyword is an error (its entry width is unknown). `#` starts a comment.
 
-use super::{compact, read_text, Tokens};
+use super::tokens::{compact, read_text, Tokens};
 use crate::fem::{FemError, TetMesh};
 use std::path::Path;
 

@@ -5,7 +5,7 @@
 //! `<#tets> <nodes per tet (4|10)> <#attributes>`, then `<number> <n1> ... <nk> [attributes]`.
 //! Point numbers start at 0 or 1 (the first point decides); `#` starts a comment.
 
-use super::{compact, read_text, NodeIds, Tokens};
+use super::tokens::{compact, read_text, NodeIds, Tokens};
 use crate::fem::{FemError, TetMesh};
 use std::path::Path;
 

@@ -22,10 +22,11 @@
 //! one triangle each), a solid mesh that is open, non-manifold or inconsistently oriented, a
 //! surface with non-manifold or inconsistently oriented edges.
 
-use super::{ColliderShape, MeshCollider, Penetration};
+use super::penetration::Penetration;
 use crate::error::GeometryError;
 use crate::geometry::{weld_exact, Aabb, EdgeReport, ShapeFileFormat, ShapeOptions, ShapeSpec};
-use crate::linalg3::{cross, dot, norm, sub};
+use crate::linalg3::{cross, dot, norm, outer, sub};
+use crate::sim::motion::Rigid;
 use crate::{Error, Point3, Result};
 use parry3d_f64::math::Vector;
 use parry3d_f64::query::PointQueryWithLocation;
@@ -96,25 +97,20 @@ fn identity_minus(e: &[f64; 3]) -> crate::linalg3::Mat3 {
 }
 
 impl MeshObstacle {
-    /// Read and validate the mesh of `spec` (a relative `file` is taken from `base_dir`),
-    /// placed by its scale, rotation and translation.
+    /// Read and validate the mesh file at `path`, its coordinates scaled by `scale` and then
+    /// moved by `pose`.
     ///
     /// # Errors
-    /// The readers' `Io` and `Parse` errors (a PLY without faces is a `Parse` error);
-    /// [`GeometryError::DegenerateTriangle`], [`GeometryError::ColliderNotClosed`],
-    /// [`GeometryError::ColliderSurface`] and [`GeometryError::Degenerate`] as in
-    /// [`MeshObstacle::from_triangles`]; a bad scale or rotation.
-    pub fn load(spec: &MeshCollider, base_dir: &Path) -> Result<MeshObstacle> {
-        ColliderShape::Mesh(spec.clone()).validate()?;
-        let path = base_dir.join(&spec.file);
-        let (vertices, triangles) = read_triangles(&path)?;
-        let (scale, pose) = spec.placement()?;
+    /// The readers' `Io` and `Parse` errors (a PLY without faces is a `Parse` error); the
+    /// mesh checks of [`MeshObstacle::from_triangles`].
+    pub fn read(path: &Path, scale: f64, pose: &Rigid, sided: Sided) -> Result<MeshObstacle> {
+        let (vertices, triangles) = read_triangles(path)?;
         let vertices = vertices
             .iter()
             .map(|p| pose.apply(&p.map(|c| c * scale)))
             .collect();
         Ok(MeshObstacle::from_triangles(
-            &path, vertices, triangles, spec.sided,
+            path, vertices, triangles, sided,
         )?)
     }
 
@@ -310,7 +306,7 @@ impl MeshObstacle {
         let hessian = match feature {
             Feature::Face(t) => {
                 let n = self.face_normal(t as usize);
-                super::outer(&n)
+                outer(&n)
             }
             Feature::Edge(a, b) => {
                 let e = sub(&self.vertices[b as usize], &self.vertices[a as usize]);
