@@ -15,7 +15,8 @@
 //! reach in a step is solved as an island of one (or within its island), with the same pair
 //! energy between its own samples; one whose samples stay apart steps alone as before.
 
-use super::world::SceneObject;
+use super::object::SceneObject;
+use super::report::{ContactStepRow, ContactSummary};
 use crate::geometry::Shape;
 use crate::report::Stopwatch;
 use crate::sim::contact::island::step_island;
@@ -28,7 +29,6 @@ use crate::sim::motion::rotation_matrix;
 use crate::sim::StepReport;
 use crate::{Error, Point3, Result};
 use rayon::prelude::*;
-use serde::Serialize;
 
 /// How many times a pair's penalty stiffness is multiplied when its island ends a step
 /// deeper than the penetration tolerance: 4, which halves the depth under the same load
@@ -38,60 +38,6 @@ pub const STIFFENING_FACTOR: f64 = 4.0;
 /// Most stiffness raises (and so re-solves) of one island in one step: 4 raises allow 256x
 /// the default stiffness, a sixteenth of the depth.
 pub const MAX_STIFFENING: usize = 4;
-
-/// One step of object-object contact in the run summary.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct ContactStepRow {
-    /// Step number (1-based).
-    pub step: usize,
-    /// Wall time of the whole world step, ms.
-    pub wall_ms: f64,
-    /// Object pairs whose grown sample boxes were compared (n (n - 1) / 2).
-    pub object_pairs_tested: usize,
-    /// Object pairs whose grown boxes met (their samples were then tested; those within
-    /// reach were put in one island).
-    pub object_pairs_near: usize,
-    /// Sample pairs within contact distance at the end of the step.
-    pub sample_pairs_active: usize,
-    /// Deepest object-object penetration at the end of the step, metres.
-    pub penetration: f64,
-    /// The same relative to the smaller rest diagonal of the two objects.
-    pub penetration_fraction: f64,
-    /// Sizes of the islands solved together (two or more objects, or one object in
-    /// self-contact), largest first.
-    pub islands: Vec<usize>,
-    /// Objects solved again because they ended in contact with another island's.
-    pub regrouped: usize,
-    /// Islands solved again with a raised pair stiffness (penetration above the tolerance),
-    /// counted once per raise.
-    pub stiffened: usize,
-}
-
-/// Object-object contact over a run.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct ContactSummary {
-    /// The penetration tolerance, a fraction of the smaller diagonal.
-    pub penetration_tolerance: f64,
-    /// Contact samples per object, in object order.
-    pub samples: Vec<usize>,
-    /// Contact thickness per object, metres.
-    pub thickness: Vec<f64>,
-    /// Whether each object has self-contact, in object order.
-    pub self_contact: Vec<bool>,
-    /// Penalty stiffness of each object pair at the end of the run, Pa/m^2 (row-major,
-    /// objects x objects; raised where a pair went deeper than the tolerance).
-    pub stiffness: Vec<f64>,
-    /// Worst penetration of the run, metres.
-    pub worst_penetration: f64,
-    /// Worst penetration relative to the smaller diagonal of its two objects.
-    pub worst_penetration_fraction: f64,
-    /// Steps whose deepest penetration exceeded the tolerance.
-    pub steps_over_tolerance: usize,
-    /// Mean world step wall time, ms.
-    pub step_ms_mean: f64,
-    /// One row per step.
-    pub steps: Vec<ContactStepRow>,
-}
 
 /// The contact state of a world.
 pub(super) struct WorldContact {

@@ -2,8 +2,9 @@
 //! and a `.pvd` collection per object, for ParaView) and PLY files (3DGS splat PLY for splat
 //! objects).
 
-use super::spec::Format;
-use super::world::{SceneObject, World};
+use super::object::SceneObject;
+use super::spec::{collider_stem, Format};
+use super::world::World;
 use crate::io::vtk::{self, PointData};
 use crate::{Error, Result};
 use std::path::{Path, PathBuf};
@@ -230,15 +231,6 @@ impl StressArrays {
             principal,
             von_mises,
         }
-    }
-}
-
-/// The frame name of collider `index` (`collider-<name>`, or `collider-<index>` without a
-/// name): its `.pvd` collection and the stem of its frames in `<out>/colliders/`.
-pub fn collider_stem(index: usize, name: Option<&str>) -> String {
-    match name {
-        Some(n) => format!("collider-{n}"),
-        None => format!("collider-{index}"),
     }
 }
 

@@ -5,9 +5,11 @@
 //! [`FrameWriter`] write its frames; [`run`] is the batch loop over both. docs/scenes.md
 //! documents the format with every default.
 //!
-//! - `spec`: the scene description and its validation; `setup`: an object's shape and basis
-//!   (through the `cache`); `world`: the live simulation; `frames`: frame output; `run`: the
-//!   batch loop and its summary.
+//! - `spec`: the scene description and its validation; `settings`: where a run reads and
+//!   writes; `report`: the rows and summaries a run reports; `setup`: an object's shape and
+//!   basis (through the `cache`); `render_set`: extra render inputs; `object`: one live
+//!   object; `contact`: object-object contact between objects; `world`: the live simulation;
+//!   `frames`: frame output; `run`: the batch loop.
 //!
 //! ```no_run
 //! use freeform::material::Region;
@@ -29,21 +31,26 @@
 mod cache;
 mod contact;
 mod frames;
+mod object;
 mod render_set;
+mod report;
 mod run;
+mod settings;
 mod setup;
 mod spec;
 mod world;
 
-pub use contact::{ContactStepRow, ContactSummary};
 pub use frames::{FrameObserver, FrameWriter};
+pub use object::{PreparedObject, SceneObject};
 pub use render_set::RenderSet;
-pub use run::{run, ObjectSummary, RunSettings, RunSummary, StepRow};
+pub use report::{ContactStepRow, ContactSummary, ObjectSummary, RunSummary, StepRow};
+pub use run::run;
+pub use settings::RunSettings;
 pub use spec::{
     BasisSettings, CacheSettings, Format, ObjectSpec, OutputSettings, Scene, Simulation,
     SolverSettings,
 };
-pub use world::{PreparedObject, SceneObject, World};
+pub use world::World;
 
 use crate::material::{Material, MaterialOverride, Region};
 use crate::sim::motion::Motion;

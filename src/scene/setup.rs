@@ -3,7 +3,7 @@
 //! holds them, otherwise computed (and stored).
 
 use super::cache;
-use super::run::RunSettings;
+use super::settings::RunSettings;
 use super::spec::{ObjectSpec, Scene};
 use crate::geometry::Shape;
 use crate::geometry::VoxelValues;

@@ -515,7 +515,7 @@ impl Scene {
             c.validate()?;
         }
         for (i, c) in self.colliders.iter().enumerate() {
-            let stem = super::frames::collider_stem(i, c.name.as_deref());
+            let stem = collider_stem(i, c.name.as_deref());
             if let Some(o) = self.objects.iter().find(|o| o.name == stem) {
                 return Err(scene_err(format!(
                     "object '{}' has the frame name of collider {i}; rename one of them",
@@ -564,6 +564,15 @@ fn scene_err(message: String) -> Error {
 
 fn in_object(name: &str, e: Error) -> Error {
     scene_err(format!("object '{name}': {e}"))
+}
+
+/// The frame name of collider `index` (`collider-<name>`, or `collider-<index>` without a
+/// name): its `.pvd` collection and the stem of its frames in `<out>/colliders/`.
+pub fn collider_stem(index: usize, name: Option<&str>) -> String {
+    match name {
+        Some(n) => format!("collider-{n}"),
+        None => format!("collider-{index}"),
+    }
 }
 
 #[cfg(test)]

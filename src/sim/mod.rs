@@ -9,6 +9,7 @@
 //! - [`collider`]: obstacles (planes, boxes, spheres, capsules, triangle meshes) and their
 //!   kinematics (scripted or caller-set poses, articulated chains).
 //! - [`contact`]: object-object contact (samples, broad phase, pair penalty, islands).
+//! - [`friction`]: the smoothed lagged friction of every contact (IPC's f0, f1).
 //! - [`motion`]: prescribed rigid motions for boundaries.
 //! - [`newton`]: the per-step minimiser and its strategies.
 //! - [`object`]: one simulated object (setup, state, stepping).
@@ -20,6 +21,7 @@ pub mod contact;
 pub mod cubature;
 pub mod deformation;
 pub mod elastic;
+pub mod friction;
 pub mod gaussian;
 mod lanes;
 pub mod motion;

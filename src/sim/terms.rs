@@ -611,7 +611,7 @@ impl ContactTerm {
                 ColliderLag {
                     point: c,
                     mu_lambda: mu[o] * self.stiffness[o] * self.volumes[c] * p.depth,
-                    projector: crate::sim::contact::friction::tangent_projector(&p.normal),
+                    projector: crate::sim::friction::tangent_projector(&p.normal),
                     carried: b.apply(&local),
                 }
             })
@@ -628,7 +628,7 @@ impl ContactTerm {
         z: &[f64],
         grad: &mut [f64],
     ) -> f64 {
-        use crate::sim::contact::friction;
+        use crate::sim::friction;
         let n4 = layout.row_len();
         let mut e = 0.0;
         for l in lag {
@@ -654,7 +654,7 @@ impl ContactTerm {
         z: &[f64],
         h: &mut Mat<f64>,
     ) {
-        use crate::sim::contact::friction;
+        use crate::sim::friction;
         let blocks: Vec<(usize, crate::linalg3::Mat3)> = lag
             .iter()
             .map(|l| {

@@ -964,10 +964,6 @@ fn folder_graphs() -> FolderGraphs {
     graphs
 }
 
-/// Folders whose circles are known and not broken yet (printed, not failed); the test fails
-/// when one of them becomes acyclic, so the list only shrinks.
-const CYCLIC_FOLDERS: &[&str] = &["scene", "sim"];
-
 #[test]
 fn every_folder_is_acyclic() {
     let graphs = folder_graphs();
@@ -984,18 +980,7 @@ fn every_folder_is_acyclic() {
             .iter()
             .map(|(k, v)| (k.clone(), v.keys().cloned().collect()))
             .collect();
-        let cycles = find_cycles(&plain);
-        let known = CYCLIC_FOLDERS.contains(&folder.as_str());
-        if known && cycles.is_empty() {
-            msg += &format!("  src/{folder}/ is acyclic now: remove it from CYCLIC_FOLDERS\n");
-        }
-        if known {
-            for cycle in &cycles {
-                println!("  known circle: {}", cycle.join(" -> "));
-            }
-            continue;
-        }
-        for cycle in cycles {
+        for cycle in find_cycles(&plain) {
             msg += &format!("  src/{folder}/: {}\n", cycle.join(" -> "));
             for pair in cycle.windows(2) {
                 msg += &format!(

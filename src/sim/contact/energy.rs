@@ -277,7 +277,7 @@ impl<'a> PairContact<'a> {
             .map(|p| PairLag {
                 c: p.c,
                 mu_lambda: mu[p.c.a * n + p.c.b] * p.kw * (p.d - p.r),
-                projector: super::friction::tangent_projector(&p.u),
+                projector: crate::sim::friction::tangent_projector(&p.u),
                 start: std::array::from_fn(|k| x[p.c.a][p.c.i][k] - x[p.c.b][p.c.j][k]),
             })
             .collect()
@@ -292,7 +292,7 @@ impl<'a> PairContact<'a> {
         z: &[f64],
         grad: &mut [f64],
     ) -> f64 {
-        use super::friction;
+        use crate::sim::friction;
         if lag.is_empty() {
             return 0.0;
         }
@@ -337,7 +337,7 @@ impl<'a> PairContact<'a> {
                 let d = l.displacement(&x);
                 (
                     l.c,
-                    super::friction::hessian(l.mu_lambda, eps, &l.projector, &d),
+                    crate::sim::friction::hessian(l.mu_lambda, eps, &l.projector, &d),
                 )
             })
             .collect();

@@ -13,7 +13,6 @@
 //! every object steps alone, as before.
 
 pub mod energy;
-pub mod friction;
 pub mod island;
 pub mod pairs;
 pub mod samples;
