@@ -59,6 +59,9 @@ pub struct World {
     /// The colliders' obstacles and current motions (every object holds the same).
     kinematics: Kinematics,
     dt: f64,
+    /// Simulated time, seconds, and steps taken: advanced once every object took a step.
+    time: f64,
+    steps: usize,
     strict: bool,
     warnings: Vec<String>,
     /// Object-object contact (scenes with `[contact]` only).
@@ -162,6 +165,8 @@ impl World {
             colliders: scene.colliders.clone(),
             kinematics,
             dt: scene.simulation.dt,
+            time: 0.0,
+            steps: 0,
             strict: settings.strict,
             warnings,
             contact,
@@ -181,6 +186,8 @@ impl World {
         if let Some(c) = self.contact.as_mut() {
             let before = self.warnings.len();
             let reports = c.step(&mut self.objects, &mut self.warnings);
+            // Every object took the step, so it counts even when strict mode stops here.
+            self.advance_clock();
             if self.warnings.len() > before {
                 check_strict(self.strict, &self.warnings)?;
             }
@@ -188,8 +195,15 @@ impl World {
         }
         let mut reports = Vec::with_capacity(self.objects.len());
         let before = self.warnings.len();
-        for object in &mut self.objects {
+        let last = self.objects.len().saturating_sub(1);
+        for (i, object) in self.objects.iter_mut().enumerate() {
             reports.push(object.step(&mut self.warnings));
+            if i == last {
+                // Every object took the step: it counts, even when strict mode stops here
+                // (the same clock update as `advance_clock`; `objects` is borrowed).
+                self.time += self.dt;
+                self.steps += 1;
+            }
             if self.warnings.len() > before {
                 check_strict(self.strict, &self.warnings)?;
             }
@@ -197,10 +211,16 @@ impl World {
         Ok(reports)
     }
 
-    /// Simulated time, seconds: the last object's, so a step counts once every object took it
-    /// (a scene has at least one object).
+    /// Count a step every object took: t += dt, as each object's own clock advances.
+    fn advance_clock(&mut self) {
+        self.time += self.dt;
+        self.steps += 1;
+    }
+
+    /// Simulated time, seconds: the world's own clock, advanced once every object took a
+    /// step (a step stopped by strict mode does not count).
     pub fn time(&self) -> f64 {
-        self.objects.last().map_or(0.0, |o| o.sim().time)
+        self.time
     }
 
     /// Time step, seconds.
@@ -210,7 +230,7 @@ impl World {
 
     /// Steps taken (by every object; see [`World::time`]).
     pub fn steps(&self) -> usize {
-        self.objects.last().map_or(0, |o| o.sim().steps)
+        self.steps
     }
 
     /// Number of colliders (the scene's `[[collider]]` tables), for

@@ -118,6 +118,12 @@ fn live_world_writes_the_same_frames_as_the_batch_run_on_the_example_scenes() {
         }
         assert_eq!(world.warnings(), summary.warnings.as_slice(), "{file}");
         assert!((world.time() - scene.simulation.dt * scene.simulation.steps as f64).abs() < 1e-12);
+        // The world keeps its own clock; it advances as every object's does, bit for bit.
+        assert_eq!(world.steps(), scene.simulation.steps, "{file}");
+        for o in world.objects() {
+            assert_eq!(o.sim().time.to_bits(), world.time().to_bits(), "{file}");
+            assert_eq!(o.sim().steps, world.steps(), "{file}");
+        }
     }
 }
 
