@@ -75,7 +75,7 @@ fn steps(c: &mut Criterion) {
             b.iter(|| black_box(s.step()))
         });
         let s = bend(&run, HessianStrategy::Lbfgs);
-        let z = s.z.clone();
+        let z = s.z().to_vec();
         let mut grad = vec![0.0; z.len()];
         g.bench_function(format!("energy_gradient_m{m}"), |b| {
             b.iter(|| black_box(s.elastic().energy_gradient(&z, &mut grad)))

@@ -139,7 +139,7 @@ fn gauge(run: &BasisRun) -> f64 {
         &options(false, HessianStrategy::Lbfgs, 1e-6, 5000),
     )
     .expect("sim");
-    let z: Vec<f64> = (0..s.z.len())
+    let z: Vec<f64> = (0..s.z().len())
         .map(|i| 1e-3 * ((i % 7) as f64 - 3.0))
         .collect();
     let mut g = vec![0.0; z.len()];
@@ -303,7 +303,7 @@ fn main() {
             &options(false, HessianStrategy::Lbfgs, 1e-6, c),
         )
         .expect("sim");
-        let z: Vec<f64> = (0..s.z.len())
+        let z: Vec<f64> = (0..s.z().len())
             .map(|i| 1e-3 * ((i % 7) as f64 - 3.0))
             .collect();
         let mut g = vec![0.0; z.len()];

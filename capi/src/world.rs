@@ -571,7 +571,7 @@ pub unsafe extern "C" fn ff_world_set_gravity(world: *mut FfWorld, gravity: *con
 /// [X; 1] at `z[4 (m + 1) r + 4 j + a]` = Z_j\[r\]\[a\]; zdot = dz/dt (per second).
 #[no_mangle]
 pub unsafe extern "C" fn ff_world_state_len(world: *const FfWorld, object_index: usize) -> usize {
-    unsafe { peek_object(world, object_index) }.map_or(0, |o| o.sim().z.len())
+    unsafe { peek_object(world, object_index) }.map_or(0, |o| o.sim().z().len())
 }
 
 /// Copy object `object`'s reduced coordinates z and velocity zdot (12 (m + 1) each, layout
@@ -588,11 +588,11 @@ pub unsafe extern "C" fn ff_world_get_state(
     call("ff_world_get_state", || {
         let w = unsafe { world_ref(world)? };
         let sim = object(&w.world, object_index)?.sim();
-        let n = sim.z.len();
+        let n = sim.z().len();
         let zo = out_slice(z, len, n, "z")?;
         let zdo = out_slice(zdot, len, n, "zdot")?;
-        zo.copy_from_slice(&sim.z);
-        zdo.copy_from_slice(&sim.zdot);
+        zo.copy_from_slice(sim.z());
+        zdo.copy_from_slice(sim.zdot());
         Ok(())
     })
 }

@@ -472,8 +472,8 @@ impl PyWorld {
         let i = object_index(py, &self.world, object)?;
         let sim = self.world.object(i).sim();
         Ok((
-            sim.z.clone().into_pyarray(py).into_any(),
-            sim.zdot.clone().into_pyarray(py).into_any(),
+            sim.z().to_vec().into_pyarray(py).into_any(),
+            sim.zdot().to_vec().into_pyarray(py).into_any(),
         ))
     }
 
@@ -486,7 +486,7 @@ impl PyWorld {
         zdot: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
         let i = object_index(py, &self.world, object)?;
-        let n = self.world.object(i).sim().z.len();
+        let n = self.world.object(i).sim().z().len();
         let z = vector(py, z, n, "z")?;
         let zdot = vector(py, zdot, n, "zdot")?;
         self.world

@@ -198,7 +198,7 @@ impl WorldContact {
         let positions: Vec<Vec<Point3>> = objects
             .iter()
             .zip(&samples)
-            .map(|(o, s)| s.positions(o.sim().layout(), &o.sim().z))
+            .map(|(o, s)| s.positions(o.sim().layout(), o.sim().z()))
             .collect();
         let self_exclusion: Vec<Option<f64>> = objects
             .iter()
@@ -371,7 +371,7 @@ impl WorldContact {
                 // large island several do at once; one at a time used up the raises on
                 // the first few), solve again from where this solve ended (the stiffer pairs
                 // only have to push out what went too deep).
-                let end: Vec<f64> = sims.iter().flat_map(|s| s.z.iter().copied()).collect();
+                let end: Vec<f64> = sims.iter().flat_map(|s| s.z().iter().copied()).collect();
                 for (a, b) in contact.pairs_deeper_than(&end, self.tolerance) {
                     stiffness[a * m + b] *= STIFFENING_FACTOR;
                     if a != b {
@@ -481,7 +481,7 @@ impl WorldContact {
             self.positions = objects
                 .par_iter()
                 .zip(&self.samples)
-                .map(|(o, s)| s.positions(o.sim().layout(), &o.sim().z))
+                .map(|(o, s)| s.positions(o.sim().layout(), o.sim().z()))
                 .collect();
             let mut group_of = vec![0; n];
             for (g, members) in current.iter().enumerate() {

@@ -98,7 +98,7 @@ impl FrameWriter {
             stress: self.stress.then(|| object.render_stress()).transpose()?,
             x,
         };
-        self.write_drawn(&dir, name, object.sim().time, frame, own)?;
+        self.write_drawn(&dir, name, object.sim().time(), frame, own)?;
         for set in object.render_sets() {
             let x = set.positions(object.sim());
             let drawn = Drawn {
@@ -117,7 +117,7 @@ impl FrameWriter {
                     .transpose()?,
                 x,
             };
-            self.write_drawn(&dir, name, object.sim().time, frame, drawn)?;
+            self.write_drawn(&dir, name, object.sim().time(), frame, drawn)?;
         }
         Ok(())
     }

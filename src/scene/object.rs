@@ -82,7 +82,7 @@ impl std::fmt::Debug for SceneObject {
             .field("name", &self.spec.name)
             .field("kernels", &self.basis.kernels.len())
             .field("modes", &self.basis.modes())
-            .field("time", &self.sim.time)
+            .field("time", &self.sim.time())
             .finish_non_exhaustive()
     }
 }

@@ -217,7 +217,7 @@ pub(super) fn splat_frame(
     positions: Vec<Point3>,
     rotate_sh: bool,
 ) -> MovedSplats {
-    let f = crate::sim::deformation::deformation_gradients(sim.layout(), &sim.z, rest, weights);
+    let f = crate::sim::deformation::deformation_gradients(sim.layout(), sim.z(), rest, weights);
     let d = crate::sim::gaussian::deform_splats(
         &f,
         &splats.log_scales,
@@ -244,7 +244,7 @@ pub(super) fn stress(
     weights: &SkinningWeights,
     lame: &[(f64, f64)],
 ) -> Vec<Mat3> {
-    let f = crate::sim::deformation::deformation_gradients(sim.layout(), &sim.z, rest, weights);
+    let f = crate::sim::deformation::deformation_gradients(sim.layout(), sim.z(), rest, weights);
     f.iter()
         .zip(lame)
         .map(|(f, &(lambda, mu))| {

@@ -140,17 +140,15 @@ pub struct ReducedSim {
     options: NewtonOptions,
     cubature: Cubature,
     /// Reduced coordinates z, 12 (m + 1).
-    pub z: Vec<f64>,
-    /// Reduced velocity dz/dt. It may be set between steps (a kick); with
-    /// [`InitialGuess::Extrapolate`] the next step then starts from an extrapolation that
-    /// includes the change, which moves only that step's starting point.
-    pub zdot: Vec<f64>,
+    z: Vec<f64>,
+    /// Reduced velocity dz/dt.
+    zdot: Vec<f64>,
     /// zdot before the last step (for [`InitialGuess::Extrapolate`]).
     zdot_prev: Vec<f64>,
     /// Simulated time, s.
-    pub time: f64,
+    time: f64,
     /// Steps taken.
-    pub steps: usize,
+    steps: usize,
     history: newton::QuasiNewtonState,
 }
 
@@ -740,31 +738,67 @@ impl ReducedSim {
         Ok(())
     }
 
+    /// Reduced coordinates z, 12 (m + 1): the affine handles' 3 x 4 matrices, row-major.
+    pub fn z(&self) -> &[f64] {
+        &self.z
+    }
+
+    /// Reduced velocity dz/dt, 12 (m + 1), 1/s (set it with [`ReducedSim::set_velocity`] or
+    /// [`ReducedSim::set_state`]).
+    pub fn zdot(&self) -> &[f64] {
+        &self.zdot
+    }
+
+    /// Simulated time, seconds.
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Steps taken.
+    pub fn steps(&self) -> usize {
+        self.steps
+    }
+
     /// Set the state: reduced coordinates `z` and velocity `zdot` (each 12 (m + 1), the
     /// lengths of [`ReducedSim::z`]), e.g. one saved earlier. The solver's history is dropped;
     /// time and step count go on. All or nothing: wrong lengths or non-finite values are
     /// refused and leave the state as it was.
     pub fn set_state(&mut self, z: &[f64], zdot: &[f64]) -> Result<()> {
-        let n = self.z.len();
-        for (name, v) in [("z", z), ("zdot", zdot)] {
-            if v.len() != n {
-                return Err(Error::param(
-                    name,
-                    v.len(),
-                    format!(
-                        "the state has {n} values (12 (m + 1) for m + 1 = {} modes)",
-                        n / 12
-                    ),
-                ));
-            }
-            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-                return Err(Error::param(name, v[i], format!("value {i} is not finite")));
-            }
-        }
+        self.check_state_vector("z", z)?;
+        self.check_state_vector("zdot", zdot)?;
         self.z.copy_from_slice(z);
         self.zdot.copy_from_slice(zdot);
         self.zdot_prev.copy_from_slice(zdot);
         self.history = Default::default();
+        Ok(())
+    }
+
+    /// Set the reduced velocity only (a kick between steps; 12 (m + 1) values, 1/s): the
+    /// positions and the solver's history stay, and with [`InitialGuess::Extrapolate`] the
+    /// next step starts from an extrapolation that includes the change. All or nothing, as
+    /// [`ReducedSim::set_state`].
+    pub fn set_velocity(&mut self, zdot: &[f64]) -> Result<()> {
+        self.check_state_vector("zdot", zdot)?;
+        self.zdot.copy_from_slice(zdot);
+        Ok(())
+    }
+
+    /// A state vector has one finite value per reduced coordinate.
+    fn check_state_vector(&self, name: &'static str, v: &[f64]) -> Result<()> {
+        let n = self.z.len();
+        if v.len() != n {
+            return Err(Error::param(
+                name,
+                v.len(),
+                format!(
+                    "the state has {n} values (12 (m + 1) for m + 1 = {} modes)",
+                    n / 12
+                ),
+            ));
+        }
+        if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+            return Err(Error::param(name, v[i], format!("value {i} is not finite")));
+        }
         Ok(())
     }
 

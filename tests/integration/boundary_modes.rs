@@ -430,5 +430,5 @@ fn the_basis_cache_keys_on_the_regions() {
         a.step().unwrap();
         b.step().unwrap();
     }
-    assert_eq!(a.object(0).sim().z, b.object(0).sim().z);
+    assert_eq!(a.object(0).sim().z(), b.object(0).sim().z());
 }

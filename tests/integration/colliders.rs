@@ -482,7 +482,7 @@ fn a_collider_pose_set_between_steps_matches_the_same_motion_scripted() {
     }
     // Bit for bit: the same poses give the same potential, the same iterates.
     assert!(contacts > 0, "the arm never touched the bar");
-    assert_eq!(scripted.object(0).sim().z, live.object(0).sim().z);
+    assert_eq!(scripted.object(0).sim().z(), live.object(0).sim().z());
 }
 
 fn collider_error(scene: &Scene, base: &Path) -> Error {

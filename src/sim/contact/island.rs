@@ -169,7 +169,7 @@ pub fn step_island(
         offsets.push(at);
         at += s.layout().dofs();
     }
-    let z0: Vec<f64> = sims.iter().flat_map(|s| s.z.iter().copied()).collect();
+    let z0: Vec<f64> = sims.iter().flat_map(|s| s.z().iter().copied()).collect();
     let guess: Vec<f64> = starts
         .iter()
         .flat_map(|s| s.guess.iter().copied())
