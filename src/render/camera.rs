@@ -2,6 +2,7 @@
 //! and elevation about an up axis, placed so the bounds fit the viewport with a margin.
 
 use crate::geometry::Aabb;
+use crate::linalg3::{cross, dot, normalize, sub};
 use crate::Point3;
 
 /// Perspective (a field of view) or orthographic projection.
@@ -70,24 +71,6 @@ pub struct Camera {
     scale: f64,
 }
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-fn normalize(a: [f64; 3]) -> Option<[f64; 3]> {
-    let n = dot(a, a).sqrt();
-    (n > 0.0 && n.is_finite()).then(|| [a[0] / n, a[1] / n, a[2] / n])
-}
-
 impl Camera {
     /// A camera looking at the centre of `bounds` along `options`' direction, at the distance
     /// (perspective) or extent (orthographic) where the bounds' circumscribed sphere, enlarged
@@ -98,10 +81,10 @@ impl Camera {
         let d = CameraOptions::default();
         let up = normalize(options.up).unwrap_or(d.up);
         // Horizontal reference axes: +z projected off the up axis (or +x when up is along z).
-        let h0 = normalize(sub([0.0, 0.0, 1.0], scaled(up, up[2])))
-            .or_else(|| normalize(sub([1.0, 0.0, 0.0], scaled(up, up[0]))))
+        let h0 = normalize(sub(&[0.0, 0.0, 1.0], &scaled(up, up[2])))
+            .or_else(|| normalize(sub(&[1.0, 0.0, 0.0], &scaled(up, up[0]))))
             .unwrap_or([1.0, 0.0, 0.0]);
-        let h1 = cross(up, h0);
+        let h1 = cross(&up, &h0);
         let finite = |v: f64, dflt: f64| if v.is_finite() { v } else { dflt };
         let az = finite(options.azimuth_deg, d.azimuth_deg).to_radians();
         let el = finite(options.elevation_deg, d.elevation_deg)
@@ -111,11 +94,11 @@ impl Camera {
         let to_eye =
             [0, 1, 2].map(|i| el.cos() * (az.cos() * h0[i] + az.sin() * h1[i]) + el.sin() * up[i]);
         let forward = scaled(to_eye, -1.0);
-        let right = normalize(cross(forward, up)).unwrap_or(h1);
-        let cam_up = cross(right, forward);
+        let right = normalize(cross(&forward, &up)).unwrap_or(h1);
+        let cam_up = cross(&right, &forward);
         let centre = [0, 1, 2].map(|i| 0.5 * (bounds.min[i] + bounds.max[i]));
         let half = [0, 1, 2].map(|i| 0.5 * (bounds.max[i] - bounds.min[i]));
-        let mut radius = dot(half, half).sqrt();
+        let mut radius = dot(&half, &half).sqrt();
         if !(radius > 0.0 && radius.is_finite()) {
             radius = 1.0;
         }
@@ -162,9 +145,9 @@ impl Camera {
     /// depth along the view direction in metres). Columns and rows are continuous (pixel
     /// centres at +0.5); None for a point at or behind the eye.
     pub fn project(&self, p: Point3, width: f64, height: f64) -> Option<(f64, f64, f64)> {
-        let v = sub(p, self.eye);
-        let depth = dot(v, self.forward);
-        let (x, y) = (dot(v, self.right), dot(v, self.up));
+        let v = sub(&p, &self.eye);
+        let depth = dot(&v, &self.forward);
+        let (x, y) = (dot(&v, &self.right), dot(&v, &self.up));
         let half = 0.5 * width.min(height);
         let (nx, ny) = match self.projection {
             Projection::Perspective { .. } => {
@@ -183,8 +166,8 @@ impl Camera {
     /// world covariance at `p` into a screen covariance (EWA splatting). None where `project`
     /// is None.
     pub fn jacobian(&self, p: Point3, width: f64, height: f64) -> Option<[[f64; 3]; 2]> {
-        let v = sub(p, self.eye);
-        let depth = dot(v, self.forward);
+        let v = sub(&p, &self.eye);
+        let depth = dot(&v, &self.forward);
         let half = 0.5 * width.min(height);
         match self.projection {
             Projection::Perspective { .. } => {
@@ -193,7 +176,7 @@ impl Camera {
                 }
                 // column = c + f x / z, row = c' - f y / z with (x, y, z) in the camera frame.
                 let f = half * self.scale / depth;
-                let (x, y) = (dot(v, self.right) / depth, dot(v, self.up) / depth);
+                let (x, y) = (dot(&v, &self.right) / depth, dot(&v, &self.up) / depth);
                 Some([
                     [0, 1, 2].map(|k| f * (self.right[k] - x * self.forward[k])),
                     [0, 1, 2].map(|k| -f * (self.up[k] - y * self.forward[k])),

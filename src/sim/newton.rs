@@ -324,7 +324,8 @@ pub struct SolverContext<'a> {
     pub options: &'a NewtonOptions,
 }
 
-fn dot(a: &[f64], b: &[f64]) -> f64 {
+/// a . b of two vectors of one length.
+pub(super) fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 

@@ -32,29 +32,8 @@ pub use tree::{WindingParams, WindingTree};
 use crate::Point3;
 use rayon::prelude::*;
 
-#[inline]
-pub(crate) fn sub(a: &Point3, b: &Point3) -> Point3 {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-#[inline]
-pub(crate) fn dot(a: &Point3, b: &Point3) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-#[inline]
-pub(crate) fn cross(a: &Point3, b: &Point3) -> Point3 {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-#[inline]
-pub(crate) fn norm(a: &Point3) -> f64 {
-    dot(a, a).sqrt()
-}
+// The 3-vector helpers of the winding-number code are linalg3's.
+pub(crate) use crate::linalg3::{cross, dot, norm, sub};
 
 /// Unit normal of the triangle `(a, b, c)`, `(b - a) x (c - a)` normalized; zero when the
 /// triangle has no area.

@@ -5,7 +5,7 @@
 //! object), so the cost grows with the number of objects and contacts instead of the cube
 //! of the island's size, as the dense factorization did (docs/performance.md).
 
-use crate::sim::newton::RestSolve;
+use crate::sim::newton::{dot, RestSolve};
 use faer::linalg::matmul::matmul;
 use faer::linalg::solvers::{Llt, Solve};
 use faer::{Accum, Mat, MatMut, MatRef, Par, Side};
@@ -165,10 +165,6 @@ pub struct CgInfo {
 /// Entries lo..hi of `v` as a column.
 fn column(v: &[f64], lo: usize, hi: usize) -> MatRef<'_, f64> {
     MatRef::from_column_major_slice(&v[lo..hi], hi - lo, 1)
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 impl BlockSolve {
