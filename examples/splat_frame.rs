@@ -17,9 +17,9 @@ use freeform::precompute::{build_basis, BasisOptions};
 use freeform::progress::Silent;
 use freeform::report::Stopwatch;
 use freeform::sim::deformation::deformation_gradients;
+use freeform::sim::deformation::map_points;
 use freeform::sim::elastic::Layout;
 use freeform::sim::gaussian::deform_splats;
-use freeform::sim::object::map_points;
 
 struct Lcg(u64);
 impl Lcg {

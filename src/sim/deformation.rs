@@ -60,3 +60,25 @@ pub fn skinned_position(x: Point3, w: &[f64], z: &[f64], row_len: usize) -> Poin
     let d = skinned_offset(x, w, z, row_len);
     [x[0] + d[0], x[1] + d[1], x[2] + d[2]]
 }
+
+/// x(X_i) = X_i + sum_j W_j(X_i) Z_j [X_i; 1], metres, for rest points `rest` (N x 3,
+/// metres) with skinning weights `w` (N points) under state `z` (12 (m + 1)): the deformed
+/// render points and splat centres. Each coordinate accumulates from X_i handle by handle
+/// (the frames' bits depend on that order; [`skinned_position`] sums the offset first).
+pub fn map_points(layout: Layout, z: &[f64], rest: &[Point3], w: &SkinningWeights) -> Vec<Point3> {
+    let nh = layout.handles;
+    rest.par_iter()
+        .enumerate()
+        .map(|(i, x)| {
+            let mut y = *x;
+            for j in 0..nh {
+                let wj = w.values[i * nh + j];
+                for (r, yr) in y.iter_mut().enumerate() {
+                    let o = layout.index(r, j, 0);
+                    *yr += wj * (z[o] * x[0] + z[o + 1] * x[1] + z[o + 2] * x[2] + z[o + 3]);
+                }
+            }
+            y
+        })
+        .collect()
+}

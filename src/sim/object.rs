@@ -11,6 +11,7 @@ use crate::precompute::skinning::{Basis, SkinningWeights};
 use crate::report::Stopwatch;
 use crate::sim::collider::{self, Collider, ColliderShape, Obstacle};
 use crate::sim::cubature::{self, Cubature, DEFAULT_CUBATURE};
+pub use crate::sim::deformation::map_points;
 use crate::sim::elastic::{ElasticTerm, Layout, Precision, Projection};
 use crate::sim::motion::{rotation_matrix, AxisAngle, Motion, Rigid};
 use crate::sim::newton::{
@@ -845,26 +846,6 @@ impl ReducedSim {
         }
         .hessian(z)
     }
-}
-
-/// x = X + sum_j W_j Z_j [X; 1] for each point.
-pub fn map_points(layout: Layout, z: &[f64], rest: &[Point3], w: &SkinningWeights) -> Vec<Point3> {
-    use rayon::prelude::*;
-    let nh = layout.handles;
-    rest.par_iter()
-        .enumerate()
-        .map(|(i, x)| {
-            let mut y = *x;
-            for j in 0..nh {
-                let wj = w.values[i * nh + j];
-                for (r, yr) in y.iter_mut().enumerate() {
-                    let o = layout.index(r, j, 0);
-                    *yr += wj * (z[o] * x[0] + z[o + 1] * x[1] + z[o + 2] * x[2] + z[o + 3]);
-                }
-            }
-            y
-        })
-        .collect()
 }
 
 fn subset(w: &SkinningWeights, idx: &[usize]) -> SkinningWeights {

@@ -426,7 +426,7 @@ fn deformation_gradient_matches_finite_differences_of_the_map() {
             a[c] += h;
             b[c] -= h;
             let wab = obj.basis().weights(&[a, b]).unwrap();
-            let x = freeform::sim::object::map_points(layout, &z, &[a, b], &wab);
+            let x = freeform::sim::deformation::map_points(layout, &z, &[a, b], &wab);
             for r in 0..3 {
                 let fd = (x[0][r] - x[1][r]) / (2.0 * h);
                 assert!(
