@@ -243,3 +243,41 @@ def test_stress_at_rest_is_zero_and_under_load_balances_gravity():
     # The held bar hangs under gravity: bending stress, largest near the held end, of the
     # order of rho g L^2 / h (1000 * 9.81 * 1 / 0.2 ~ 5e4 Pa).
     assert 1e3 < np.abs(sigma).max() < 1e6
+
+
+STRICT_SCENE = """
+[simulation]
+dt = 0.01
+steps = 5
+gravity = [0.0, -9.81, 0.0]
+
+[solver]
+hessian = "newton"
+tol = 1e-9
+max_iter = 1
+cubature = 300
+
+[cache]
+enabled = false
+
+[[object]]
+name = "bar"
+shape = "box:1,0.2,0.2"
+basis = { kernels = 60, modes = 4, points = 3000 }
+
+[[object.boundary]]
+region = { half_space = { point = [0.1, 0, 0], normal = [-1, 0, 0] } }
+"""
+
+
+def test_a_strict_world_refuses_every_step_after_it_stopped():
+    # One Newton iteration cannot reach 1e-9: the first step warns, and strict mode stops the
+    # world there for good, as the C world does.
+    world = ff.World(ff.Scene.from_toml(STRICT_SCENE), strict=True)
+    with pytest.raises(ff.StrictModeError, match="did not converge"):
+        world.step()
+    t = world.time
+    for _ in range(2):
+        with pytest.raises(ff.StrictModeError):
+            world.step()
+    assert world.time == t

@@ -63,6 +63,9 @@ pub struct World {
     time: f64,
     steps: usize,
     strict: bool,
+    /// Set when strict mode stopped a step: the world stops for good (its objects may be
+    /// part-way through that step).
+    stopped: bool,
     warnings: Vec<String>,
     /// Object-object contact (scenes with `[contact]` only).
     contact: Option<WorldContact>,
@@ -168,6 +171,7 @@ impl World {
             time: 0.0,
             steps: 0,
             strict: settings.strict,
+            stopped: false,
             warnings,
             contact,
         })
@@ -181,8 +185,29 @@ impl World {
     /// # Errors
     /// [`Error::Strict`] in strict mode at the first warning this step raises, with every
     /// warning so far. The objects up to the one that raised it have taken the step, the
-    /// others and [`World::time`] have not: a strict run is over at that point.
+    /// others have not ([`World::time`] counts the step only when every object took it). The
+    /// world then stops for good: every later step returns [`Error::Strict`] again with the
+    /// same warnings and moves nothing ([`World::stopped`]); reading and the setters stay.
     pub fn step(&mut self) -> Result<Vec<StepReport>> {
+        if self.stopped {
+            return Err(Error::Strict {
+                warnings: self.warnings.clone(),
+            });
+        }
+        let r = self.step_all();
+        if matches!(r, Err(Error::Strict { .. })) {
+            self.stopped = true;
+        }
+        r
+    }
+
+    /// Whether strict mode stopped the world (every later [`World::step`] is refused).
+    pub fn stopped(&self) -> bool {
+        self.stopped
+    }
+
+    /// One step of every object (with contact, of the islands), strict mode checked.
+    fn step_all(&mut self) -> Result<Vec<StepReport>> {
         if let Some(c) = self.contact.as_mut() {
             let before = self.warnings.len();
             let reports = c.step(&mut self.objects, &mut self.warnings);

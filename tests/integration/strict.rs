@@ -180,3 +180,33 @@ fn run_reports_monitors_and_strict_stops_at_the_first_failed_step() {
     assert_eq!(inverted.len(), 1, "{warnings:?}");
     assert!(v["objects"][0]["monitors"]["min_det"].as_f64().unwrap() <= 0.0);
 }
+
+/// A strict world stops for good at its first warning: later steps are refused with the same
+/// warnings and move nothing, in the library itself (so C and Python behave alike).
+#[test]
+fn a_strict_world_refuses_every_step_after_it_stopped() {
+    use freeform::scene::{RunSettings, Scene, World};
+    let dir = tempfile::tempdir().unwrap();
+    // One Newton iteration cannot reach 1e-9: step 1 warns, so strict mode stops there.
+    let scene = Scene::load(&write_scene(dir.path(), 1, 1e5)).unwrap();
+    let settings = RunSettings {
+        strict: true,
+        ..RunSettings::for_scene_file(dir.path().join("x.toml").as_path())
+    };
+    let mut world = World::new(&scene, &settings, &freeform::progress::Silent).unwrap();
+    let first = world.step().unwrap_err();
+    let freeform::Error::Strict { warnings } = &first else {
+        panic!("expected a strict-mode stop, got {first}");
+    };
+    assert!(world.stopped());
+    let (time, z) = (world.time(), world.object(0).sim().z().to_vec());
+    for _ in 0..2 {
+        match world.step() {
+            Err(freeform::Error::Strict { warnings: again }) => assert_eq!(&again, warnings),
+            other => panic!("a stopped world stepped: {other:?}"),
+        }
+    }
+    assert_eq!(world.time().to_bits(), time.to_bits());
+    assert_eq!(world.object(0).sim().z(), z.as_slice());
+    assert_eq!(world.object(0).sim().steps(), 1);
+}
