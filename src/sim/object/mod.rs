@@ -4,16 +4,18 @@
 //! Only the terms the setup declares are built: no gravity code runs without gravity, no
 //! boundary moments without boundaries, no contact loop without colliders.
 
-use crate::material::{MaterialField, Region};
+mod options;
+
+use crate::material::MaterialField;
 use crate::precompute::boundary_modes::lift_column;
 use crate::precompute::sampling::IntegrationPoints;
 use crate::precompute::skinning::{Basis, SkinningWeights};
 use crate::report::Stopwatch;
-use crate::sim::collider::{self, Collider, ColliderShape, Obstacle};
-use crate::sim::cubature::{self, Cubature, DEFAULT_CUBATURE};
+use crate::sim::collider::{self, ColliderShape, Obstacle};
+use crate::sim::cubature::{self, Cubature};
 pub use crate::sim::deformation::map_points;
 use crate::sim::elastic::{ElasticTerm, Layout, Precision, Projection};
-use crate::sim::motion::{rotation_matrix, AxisAngle, Motion, Rigid};
+use crate::sim::motion::{Motion, Rigid};
 use crate::sim::newton::{
     self, EvalInfo, InitialGuess, NewtonOptions, Potential, SolveReport, SolverContext,
 };
@@ -24,104 +26,8 @@ use crate::sim::terms::{
 use crate::{Error, Point3, Result};
 use faer::linalg::solvers::Llt;
 use faer::{Mat, Side};
-use serde::{Deserialize, Serialize};
-
-/// Default penalty factor: a penalty stiffness is this factor times the larger of the
-/// inertial (rho / h^2) and elastic (E / D^2) stiffness densities, so it dominates both and
-/// scales with the units, the material and the time step.
-pub const PENALTY_FACTOR: f64 = 1e3;
-
-/// How much deeper into an obstacle a cubature point may go along one line-search step,
-/// as a fraction of the object's rest diagonal: small enough that a plate a few percent of
-/// the object's size cannot be jumped across, large enough that an object settling into
-/// contact is not held back (the penalty's depth at rest is far smaller).
-pub const SWEEP_DEPTH: f64 = 0.01;
-
-/// A region of the object driven by a prescribed motion (held when the motion is `Fixed`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Boundary {
-    /// Which integration points (rest positions) are driven.
-    pub region: Region,
-    /// The motion of their rest positions (default: held in place).
-    #[serde(default = "fixed")]
-    pub motion: Motion,
-    /// Penalty stiffness, Pa/m^2 (default: [`PENALTY_FACTOR`] x max(rho/h^2, E/D^2)).
-    #[serde(default)]
-    pub stiffness: Option<f64>,
-}
-
-fn fixed() -> Motion {
-    Motion::Fixed
-}
-
-/// Initial placement and velocity of an object (applied to its rest shape).
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct Placement {
-    /// Translation, metres.
-    pub translation: [f64; 3],
-    /// Rotation about the origin, applied before the translation.
-    pub rotation: Option<AxisAngle>,
-    /// Initial linear velocity, m/s.
-    pub velocity: [f64; 3],
-    /// Initial angular velocity about the placed centre of mass, rad/s.
-    pub angular_velocity: [f64; 3],
-}
-
-/// Everything that defines the simulation of one object besides its basis.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SimOptions {
-    /// Time step h, seconds.
-    pub dt: f64,
-    /// Gravity, m/s^2 (None: no gravity term at all).
-    pub gravity: Option<[f64; 3]>,
-    /// Cubature points for the elastic energy (default 5000; all points if fewer).
-    pub cubature: usize,
-    /// Per-step solver settings.
-    pub newton: NewtonOptions,
-    /// Kinematic boundary conditions.
-    pub boundaries: Vec<Boundary>,
-    /// Obstacles (static or kinematic; meshes loaded by [`ColliderShape::load`] are shared,
-    /// others are read here).
-    pub colliders: Vec<Collider>,
-    /// Initial placement and velocity.
-    pub placement: Placement,
-}
-
-impl Default for SimOptions {
-    fn default() -> Self {
-        Self {
-            dt: 0.01,
-            gravity: None,
-            cubature: DEFAULT_CUBATURE,
-            newton: NewtonOptions::default(),
-            boundaries: Vec::new(),
-            colliders: Vec::new(),
-            placement: Placement::default(),
-        }
-    }
-}
-
-/// Report of one time step.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct StepReport {
-    /// Step number (1-based).
-    pub step: usize,
-    /// Time at the end of the step, s.
-    pub time: f64,
-    /// Wall time of the step, s.
-    pub wall_s: f64,
-    /// The minimisation's report.
-    #[serde(flatten)]
-    pub solve: SolveReport,
-    /// The largest over the boundary regions of the volume-weighted RMS distance of a
-    /// region's integration points from their targets at the end of the step, metres (None
-    /// without boundaries). A free basis holds every point, an aware one its lift, so an aware
-    /// region's edge band shows here, as does a region the basis cannot follow.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub boundary_rms_deviation: Option<f64>,
-}
+use options::placement_transform;
+pub use options::{Boundary, Placement, SimOptions, StepReport, PENALTY_FACTOR, SWEEP_DEPTH};
 
 /// A simulated object.
 pub struct ReducedSim {
@@ -861,34 +767,6 @@ fn subset(w: &SkinningWeights, idx: &[usize]) -> SkinningWeights {
             .flat_map(|&i| w.gradients[i * m..(i + 1) * m].iter().copied())
             .collect(),
     }
-}
-
-fn placement_transform(p: &Placement) -> Result<Rigid> {
-    if !p.translation.iter().all(|v| v.is_finite()) {
-        return Err(Error::param(
-            "translation",
-            format!("{:?}", p.translation),
-            "must be finite",
-        ));
-    }
-    let rotation = match &p.rotation {
-        None => Rigid::IDENTITY.rotation,
-        Some(a) => {
-            let n = a.axis.iter().map(|v| v * v).sum::<f64>().sqrt();
-            if !(n > 0.0 && n.is_finite() && a.degrees.is_finite()) {
-                return Err(Error::param(
-                    "rotation",
-                    format!("{a:?}"),
-                    "needs a finite non-zero axis and a finite angle",
-                ));
-            }
-            rotation_matrix(&a.axis.map(|v| v / n), a.degrees.to_radians())
-        }
-    };
-    Ok(Rigid {
-        rotation,
-        translation: p.translation,
-    })
 }
 
 /// A saved state of a [`ReducedSim`].
