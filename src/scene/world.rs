@@ -221,13 +221,11 @@ impl World {
         let mut reports = Vec::with_capacity(self.objects.len());
         let before = self.warnings.len();
         let last = self.objects.len().saturating_sub(1);
-        for (i, object) in self.objects.iter_mut().enumerate() {
-            reports.push(object.step(&mut self.warnings));
+        for i in 0..self.objects.len() {
+            reports.push(self.objects[i].step(&mut self.warnings));
             if i == last {
-                // Every object took the step: it counts, even when strict mode stops here
-                // (the same clock update as `advance_clock`; `objects` is borrowed).
-                self.time += self.dt;
-                self.steps += 1;
+                // Every object took the step: it counts, even when strict mode stops here.
+                self.advance_clock();
             }
             if self.warnings.len() > before {
                 check_strict(self.strict, &self.warnings)?;
@@ -243,7 +241,7 @@ impl World {
     }
 
     /// Simulated time, seconds: the world's own clock, advanced once every object took a
-    /// step (a step stopped by strict mode does not count).
+    /// step (a strict-mode stop part-way through the objects does not count).
     pub fn time(&self) -> f64 {
         self.time
     }
