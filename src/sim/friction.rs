@@ -16,6 +16,7 @@
 //! f1/y across it, 0 along n): Newton needs no projection.
 
 use crate::linalg3::{norm, Mat3};
+use crate::Point3;
 
 /// The smoothed friction potential of one contact: its lagged mu lambda (N), normal
 /// projector P and the tangential displacement s it sees.
@@ -71,6 +72,20 @@ pub fn hessian(mu_lambda: f64, eps: f64, p: &Mat3, d: &[f64; 3]) -> Mat3 {
         (1.0 / y, -1.0 / (y * y * y))
     };
     std::array::from_fn(|r| std::array::from_fn(|c| mu_lambda * (a * p[r][c] + b * s[r] * s[c])))
+}
+
+/// A collider contact at the start of a step, as lagged friction keeps it
+/// ([`crate::sim::terms::ContactTerm::friction_lag`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ColliderLag {
+    /// The cubature point (index into the term's points).
+    pub point: usize,
+    /// Friction coefficient times the normal force, N.
+    pub mu_lambda: f64,
+    /// I - n n^T of the contact normal at the start of the step.
+    pub projector: Mat3,
+    /// Where the obstacle would carry the point by the end of the step, metres.
+    pub carried: Point3,
 }
 
 #[cfg(test)]

@@ -130,9 +130,9 @@ fn collider_penalties_match_finite_differences_in_z() {
         let (info, g) = eval(&z);
         assert!(info.active >= 10, "{what}: only {} contacts", info.active);
         let mut exact = faer::Mat::<f64>::zeros(n, n);
-        contact.add_hessian(layout, t, &z, ContactHessian::Exact, &mut exact);
+        contact.add_penalty_hessian(layout, t, &z, ContactHessian::Exact, &mut exact);
         let mut psd = faer::Mat::<f64>::zeros(n, n);
-        contact.add_hessian(layout, t, &z, ContactHessian::Psd, &mut psd);
+        contact.add_penalty_hessian(layout, t, &z, ContactHessian::Psd, &mut psd);
         let gnorm = dot(&g, &g).sqrt();
         let hnorm = exact.norm_l2();
         for seed in 0..4 {

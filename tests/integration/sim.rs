@@ -12,7 +12,9 @@ use freeform::precompute::{build_basis, BasisOptions, BasisRun, SolverConfig};
 use freeform::progress::Silent;
 use freeform::sim::elastic::{Precision, Projection};
 use freeform::sim::motion::{AxisAngle, Motion};
-use freeform::sim::terms::ColliderShape;
+use freeform::sim::terms::{
+    check_derivatives, ColliderLag, ColliderShape, EnergySum, HessianKind, StepAt, Term, TermKind,
+};
 use freeform::sim::{
     Boundary, Collider, HessianStrategy, InitialGuess, NewtonOptions, Placement, ReducedSim,
     SimOptions,
@@ -149,6 +151,159 @@ fn gradient_and_hessian_match_finite_differences() {
         exact_min < -1e-6 * hscale,
         "the test state should make the exact Hessian indefinite ({exact_min})"
     );
+}
+
+/// A toy term, as a caller would write one: a spring of stiffness `k` (N/m) pulling the
+/// translation part of handle 0 towards `target` (metres), E = k/2 |t_0 - target|^2.
+struct TranslationSpring {
+    k: f64,
+    target: [f64; 3],
+}
+
+impl Term for TranslationSpring {
+    fn kind(&self) -> TermKind {
+        TermKind::Custom("translation spring".into())
+    }
+
+    fn add_energy_gradient(&self, at: &StepAt<'_>, z: &[f64], sum: &mut EnergySum<'_>) {
+        for r in 0..3 {
+            let i = at.layout.index(r, 0, 3);
+            let d = z[i] - self.target[r];
+            sum.energy += 0.5 * self.k * d * d;
+            sum.grad[i] += self.k * d;
+        }
+    }
+
+    fn add_hessian(&self, at: &StepAt<'_>, _z: &[f64], _kind: HessianKind, h: &mut faer::Mat<f64>) {
+        for r in 0..3 {
+            let i = at.layout.index(r, 0, 3);
+            h[(i, i)] += self.k;
+        }
+    }
+}
+
+/// Every built term (inertia, elastic, gravity, a moving boundary, a plane collider with
+/// lagged friction) and a caller's toy term: gradient and exact Hessian against central
+/// differences, each by itself, through the one shared checker. The toy term joins with one
+/// call and shows in the report's term list; the potential is the sum of the terms; a stiff
+/// toy spring moves the object where it pulls.
+#[test]
+fn every_term_matches_finite_differences_and_a_toy_term_joins_with_one_call() {
+    let run = bar(40, 4, 2000);
+    let opts = SimOptions {
+        gravity: Some([0.0, -9.81, 0.0]),
+        cubature: 300,
+        boundaries: vec![Boundary {
+            motion: Motion::Rotate {
+                pivot: [0.0, 0.1, 0.1],
+                axis: [1.0, 0.0, 0.0],
+                degrees_per_second: 90.0,
+            },
+            ..held_left()
+        }],
+        colliders: vec![Collider {
+            shape: ColliderShape::Plane {
+                point: [0.0, 0.02, 0.0],
+                normal: [0.0, 1.0, 0.0],
+            },
+            stiffness: Some(1e7),
+            name: None,
+            motion: Motion::Fixed,
+            parent: None,
+        }],
+        ..SimOptions::default()
+    };
+    let mut s = sim(&run, &opts);
+    let target = [0.1, -0.2, 0.05];
+    s.add_term(Box::new(TranslationSpring { k: 3e4, target }))
+        .unwrap();
+    let held = format!("boundary 0 ({} points)", s.boundaries()[0].points.len());
+    assert_eq!(
+        s.terms(),
+        [
+            "inertia",
+            "elastic",
+            "gravity",
+            &held,
+            "colliders (1: plane)",
+            "translation spring"
+        ]
+    );
+    let layout = s.layout();
+    let n = layout.dofs();
+    // A moderately large deformation (F far from I, some points below the plane).
+    let z = random_z(n, 0.5, 7);
+    let zpred = random_z(n, 0.5, 8);
+    // One lagged friction contact (normal y) whose point the obstacle carries elsewhere.
+    let lag = [ColliderLag {
+        point: 3,
+        mu_lambda: 40.0,
+        projector: freeform::sim::friction::tangent_projector(&[0.0, 1.0, 0.0]),
+        carried: [0.3, 0.0, 0.1],
+    }];
+    let at = StepAt {
+        layout,
+        t: 0.3,
+        dt: 0.01,
+        zpred: &zpred,
+        friction: Some((&lag, 1e-3)),
+    };
+    let mut rng = Rng(11);
+    let dirs: Vec<Vec<f64>> = (0..6)
+        .map(|_| (0..n).map(|_| rng.next() - 0.5).collect())
+        .collect();
+    let terms = s.potential_terms();
+    let one = |term: &dyn Term, at: &StepAt<'_>, z: &[f64], g: &mut [f64]| {
+        let mut sum = EnergySum::new(g);
+        term.add_energy_gradient(at, z, &mut sum);
+        sum.energy
+    };
+    for term in terms.iter() {
+        let energy = |z: &[f64], g: &mut [f64]| one(term, &at, z, g);
+        let hessian = |z: &[f64]| {
+            let mut h = faer::Mat::zeros(n, n);
+            term.add_hessian(&at, z, HessianKind::Exact, &mut h);
+            h
+        };
+        let mut g = vec![0.0; n];
+        energy(&z, &mut g);
+        let gnorm = g.iter().map(|v| v * v).sum::<f64>().sqrt();
+        // h = 1e-6 in z (entries ~0.5): truncation (h^2 / 6) E''' and rounding eps |E| / h
+        // are both below 1e-6 of the slopes here. The collider penalty has a kink where a
+        // point crosses the plane (O(k v h^2) within +-h), rare at 6 random directions.
+        // The floor (1e-9 of |g| |d|, |d| ~ 1) only matters for a term with zero gradient.
+        let floor = 1e-9 * gnorm.max(1.0);
+        let check = check_derivatives(energy, Some(&hessian), &z, &dirs, 1e-6, floor);
+        assert!(
+            check.gradient < 1e-6 && check.hessian < 1e-5,
+            "{}: {check:?}",
+            term.kind()
+        );
+    }
+    // The potential is the sum of its terms.
+    let (e, _) = terms.energy_gradient(&at, &z, &mut vec![0.0; n]);
+    let parts: f64 = terms
+        .iter()
+        .map(|t| one(t, &at, &z, &mut vec![0.0; n]))
+        .sum();
+    // The same numbers summed in another grouping: a few ulps of the largest part.
+    assert!(
+        (e - parts).abs() <= 1e-12 * e.abs().max(parts.abs()),
+        "{e} vs {parts}"
+    );
+    // A stiff spring (1e9 N/m against a 40 kg bar's inertia, 5 steps) holds handle 0's
+    // translation within 1e-3 of the target's size.
+    let mut pulled = sim(&run, &SimOptions::default());
+    pulled
+        .add_term(Box::new(TranslationSpring { k: 1e9, target }))
+        .unwrap();
+    for _ in 0..5 {
+        assert!(pulled.step().solve.converged);
+    }
+    for (r, want) in target.iter().enumerate() {
+        let got = pulled.z()[layout.index(r, 0, 3)];
+        assert!((got - want).abs() < 2e-4, "row {r}: {got} vs {want}");
+    }
 }
 
 #[test]

@@ -1,308 +1,22 @@
-//! The quadratic and penalty terms of the incremental potential: inertia and gravity (exact,
-//! from precomputed moments over all integration points), kinematic boundary penalties
-//! (held or moving regions, also quadratic in z), and one-sided collider penalties (evaluated
-//! on the cubature points).
-//!
-//! Every point position is x = X + B z with B = I_3 (x) b^T, b[4 j + a] = W_j(X) Xh_a, so a
-//! weighted sum of |x - target|^2 over fixed points is a quadratic in z whose coefficients
-//! are the moments sum c b b^T, sum c b Xh^T and sum c Xh Xh^T, computed once.
+//! One-sided collider penalties on the cubature points, their swept step bound and lagged
+//! friction against the colliders.
 
+use super::moments::add_outer_blocks;
+use super::term::{EnergySum, HessianKind, StepAt, Term, TermKind};
 use crate::linalg3::dot;
 use crate::precompute::skinning::SkinningWeights;
-pub use crate::sim::collider::ColliderShape;
-use crate::sim::collider::{Kinematics, Penetration};
+use crate::sim::collider::{Kinematics, Obstacle, Penetration};
 use crate::sim::elastic::Layout;
-use crate::sim::motion::{Motion, Rigid};
+use crate::sim::friction::ColliderLag;
 use crate::Point3;
-use faer::prelude::ReborrowMut;
-use faer::{Accum, Mat, MatMut, MatRef, Par};
-
-/// Weighted moments of the map b over a point set.
-#[derive(Debug, Clone)]
-pub struct Moments {
-    /// sum c b b^T, 4 (m + 1) square.
-    pub bb: Mat<f64>,
-    /// sum c b Xh^T, 4 (m + 1) x 4.
-    pub bx: Mat<f64>,
-    /// sum c Xh Xh^T, 4 x 4.
-    pub xx: [[f64; 4]; 4],
-    /// sum c b, 4 (m + 1).
-    pub b: Vec<f64>,
-    /// sum c.
-    pub total: f64,
-}
-
-/// Rows of b for `points` (row i = b(X_i), 4 (m + 1) entries), each scaled by `scale[i]`.
-fn b_rows(points: &[Point3], w: &SkinningWeights, idx: &[usize], scale: &[f64]) -> Mat<f64> {
-    let nh = w.modes;
-    Mat::from_fn(idx.len(), 4 * nh, |p, col| {
-        let i = idx[p];
-        let (j, a) = (col / 4, col % 4);
-        let xa = if a == 3 { 1.0 } else { points[i][a] };
-        scale[p] * w.values[i * nh + j] * xa
-    })
-}
-
-impl Moments {
-    /// Moments over the points `idx` of `points` with non-negative weights `coef` (one per
-    /// index); `w` holds the skinning weights of all `points`.
-    pub fn new(points: &[Point3], w: &SkinningWeights, idx: &[usize], coef: &[f64]) -> Moments {
-        let n4 = 4 * w.modes;
-        let mut bb = Mat::<f64>::zeros(n4, n4);
-        let mut bx = Mat::<f64>::zeros(n4, 4);
-        let mut xx = [[0.0; 4]; 4];
-        let mut b = vec![0.0; n4];
-        // Blocks of rows keep the dense scratch small for millions of points.
-        for (ids, cs) in idx.chunks(4096).zip(coef.chunks(4096)) {
-            let sq: Vec<f64> = cs.iter().map(|c| c.max(0.0).sqrt()).collect();
-            let rows = b_rows(points, w, ids, &sq);
-            faer::linalg::matmul::matmul(
-                bb.as_mut(),
-                Accum::Add,
-                rows.transpose(),
-                rows.as_ref(),
-                1.0,
-                Par::rayon(0),
-            );
-            let xh = Mat::from_fn(ids.len(), 4, |p, a| {
-                sq[p] * if a == 3 { 1.0 } else { points[ids[p]][a] }
-            });
-            faer::linalg::matmul::matmul(
-                bx.as_mut(),
-                Accum::Add,
-                rows.transpose(),
-                xh.as_ref(),
-                1.0,
-                Par::Seq,
-            );
-            for (p, (&i, &c)) in ids.iter().zip(cs).enumerate() {
-                let x = points[i];
-                let h = [x[0], x[1], x[2], 1.0];
-                for a in 0..4 {
-                    for q in 0..4 {
-                        xx[a][q] += c * h[a] * h[q];
-                    }
-                }
-                for (col, bc) in b.iter_mut().enumerate() {
-                    *bc += sq[p] * rows[(p, col)];
-                }
-            }
-        }
-        // Exact symmetry.
-        for i in 0..n4 {
-            for j in 0..i {
-                let v = 0.5 * (bb[(i, j)] + bb[(j, i)]);
-                bb[(i, j)] = v;
-                bb[(j, i)] = v;
-            }
-        }
-        Moments {
-            bb,
-            bx,
-            xx,
-            b,
-            total: coef.iter().sum(),
-        }
-    }
-}
-
-/// y += A x for the n4 x n4 matrix A applied to each row block of z.
-pub fn add_block_product(layout: Layout, a: &Mat<f64>, scale: f64, z: &[f64], y: &mut [f64]) {
-    let n4 = layout.row_len();
-    for r in 0..3 {
-        let zr = &z[r * n4..(r + 1) * n4];
-        let yr = &mut y[r * n4..(r + 1) * n4];
-        for (j, zj) in zr.iter().enumerate() {
-            if *zj != 0.0 {
-                let col = a.col(j);
-                for (i, yi) in yr.iter_mut().enumerate() {
-                    *yi += scale * col[i] * zj;
-                }
-            }
-        }
-    }
-}
-
-/// Add sum_p (b_p b_p^T) (x) H_p to `target` (3 n4 x 3 n4, the layout of z): its block (r, s)
-/// (n4 x n4) gains B^T diag(H_p[r][s]) B, one matrix product per block, with B = `rows`
-/// (P x n4, row p = b_p) and H_p = `blocks[p]` (3 x 3). Blocks zero for every p are skipped.
-pub fn add_outer_blocks(
-    mut target: MatMut<'_, f64>,
-    rows: MatRef<'_, f64>,
-    blocks: &[crate::linalg3::Mat3],
-) {
-    let n4 = rows.ncols();
-    for r in 0..3 {
-        for s in 0..3 {
-            if blocks.iter().all(|m| m[r][s] == 0.0) {
-                continue;
-            }
-            let scaled = Mat::from_fn(rows.nrows(), n4, |p, k| blocks[p][r][s] * rows[(p, k)]);
-            faer::linalg::matmul::matmul(
-                target.rb_mut().submatrix_mut(r * n4, s * n4, n4, n4),
-                Accum::Add,
-                rows.transpose(),
-                scaled.as_ref(),
-                1.0,
-                Par::Seq,
-            );
-        }
-    }
-}
-
-/// Add `scale` x A to each diagonal block of the 12 (m + 1) square matrix `h`.
-pub fn add_block_diagonal(layout: Layout, a: &Mat<f64>, scale: f64, h: &mut Mat<f64>) {
-    let n4 = layout.row_len();
-    for r in 0..3 {
-        for j in 0..n4 {
-            for i in 0..n4 {
-                h[(r * n4 + i, r * n4 + j)] += scale * a[(i, j)];
-            }
-        }
-    }
-}
-
-/// A region of the object pulled to a prescribed rigid motion of its rest positions by the
-/// penalty kappa/2 sum_i v_i |x_i(z) - T(t) X_i|^2 over the integration points in the region.
-#[derive(Debug, Clone)]
-pub struct BoundaryTerm {
-    /// The prescribed motion.
-    pub motion: Motion,
-    /// Penalty stiffness kappa, Pa/m^2 (energy per volume per squared distance).
-    pub stiffness: f64,
-    /// kappa-weighted moments over the region's points (coefficients kappa v_i).
-    pub moments: Moments,
-    /// Indices of the integration points in the region.
-    pub points: Vec<usize>,
-    /// The object's initial placement; the motion acts on the placed positions.
-    pub placement: Rigid,
-    /// For a region of a boundary-aware basis, held through its lift: the moments with every
-    /// weight (those `rms_deviation` reports on). None when `moments` already are.
-    pub pointwise: Option<Moments>,
-}
-
-/// 1/2 sum_i c_i |x_i - target_i|^2 over a point set with moments `m` (coefficients c_i), for
-/// the target offset `g` = [R - I, t]; gradient added to `grad`; returns (E, the size of the
-/// summed terms before cancellation).
-fn penalty_energy(
-    m: &Moments,
-    g: &[[f64; 4]; 3],
-    layout: Layout,
-    z: &[f64],
-    grad: &mut [f64],
-) -> (f64, f64) {
-    let n4 = layout.row_len();
-    let mut e = 0.0;
-    let mut scale = 0.0;
-    for r in 0..3 {
-        let zr = &z[r * n4..(r + 1) * n4];
-        // q = bx G_r^T, the linear coefficient.
-        let q: Vec<f64> = (0..n4)
-            .map(|i| (0..4).map(|a| m.bx[(i, a)] * g[r][a]).sum())
-            .collect();
-        let mut pz = vec![0.0; n4];
-        let mut pz_abs = vec![0.0; n4];
-        for (j, zj) in zr.iter().enumerate() {
-            if *zj != 0.0 {
-                let col = m.bb.col(j);
-                for (i, p) in pz.iter_mut().enumerate() {
-                    *p += col[i] * zj;
-                    pz_abs[i] += (col[i] * zj).abs();
-                }
-            }
-        }
-        let mut c = 0.0;
-        for a in 0..4 {
-            for b in 0..4 {
-                c += g[r][a] * m.xx[a][b] * g[r][b];
-            }
-        }
-        for i in 0..n4 {
-            e += 0.5 * zr[i] * pz[i] - zr[i] * q[i];
-            scale += 0.5 * zr[i].abs() * pz_abs[i] + (zr[i] * q[i]).abs();
-            grad[r * n4 + i] += pz[i] - q[i];
-        }
-        e += 0.5 * c;
-        scale += 0.5 * c.abs();
-    }
-    (e, scale)
-}
-
-impl BoundaryTerm {
-    /// G = [R - I, t] for the target at time t: target - X = G Xh.
-    fn offset(&self, t: f64) -> [[f64; 4]; 3] {
-        let Rigid {
-            rotation: r,
-            translation: tr,
-        } = self.target(t);
-        std::array::from_fn(|i| {
-            [
-                r[i][0] - if i == 0 { 1.0 } else { 0.0 },
-                r[i][1] - if i == 1 { 1.0 } else { 0.0 },
-                r[i][2] - if i == 2 { 1.0 } else { 0.0 },
-                tr[i],
-            ]
-        })
-    }
-
-    /// Energy (J) at time `t`, gradient added to `grad`, and the size of the summed terms
-    /// before cancellation (J; a bound on E's rounding error is ~ n eps times it).
-    pub fn energy_gradient(
-        &self,
-        layout: Layout,
-        t: f64,
-        z: &[f64],
-        grad: &mut [f64],
-    ) -> (f64, f64) {
-        penalty_energy(&self.moments, &self.offset(t), layout, z, grad)
-    }
-
-    /// Volume-weighted RMS distance (m) between the region's integration points and their
-    /// targets at time `t`, every weight included (for an aware region the hold acts on its
-    /// lift alone, [`BoundaryTerm::pointwise`]; this is how far the whole region is off).
-    pub fn rms_deviation(&self, layout: Layout, t: f64, z: &[f64]) -> f64 {
-        let m = self.pointwise.as_ref().unwrap_or(&self.moments);
-        let mut scratch = vec![0.0; z.len()];
-        let (e, _) = penalty_energy(m, &self.offset(t), layout, z, &mut scratch);
-        (2.0 * e.max(0.0) / m.total.max(f64::MIN_POSITIVE)).sqrt()
-    }
-
-    /// The target transform of rest positions at time `t`: motion(t) after the placement.
-    pub fn target(&self, t: f64) -> Rigid {
-        let m = self.motion.at(t);
-        let p = &self.placement;
-        let rotation = crate::linalg3::mul(&m.rotation, &p.rotation);
-        let moved = Rigid {
-            rotation: m.rotation,
-            translation: [0.0; 3],
-        }
-        .apply(&p.translation);
-        Rigid {
-            rotation,
-            translation: std::array::from_fn(|i| moved[i] + m.translation[i]),
-        }
-    }
-
-    /// Largest distance (m) between a region point and its target at time `t`, for positions
-    /// `x` of all integration points.
-    pub fn max_deviation(&self, t: f64, rest: &[Point3], x: &[Point3]) -> f64 {
-        let tr = self.target(t);
-        self.points
-            .iter()
-            .map(|&i| {
-                let y = tr.apply(&rest[i]);
-                (0..3).map(|d| (x[i][d] - y[d]).powi(2)).sum::<f64>().sqrt()
-            })
-            .fold(0.0, f64::max)
-    }
-}
+use faer::Mat;
 
 /// Path samples a cubature point's sweep follows at most per line-search direction
-/// ([`ContactTerm::max_step`]): with delta = 1% of the object's diagonal, a point may move
+/// ([`ContactTerm::swept_step`]): with delta = 1% of the object's diagonal, a point may move
 /// 5 diagonals near an obstacle in one iterate.
 pub const SWEEP_SAMPLES: usize = 1000;
 
-/// One obstacle in [`ContactTerm::max_step`]: its index, the allowed extra depth delta
+/// One obstacle in [`ContactTerm::swept_step`]: its index, the allowed extra depth delta
 /// (metres) and its bounding sphere at its pose (None: unbounded).
 #[derive(Clone, Copy)]
 struct Sweep {
@@ -336,20 +50,12 @@ pub struct ContactTerm {
     volumes: Vec<f64>,
     w: Vec<f64>,
     handles: usize,
-}
-
-/// A collider contact at the start of a step, as lagged friction keeps it
-/// ([`ContactTerm::friction_lag`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ColliderLag {
-    /// The cubature point (index into the term's points).
-    pub point: usize,
-    /// Friction coefficient times the normal force, N.
-    pub mu_lambda: f64,
-    /// I - n n^T of the contact normal at the start of the step.
-    pub projector: crate::linalg3::Mat3,
-    /// Where the obstacle would carry the point by the end of the step, metres.
-    pub carried: Point3,
+    /// How much deeper than where it is a point may enter an obstacle within one line-search
+    /// step, metres ([`ContactTerm::swept_step`]'s `scale`).
+    sweep_depth: f64,
+    /// Friction: mu per collider and the smoothing velocity eps_v (m/s); None: frictionless
+    /// (no friction code runs).
+    friction: Option<(Vec<f64>, f64)>,
 }
 
 /// What one evaluation of the contact penalties found.
@@ -375,13 +81,16 @@ pub enum ContactHessian {
 
 impl ContactTerm {
     /// Contacts of the cubature points `points` (volumes `volumes`, skinning weights `w`)
-    /// with the obstacles of `kinematics`, one penalty stiffness (Pa/m^2) each.
+    /// with the obstacles of `kinematics`, one penalty stiffness (Pa/m^2) each; a line-search
+    /// step takes no point deeper than `sweep_depth` (metres) beyond where it is. Frictionless
+    /// until [`ContactTerm::set_friction`].
     pub fn new(
         kinematics: Kinematics,
         stiffness: Vec<f64>,
         points: &[Point3],
         volumes: &[f64],
         w: &SkinningWeights,
+        sweep_depth: f64,
     ) -> ContactTerm {
         ContactTerm {
             kinematics,
@@ -390,7 +99,28 @@ impl ContactTerm {
             volumes: volumes.to_vec(),
             w: w.values.clone(),
             handles: w.modes,
+            sweep_depth,
+            friction: None,
         }
+    }
+
+    /// Friction from the next step on: mu per collider (checked by the caller) and the
+    /// smoothing velocity eps_v, m/s; None: frictionless.
+    pub(crate) fn set_friction(&mut self, friction: Option<(Vec<f64>, f64)>) {
+        self.friction = friction;
+    }
+
+    /// The lagged friction contacts of a step of `dt` seconds from `t0` (state `z`) and the
+    /// smoothing displacement eps_v dt, metres; None when frictionless.
+    pub(crate) fn step_friction(
+        &self,
+        layout: Layout,
+        t0: f64,
+        dt: f64,
+        z: &[f64],
+    ) -> Option<(Vec<ColliderLag>, f64)> {
+        let (mu, eps_v) = self.friction.as_ref()?;
+        Some((self.friction_lag(layout, t0, t0 + dt, z, mu), eps_v * dt))
     }
 
     /// The obstacles and their motions.
@@ -499,7 +229,7 @@ impl ContactTerm {
     /// it is checked at path samples delta/2 apart against depth(z) + delta/2; a path is
     /// followed for at most [`SWEEP_SAMPLES`] samples (a point moving farther near an
     /// obstacle is bounded there). Planes bound nothing.
-    pub fn max_step(&self, layout: Layout, t: f64, z: &[f64], dir: &[f64], scale: f64) -> f64 {
+    pub fn swept_step(&self, layout: Layout, t: f64, z: &[f64], dir: &[f64], scale: f64) -> f64 {
         let poses = self.kinematics.poses(t);
         let obstacles = self.kinematics.obstacles();
         let swept: Vec<Sweep> = obstacles
@@ -671,7 +401,7 @@ impl ContactTerm {
 
     /// Add the Hessian of the active penalties at time `t` to `h`: k v B^T H B per
     /// penetrating point, H the exact Hessian of d^2/2 or its PSD part ([`ContactHessian`]).
-    pub fn add_hessian(
+    pub fn add_penalty_hessian(
         &self,
         layout: Layout,
         t: f64,
@@ -713,5 +443,51 @@ impl ContactTerm {
         }
         let hs: Vec<crate::linalg3::Mat3> = blocks.iter().map(|&(_, m)| m).collect();
         add_outer_blocks(h.as_mut(), rows.as_ref(), &hs);
+    }
+}
+
+impl Term for ContactTerm {
+    fn kind(&self) -> TermKind {
+        TermKind::Colliders {
+            kinds: self
+                .kinematics
+                .obstacles()
+                .iter()
+                .map(Obstacle::kind)
+                .collect(),
+        }
+    }
+
+    /// A penalty whose parts (k v d^2 / 2 per penetrating point) are all positive: nothing
+    /// cancels, so it adds no size to the rounding estimate.
+    fn add_energy_gradient(&self, at: &StepAt<'_>, z: &[f64], sum: &mut EnergySum<'_>) {
+        let found = self.energy_gradient(at.layout, at.t, z, sum.grad);
+        sum.energy += found.energy;
+        sum.info.contacts += found.active;
+        sum.info.penetration = sum.info.penetration.max(found.deepest);
+        if let Some((lag, eps)) = at.friction {
+            sum.energy += self.friction_energy_gradient(at.layout, lag, eps, z, sum.grad);
+        }
+    }
+
+    /// The penalties' exact Hessian or its PSD part; friction's is exact either way.
+    fn add_hessian(&self, at: &StepAt<'_>, z: &[f64], kind: HessianKind, h: &mut Mat<f64>) {
+        let which = match kind {
+            HessianKind::Exact => ContactHessian::Exact,
+            HessianKind::Projected { .. } => ContactHessian::Psd,
+        };
+        self.add_penalty_hessian(at.layout, at.t, z, which, h);
+        if let Some((lag, eps)) = at.friction {
+            self.add_friction_hessian(at.layout, lag, eps, z, h);
+        }
+    }
+
+    /// The swept bound ([`ContactTerm::swept_step`]) at the term's sweep depth.
+    fn max_step(&self, at: &StepAt<'_>, z: &[f64], dir: &[f64]) -> f64 {
+        self.swept_step(at.layout, at.t, z, dir, self.sweep_depth)
+    }
+
+    fn is_penalty(&self) -> bool {
+        true
     }
 }

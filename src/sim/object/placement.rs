@@ -1,0 +1,108 @@
+//! The rigid placement of an object: the combination of its modes that is 1 everywhere, and
+//! the reduced state of a rigidly moved and spinning rest shape.
+
+use super::options::Placement;
+use crate::sim::elastic::Layout;
+use crate::sim::motion::Rigid;
+use crate::sim::terms::Moments;
+use crate::{Error, Point3, Result};
+use faer::linalg::solvers::Solve;
+
+/// The combination of the weights that is 1 everywhere, alpha with sum_j alpha_j W_j = 1
+/// (m^(3/2)): a free basis has it in mode 0 alone, a boundary-aware one in its lifts. It is
+/// the mass-weighted least-squares fit G alpha = g over the integration points (G_jk = sum
+/// rho v W_j W_k, g_j = sum rho v W_j, from the mass moments `b`), checked to reproduce 1.
+fn unity(layout: Layout, b: &Moments) -> Result<Vec<f64>> {
+    let nh = layout.handles;
+    let g = faer::Mat::from_fn(nh, nh, |j, k| b.bb[(4 * j + 3, 4 * k + 3)]);
+    let rhs = faer::Mat::from_fn(nh, 1, |j, _| b.b[4 * j + 3]);
+    let fail = |detail: String| {
+        Error::param(
+            "basis",
+            nh,
+            format!(
+                "no combination of the modes is constant ({detail}): a rigid placement needs one"
+            ),
+        )
+    };
+    // sum rho v (alpha^T W - 1)^2 / total = (alpha^T G alpha - 2 alpha^T g + total) / total:
+    // 0 for a basis that holds the constant; 1e-8 is far above the rounding of the
+    // cancellation (~1e-16 times the Gram matrix's condition number, ~1e3 here).
+    let misfit = |alpha: &[f64]| {
+        let quad: f64 = (0..nh)
+            .map(|j| {
+                (0..nh)
+                    .map(|k| alpha[j] * g[(j, k)] * alpha[k])
+                    .sum::<f64>()
+            })
+            .sum();
+        let lin: f64 = (0..nh).map(|j| alpha[j] * rhs[(j, 0)]).sum();
+        (quad - 2.0 * lin + b.total) / b.total
+    };
+    let ok = |alpha: &[f64]| misfit(alpha).abs() <= 1e-8 && alpha.iter().all(|a| a.is_finite());
+    // A free basis: mode 0 alone (exactly as the constant mode's value says).
+    let mut alpha = vec![0.0; nh];
+    alpha[0] = b.total / b.b[3];
+    if ok(&alpha) {
+        return Ok(alpha);
+    }
+    let llt = g
+        .llt(faer::Side::Lower)
+        .map_err(|e| fail(format!("weight Gram matrix: {e:?}")))?;
+    let sol = llt.solve(&rhs);
+    let alpha: Vec<f64> = (0..nh).map(|j| sol[(j, 0)]).collect();
+    if !ok(&alpha) {
+        return Err(fail(format!("relative misfit {:.2e}", misfit(&alpha))));
+    }
+    Ok(alpha)
+}
+
+/// Write into `z` and `zdot` (both zero on entry) the rest shape moved by `rigid` with the
+/// placement's initial velocities `p`, for an object with mass moments `mass`. Nothing is
+/// written when the placement is the identity at rest.
+pub(super) fn place(
+    layout: Layout,
+    mass: &Moments,
+    p: &Placement,
+    rigid: &Rigid,
+    z: &mut [f64],
+    zdot: &mut [f64],
+) -> Result<()> {
+    let nonzero = rigid != &Rigid::IDENTITY
+        || p.velocity
+            .iter()
+            .chain(&p.angular_velocity)
+            .any(|v| *v != 0.0);
+    if !nonzero {
+        return Ok(());
+    }
+    for v in p.velocity.iter().chain(&p.angular_velocity) {
+        if !v.is_finite() {
+            return Err(Error::param("velocity", v, "must be finite"));
+        }
+    }
+    let alpha = unity(layout, mass)?;
+    let l = layout;
+    let r = &rigid.rotation;
+    // Velocity v + w x (x - c) at x = R X + t, with c the placed centre of mass.
+    let com0: Point3 = std::array::from_fn(|d| mass.xx[d][3] / mass.total);
+    let com = rigid.apply(&com0);
+    let w = p.angular_velocity;
+    let wx = [[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]];
+    for (j, &aj) in alpha.iter().enumerate() {
+        for row in 0..3 {
+            for a in 0..3 {
+                let id = if row == a { 1.0 } else { 0.0 };
+                z[l.index(row, j, a)] = aj * (r[row][a] - id);
+                let v: f64 = (0..3).map(|k| wx[row][k] * r[k][a]).sum();
+                zdot[l.index(row, j, a)] = aj * v;
+            }
+            z[l.index(row, j, 3)] = aj * rigid.translation[row];
+            let wt: f64 = (0..3)
+                .map(|k| wx[row][k] * (rigid.translation[k] - com[k]))
+                .sum();
+            zdot[l.index(row, j, 3)] = aj * (p.velocity[row] + wt);
+        }
+    }
+    Ok(())
+}

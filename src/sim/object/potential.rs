@@ -1,0 +1,78 @@
+//! The incremental potential of one step: the sum of the object's terms at the step's end
+//! time, with the step's predictor and lagged friction ([`StepAt`]), as Newton sees it.
+
+use crate::sim::elastic::{Layout, Precision};
+use crate::sim::friction::ColliderLag;
+use crate::sim::newton::{EvalInfo, Potential};
+use crate::sim::terms::{HessianKind, StepAt, Terms};
+use faer::Mat;
+
+/// Where a step starts: the inertial predictor z_pred = z_n + h zdot_n, the initial guess
+/// of the minimisation and the time at the end of the step, s.
+pub(crate) struct StepStart {
+    pub(crate) zpred: Vec<f64>,
+    pub(crate) guess: Vec<f64>,
+    pub(crate) t: f64,
+    /// Lagged collider friction contacts and the smoothing displacement eps_v h, metres.
+    pub(crate) friction: Option<(Vec<ColliderLag>, f64)>,
+}
+
+/// The incremental potential of one step:
+/// 1/(2 h^2) |z - z_pred|_M^2 + elastic(z) - gravity work + penalties at time t, and any
+/// term the caller added.
+pub(crate) struct StepPotential<'a> {
+    terms: &'a Terms,
+    at: StepAt<'a>,
+}
+
+impl<'a> StepPotential<'a> {
+    /// The potential of the step that `start` begins, for an object with terms `terms`,
+    /// layout `layout` and time step `dt` (s).
+    pub(crate) fn new(
+        terms: &'a Terms,
+        layout: Layout,
+        dt: f64,
+        start: &'a StepStart,
+    ) -> StepPotential<'a> {
+        StepPotential {
+            terms,
+            at: StepAt {
+                layout,
+                t: start.t,
+                dt,
+                zpred: &start.zpred,
+                friction: start.friction.as_ref().map(|(l, e)| (l.as_slice(), *e)),
+            },
+        }
+    }
+
+    /// Number of reduced coordinates.
+    pub(crate) fn dofs(&self) -> usize {
+        self.at.layout.dofs()
+    }
+}
+
+impl Potential for StepPotential<'_> {
+    fn energy_gradient(&self, z: &[f64], grad: &mut [f64]) -> (f64, EvalInfo) {
+        self.terms.energy_gradient(&self.at, z, grad)
+    }
+
+    fn hessian(&self, z: &[f64]) -> Mat<f64> {
+        self.base_hessian(z, 1, Precision::Double)
+    }
+
+    fn base_hessian(&self, z: &[f64], stride: usize, precision: Precision) -> Mat<f64> {
+        let kind = HessianKind::Projected { stride, precision };
+        self.terms.hessian(&self.at, z, kind)
+    }
+
+    fn exact_hessian(&self, z: &[f64]) -> Option<Mat<f64>> {
+        Some(self.terms.hessian(&self.at, z, HessianKind::Exact))
+    }
+
+    /// The terms' step bound (the colliders' swept bound,
+    /// [`crate::sim::terms::ContactTerm::swept_step`]).
+    fn max_step(&self, z: &[f64], dir: &[f64]) -> f64 {
+        self.terms.max_step(&self.at, z, dir)
+    }
+}

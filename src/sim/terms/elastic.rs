@@ -1,0 +1,46 @@
+//! The elastic energy ([`ElasticTerm`], over the cubature points) as a term of the potential.
+
+use super::term::{EnergySum, HessianKind, StepAt, Term, TermKind};
+use crate::sim::elastic::{ElasticTerm, Layout, Precision, Projection};
+use faer::Mat;
+
+/// Add `b` to `a`, entry by entry (both square, the same size).
+fn add_matrix(a: &mut Mat<f64>, b: &Mat<f64>) {
+    for j in 0..a.ncols() {
+        for i in 0..a.nrows() {
+            a[(i, j)] += b[(i, j)];
+        }
+    }
+}
+
+impl Term for ElasticTerm {
+    fn kind(&self) -> TermKind {
+        TermKind::Elastic
+    }
+
+    fn add_energy_gradient(&self, _at: &StepAt<'_>, z: &[f64], sum: &mut EnergySum<'_>) {
+        let mut g = vec![0.0; z.len()];
+        let (e, st) = self.energy_gradient(z, &mut g);
+        sum.energy += e;
+        sum.grad.iter_mut().zip(&g).for_each(|(a, b)| *a += b);
+        sum.info.min_det = sum.info.min_det.min(st.min_det);
+        sum.info.inverted += st.inverted;
+    }
+
+    fn add_hessian(&self, _at: &StepAt<'_>, z: &[f64], kind: HessianKind, h: &mut Mat<f64>) {
+        let part = match kind {
+            HessianKind::Exact => self.hessian_sampled(z, Projection::None, 1, Precision::Double),
+            HessianKind::Projected { stride, precision } => {
+                self.hessian_sampled(z, Projection::PerPoint, stride, precision)
+            }
+        };
+        add_matrix(h, &part);
+    }
+
+    fn add_rest_hessian(&self, layout: Layout, _dt: f64, h: &mut Mat<f64>) {
+        add_matrix(
+            h,
+            &self.hessian(&vec![0.0; layout.dofs()], Projection::None),
+        );
+    }
+}

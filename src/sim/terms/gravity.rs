@@ -1,0 +1,33 @@
+//! The work of gravity, -sum rho v g . (X + B z): linear in z (the constant part is dropped).
+
+use super::term::{EnergySum, HessianKind, StepAt, Term, TermKind};
+use faer::Mat;
+
+/// Gravity acting on an object.
+#[derive(Debug, Clone)]
+pub struct GravityTerm {
+    /// Acceleration of gravity, m/s^2 (finite).
+    pub g: [f64; 3],
+    /// sum rho v b over the integration points, 4 (m + 1) (the mass moments' `b`), kg m.
+    pub b: Vec<f64>,
+}
+
+impl Term for GravityTerm {
+    fn kind(&self) -> TermKind {
+        TermKind::Gravity
+    }
+
+    fn add_energy_gradient(&self, at: &StepAt<'_>, z: &[f64], sum: &mut EnergySum<'_>) {
+        let n4 = at.layout.row_len();
+        for r in 0..3 {
+            for k in 0..n4 {
+                let f = self.g[r] * self.b[k];
+                sum.energy -= f * z[r * n4 + k];
+                sum.grad[r * n4 + k] -= f;
+            }
+        }
+    }
+
+    /// Linear in z: no curvature.
+    fn add_hessian(&self, _at: &StepAt<'_>, _z: &[f64], _kind: HessianKind, _h: &mut Mat<f64>) {}
+}

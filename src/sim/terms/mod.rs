@@ -1,0 +1,104 @@
+//! The terms of an object's incremental potential, each behind [`Term`]: inertia, elasticity
+//! and gravity (smooth), kinematic boundary penalties and one-sided collider penalties with
+//! their friction, and any term a caller adds. [`Terms`] holds an object's built terms and
+//! sums them.
+//!
+//! Leaves first: `term` (the trait and what it is given), `moments` (the quadratic forms'
+//! coefficients), then one file per term, then this file's sum.
+
+mod boundary;
+mod check;
+mod collider;
+mod elastic;
+mod gravity;
+mod inertia;
+mod moments;
+mod term;
+
+pub use crate::sim::collider::ColliderShape;
+pub use crate::sim::friction::ColliderLag;
+pub use boundary::BoundaryTerm;
+pub use check::{check_derivatives, DerivativeCheck, HessianFn};
+pub use collider::{ContactHessian, ContactInfo, ContactTerm, SWEEP_SAMPLES};
+pub use gravity::GravityTerm;
+pub use inertia::InertiaTerm;
+pub use moments::{add_block_diagonal, add_block_product, add_outer_blocks, Moments};
+pub use term::{EnergySum, HessianKind, StepAt, Term, TermKind};
+
+use crate::sim::elastic::{ElasticTerm, Layout};
+use crate::sim::newton::EvalInfo;
+use faer::Mat;
+
+/// The terms one object was built with, in evaluation order: inertia, elastic, gravity (if
+/// any), boundaries, colliders (if any), then the caller's.
+pub struct Terms {
+    pub(crate) inertia: InertiaTerm,
+    pub(crate) elastic: ElasticTerm,
+    pub(crate) gravity: Option<GravityTerm>,
+    pub(crate) boundaries: Vec<BoundaryTerm>,
+    pub(crate) colliders: Option<ContactTerm>,
+    pub(crate) added: Vec<Box<dyn Term>>,
+}
+
+impl Terms {
+    /// Every built term, in evaluation order (the smooth ones before the penalties).
+    pub fn iter(&self) -> impl Iterator<Item = &dyn Term> + '_ {
+        let inertia: &dyn Term = &self.inertia;
+        let elastic: &dyn Term = &self.elastic;
+        [inertia, elastic]
+            .into_iter()
+            .chain(self.gravity.iter().map(|t| t as &dyn Term))
+            .chain(self.boundaries.iter().map(|t| t as &dyn Term))
+            .chain(self.colliders.iter().map(|t| t as &dyn Term))
+            .chain(self.added.iter().map(|t| t.as_ref()))
+    }
+
+    /// The potential's energy (J) at `z`, its gradient written to `grad`, and what the terms
+    /// found.
+    pub fn energy_gradient(&self, at: &StepAt<'_>, z: &[f64], grad: &mut [f64]) -> (f64, EvalInfo) {
+        let mut sum = EnergySum::new(grad);
+        for term in self.iter() {
+            if term.is_penalty() {
+                sum.begin_penalty();
+            }
+            term.add_energy_gradient(at, z, &mut sum);
+        }
+        let info = EvalInfo {
+            rounding: sum.rounding(at.layout),
+            ..sum.info
+        };
+        (sum.energy, info)
+    }
+
+    /// The Hessian at `z`, 12 (m + 1) square: exact or PSD ([`HessianKind`]).
+    pub fn hessian(&self, at: &StepAt<'_>, z: &[f64], kind: HessianKind) -> Mat<f64> {
+        let n = at.layout.dofs();
+        let mut h = Mat::zeros(n, n);
+        for term in self.iter() {
+            term.add_hessian(at, z, kind, &mut h);
+        }
+        h
+    }
+
+    /// The rest system: every term's [`Term::add_rest_hessian`] for the time step `dt`, s.
+    pub fn rest_hessian(&self, layout: Layout, dt: f64) -> Mat<f64> {
+        let n = layout.dofs();
+        let mut h = Mat::zeros(n, n);
+        for term in self.iter() {
+            term.add_rest_hessian(layout, dt, &mut h);
+        }
+        h
+    }
+
+    /// The largest line-search step along `dir` from `z` that every term allows.
+    pub fn max_step(&self, at: &StepAt<'_>, z: &[f64], dir: &[f64]) -> f64 {
+        self.iter()
+            .map(|t| t.max_step(at, z, dir))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// Every term's description, in evaluation order.
+    pub fn kinds(&self) -> Vec<TermKind> {
+        self.iter().map(|t| t.kind()).collect()
+    }
+}
