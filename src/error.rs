@@ -176,7 +176,65 @@ pub enum Error {
     },
 }
 
+/// What kind of failure an [`Error`] is: the one classification every front end maps from
+/// (the C status codes, the Python exception classes, the CLI's messages), so the same error
+/// is the same kind everywhere. Stable: variants are only added.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+#[non_exhaustive]
+pub enum ErrorKind {
+    /// A parameter, array, shape, scene or request is invalid, or the run would not fit in
+    /// memory: fix the input (the message says which and how).
+    InvalidInput,
+    /// A file could not be read or written, or is not a valid file of its kind (a damaged
+    /// basis file).
+    Io,
+    /// Points are not covered by enough RKPM kernels.
+    Coverage,
+    /// An iterative solver (the eigensolver, the FEM reference's Newton) did not converge or
+    /// broke down, or its backend library failed.
+    NotConverged,
+    /// The operators given to the eigensolver failed or are unusable: a caller's callback
+    /// reported an error or returned NaN, or M is not positive definite.
+    BadOperator,
+    /// Strict mode stopped at a warning.
+    Strict,
+    /// The caller asked the work to stop.
+    Cancelled,
+}
+
 impl Error {
+    /// The kind of failure ([`ErrorKind`]); an object's or a collider's error is the kind of
+    /// its cause.
+    pub fn kind(&self) -> ErrorKind {
+        match self {
+            Error::Object { source, .. } | Error::Collider { source, .. } => source.kind(),
+            Error::Coverage { .. } => ErrorKind::Coverage,
+            Error::Io { .. } | Error::BasisFile { .. } | Error::BasisArrayTooLarge { .. } => {
+                ErrorKind::Io
+            }
+            Error::Geometry(GeometryError::Io { .. }) | Error::Fem(FemError::Io { .. }) => {
+                ErrorKind::Io
+            }
+            Error::Fem(FemError::NotConverged { .. } | FemError::LineSearch { .. }) => {
+                ErrorKind::NotConverged
+            }
+            Error::Eigen(e) => match e {
+                EigenError::InvalidRequest(_)
+                | EigenError::TooLarge { .. }
+                | EigenError::SlepcUnavailable => ErrorKind::InvalidInput,
+                EigenError::Operator { .. }
+                | EigenError::NonFinite(_)
+                | EigenError::NotPositiveDefinite { .. } => ErrorKind::BadOperator,
+                EigenError::Cancelled { .. } => ErrorKind::Cancelled,
+                _ => ErrorKind::NotConverged,
+            },
+            Error::Strict { .. } => ErrorKind::Strict,
+            Error::Cancelled { .. } => ErrorKind::Cancelled,
+            _ => ErrorKind::InvalidInput,
+        }
+    }
+
     /// Shorthand for [`Error::InvalidParameter`].
     pub fn param(
         name: &'static str,
@@ -502,4 +560,45 @@ pub enum FemError {
         /// Shape, NaN or emptiness problem, with frame and node indices.
         detail: String,
     },
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The kinds the bindings map from: a file error is an IO error wherever it arises, an
+    /// object's error is its cause's kind, and eigensolver failures split by whose fault.
+    #[test]
+    fn errors_have_one_kind_for_every_front_end() {
+        let basis_file = Error::BasisFile {
+            path: "b.npz".into(),
+            reason: "truncated".into(),
+        };
+        assert_eq!(basis_file.kind(), ErrorKind::Io);
+        let wrapped = Error::Object {
+            index: 2,
+            name: "ball".into(),
+            source: Box::new(Error::Coverage {
+                count: 1,
+                index: 0,
+                position: [0.0; 3],
+                covering: 2,
+                rcond: 0.0,
+                min_rcond: 1e-12,
+            }),
+        };
+        assert_eq!(wrapped.kind(), ErrorKind::Coverage);
+        let callback = Error::Eigen(EigenError::Operator {
+            which: "H",
+            message: "device lost".into(),
+        });
+        assert_eq!(callback.kind(), ErrorKind::BadOperator);
+        let request = Error::Eigen(EigenError::InvalidRequest("nev".into()));
+        assert_eq!(request.kind(), ErrorKind::InvalidInput);
+        assert_eq!(Error::param("dt", -1, "x").kind(), ErrorKind::InvalidInput);
+        let strict = Error::Strict {
+            warnings: vec!["w".into()],
+        };
+        assert_eq!(strict.kind(), ErrorKind::Strict);
+    }
 }

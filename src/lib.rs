@@ -37,7 +37,7 @@ pub mod sim;
 mod simd;
 pub mod sparse;
 
-pub use error::{Error, Result};
+pub use error::{Error, ErrorKind, Result};
 
 /// A point or vector in 3D, `[x, y, z]` (metres for positions).
 pub type Point3 = [f64; 3];

@@ -194,11 +194,8 @@ pub unsafe extern "C" fn ff_eigen_solve_operators(
             .solve_operators(&problem, &request, &Silent)
             .and_then(|s| s.into_converged())
             .map_err(|e| {
-                let status = match e {
-                    freeform::eigen::EigenError::InvalidRequest(_) => Status::InvalidArgument,
-                    _ => Status::Eigensolver,
-                };
-                (status, e.to_string())
+                let e = freeform::Error::Eigen(e);
+                (crate::status_of(&e), e.to_string())
             })?;
         // SAFETY: the caller passes nev and k x nev doubles (documented).
         let vals = unsafe { std::slice::from_raw_parts_mut(values, nev) };

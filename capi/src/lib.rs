@@ -81,16 +81,14 @@ pub(crate) fn guard(f: impl FnOnce() -> Result<(), (Status, String)>) -> c_int {
     }
 }
 
-/// The status of a library error: an object's setup error is classified by its cause.
+/// The status of a library error, from its kind ([`freeform::Error::kind`]).
 pub(crate) fn status_of(e: &freeform::Error) -> Status {
-    use freeform::geometry::GeometryError;
-    use freeform::Error;
-    match e {
-        Error::Coverage { .. } => Status::Coverage,
-        Error::Eigen(_) => Status::Eigensolver,
-        Error::Io { .. } | Error::Geometry(GeometryError::Io { .. }) => Status::Io,
-        Error::Strict { .. } => Status::Strict,
-        Error::Object { source, .. } | Error::Collider { source, .. } => status_of(source),
+    use freeform::ErrorKind;
+    match e.kind() {
+        ErrorKind::Coverage => Status::Coverage,
+        ErrorKind::NotConverged | ErrorKind::BadOperator => Status::Eigensolver,
+        ErrorKind::Io => Status::Io,
+        ErrorKind::Strict => Status::Strict,
         _ => Status::InvalidArgument,
     }
 }

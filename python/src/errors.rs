@@ -1,34 +1,17 @@
 //! The library's errors as Python exceptions (classes defined in `freeform/_errors.py`).
 
-use freeform::eigen::EigenError;
-use freeform::error::{FemError, GeometryError};
-use freeform::Error;
+use freeform::{Error, ErrorKind};
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 
-/// The Python class for a library error.
+/// The Python class for a library error, from its kind ([`Error::kind`]).
 fn class_name(e: &Error) -> &'static str {
-    match e {
-        Error::Object { source, .. } | Error::Collider { source, .. } => class_name(source),
-        Error::Coverage { .. } => "CoverageError",
-        Error::Io { .. } | Error::BasisFile { .. } | Error::BasisArrayTooLarge { .. } => {
-            "FreeformIOError"
-        }
-        Error::Geometry(GeometryError::Io { .. }) | Error::Fem(FemError::Io { .. }) => {
-            "FreeformIOError"
-        }
-        Error::Eigen(
-            EigenError::InvalidRequest(_)
-            | EigenError::TooLarge { .. }
-            | EigenError::Operator { .. }
-            | EigenError::NonFinite(_)
-            | EigenError::NotPositiveDefinite { .. },
-        ) => "InvalidInputError",
-        Error::Eigen(_) => "NotConvergedError",
-        Error::Fem(FemError::NotConverged { .. } | FemError::LineSearch { .. }) => {
-            "NotConvergedError"
-        }
-        Error::Strict { .. } => "StrictModeError",
+    match e.kind() {
+        ErrorKind::Coverage => "CoverageError",
+        ErrorKind::Io => "FreeformIOError",
+        ErrorKind::NotConverged => "NotConvergedError",
+        ErrorKind::Strict => "StrictModeError",
+        // A caller's operator that fails or returns unusable values is the caller's input.
         _ => "InvalidInputError",
     }
 }
