@@ -12,6 +12,7 @@
 use std::path::PathBuf;
 
 pub use crate::eigen::EigenError;
+use crate::report::Warning;
 
 /// Result alias used across the library.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
@@ -169,10 +170,10 @@ pub enum Error {
     },
     /// `--strict` (or `strict: true` in the settings) was asked for and a monitor raised a
     /// warning: poor conditioning, a non-converged solve, a failed line search.
-    #[error("strict mode: {} warning(s), the first: {}", warnings.len(), warnings.first().map(String::as_str).unwrap_or("-"))]
+    #[error("strict mode: {} warning(s), the first: {}", warnings.len(), warnings.first().map_or_else(|| "-".to_string(), ToString::to_string))]
     Strict {
         /// Every warning raised up to the point where the run stopped.
-        warnings: Vec<String>,
+        warnings: Vec<Warning>,
     },
 }
 
@@ -261,7 +262,7 @@ pub fn check_cancelled(progress: &dyn crate::progress::Progress, stage: &str) ->
 }
 
 /// `Err(Error::Strict)` when `strict` is set and `warnings` is not empty.
-pub fn check_strict(strict: bool, warnings: &[String]) -> Result<()> {
+pub fn check_strict(strict: bool, warnings: &[Warning]) -> Result<()> {
     if strict && !warnings.is_empty() {
         return Err(Error::Strict {
             warnings: warnings.to_vec(),
@@ -597,7 +598,7 @@ mod tests {
         assert_eq!(request.kind(), ErrorKind::InvalidInput);
         assert_eq!(Error::param("dt", -1, "x").kind(), ErrorKind::InvalidInput);
         let strict = Error::Strict {
-            warnings: vec!["w".into()],
+            warnings: vec![Warning::monitor("w")],
         };
         assert_eq!(strict.kind(), ErrorKind::Strict);
     }

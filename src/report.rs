@@ -104,3 +104,167 @@ pub struct Monitors {
     /// Smallest det F at any cubature point at the end of any step (<= 0: inverted).
     pub min_det: Option<f64>,
 }
+
+/// Something a run found worth a look that is not an error: the run goes on (strict mode,
+/// [`crate::Error::Strict`], stops at the first one instead). `Display` is the message the
+/// reports, the CLI and the bindings show; JSON reports hold that text.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum Warning {
+    /// A quality monitor's message, as its stage words it: the precomputation's (conditioning,
+    /// coverage, eigen residuals; from the build or stored with a cached basis) or a
+    /// benchmark's (a rank-deficient fit, a reduced step that did not converge).
+    Monitor {
+        /// The scene object, if any.
+        object: Option<String>,
+        /// The monitor's message.
+        message: String,
+    },
+    /// A cached basis could not be used (it is computed again).
+    Cache {
+        /// The scene object.
+        object: String,
+        /// What was wrong with the cache entry.
+        message: String,
+    },
+    /// A step's minimisation stopped before its tolerance.
+    NotConverged {
+        /// The object.
+        object: String,
+        /// The step (from 1).
+        step: usize,
+        /// Iterations taken.
+        iterations: usize,
+        /// Final convergence measure.
+        residual: f64,
+        /// Whether the line search failed.
+        line_search_failed: bool,
+    },
+    /// Cubature points inverted (det F <= 0); raised once per object.
+    Inverted {
+        /// The object.
+        object: String,
+        /// The step (from 1).
+        step: usize,
+        /// Inverted cubature points.
+        points: usize,
+        /// Smallest det F.
+        min_det: f64,
+    },
+    /// Newton Hessians that were not positive definite, replaced by the rest Hessian.
+    HessianFallback {
+        /// The object.
+        object: String,
+        /// The step (from 1).
+        step: usize,
+        /// Hessians replaced.
+        count: usize,
+    },
+    /// Object-object penetration above the contact tolerance (raised once per pair; `first ==
+    /// second` for self-contact).
+    Penetration {
+        /// The deeper pair's first object.
+        first: String,
+        /// Its second object (the same for self-penetration).
+        second: String,
+        /// The step (from 1).
+        step: usize,
+        /// Depth, metres.
+        depth: f64,
+        /// Depth as a fraction of the smaller diagonal.
+        fraction: f64,
+        /// The tolerance, as a fraction.
+        tolerance: f64,
+    },
+}
+
+impl std::fmt::Display for Warning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Warning::Monitor { object, message } => match object {
+                Some(o) => write!(f, "object '{o}': {message}"),
+                None => f.write_str(message),
+            },
+            Warning::Cache { object, message } => write!(f, "object '{object}': {message}"),
+            Warning::NotConverged {
+                object,
+                step,
+                iterations,
+                residual,
+                line_search_failed,
+            } => write!(
+                f,
+                "object '{object}': step {step} did not converge ({iterations} iterations, \
+                 residual {residual:.2e}{})",
+                if *line_search_failed {
+                    ", line search failed"
+                } else {
+                    ""
+                }
+            ),
+            Warning::Inverted {
+                object,
+                step,
+                points,
+                min_det,
+            } => write!(
+                f,
+                "object '{object}': step {step}: {points} cubature point(s) inverted (det F = \
+                 {min_det:.2} <= 0); the material is too soft for the load or the time step too \
+                 large (later inversions are counted in the monitors' min_det and each step's \
+                 `inverted`)"
+            ),
+            Warning::HessianFallback {
+                object,
+                step,
+                count,
+            } => write!(
+                f,
+                "object '{object}': step {step}: {count} Newton Hessian(s) were not positive \
+                 definite; the rest Hessian was used instead"
+            ),
+            Warning::Penetration {
+                first,
+                second,
+                step,
+                depth,
+                fraction,
+                tolerance,
+            } => {
+                let (pct, tol) = (100.0 * fraction, 100.0 * tolerance);
+                if first == second {
+                    write!(
+                        f,
+                        "object '{first}': step {step}: self-penetration {depth:.3e} m, \
+                         {pct:.2}% of its diagonal, above the tolerance ({tol:.2}%); raise \
+                         contact.stiffness or shorten the time step"
+                    )
+                } else {
+                    write!(
+                        f,
+                        "objects '{first}' and '{second}': step {step}: penetration {depth:.3e} \
+                         m, {pct:.2}% of the smaller diagonal, above the tolerance ({tol:.2}%); \
+                         raise contact.stiffness or shorten the time step"
+                    )
+                }
+            }
+        }
+    }
+}
+
+impl Warning {
+    /// A monitor's message with no object ([`Warning::Monitor`]).
+    pub fn monitor(message: impl Into<String>) -> Warning {
+        Warning::Monitor {
+            object: None,
+            message: message.into(),
+        }
+    }
+}
+
+impl Serialize for Warning {
+    /// As its message.
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}

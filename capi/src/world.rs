@@ -32,7 +32,7 @@ impl FfWorld {
         let all = self.world.warnings();
         for w in &all[self.warnings.len().min(all.len())..] {
             self.warnings
-                .push(CString::new(w.replace('\0', " ")).unwrap_or_default());
+                .push(CString::new(w.to_string().replace('\0', " ")).unwrap_or_default());
         }
     }
 }

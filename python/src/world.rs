@@ -357,7 +357,7 @@ impl PyWorld {
     /// Warnings so far (setup, non-converged steps, inversions).
     #[getter]
     fn warnings(&self) -> Vec<String> {
-        self.world.warnings().to_vec()
+        self.world.warnings().iter().map(ToString::to_string).collect()
     }
 
     /// Deformed render points of an object (index or name): mesh vertices, point-cloud

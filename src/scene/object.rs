@@ -17,7 +17,7 @@ use crate::precompute::sampling::IntegrationPoints;
 use crate::precompute::skinning::{Basis, SkinningWeights};
 use crate::precompute::ImageMaterial;
 use crate::progress::Progress;
-use crate::report::Stopwatch;
+use crate::report::{Stopwatch, Warning};
 use crate::sim::{ReducedSim, SimOptions, StepReport};
 use crate::{Error, Point3, Result};
 use std::sync::OnceLock;
@@ -96,7 +96,7 @@ impl SceneObject {
         scene: &Scene,
         settings: &RunSettings,
         progress: &dyn Progress,
-        warnings: &mut Vec<String>,
+        warnings: &mut Vec<Warning>,
     ) -> Result<(SceneObject, Shape)> {
         let ctx = |e: Error| Error::Object {
             index,
@@ -437,26 +437,23 @@ impl SceneObject {
     }
 
     /// One step; the report's warnings go to `warnings`.
-    pub(super) fn step(&mut self, warnings: &mut Vec<String>) -> StepReport {
+    pub(super) fn step(&mut self, warnings: &mut Vec<Warning>) -> StepReport {
         let rep = self.sim.step();
         self.record(rep, warnings)
     }
 
     /// Keep a step's report in the summary; its warnings go to `warnings`.
-    pub(super) fn record(&mut self, rep: StepReport, warnings: &mut Vec<String>) -> StepReport {
+    pub(super) fn record(&mut self, rep: StepReport, warnings: &mut Vec<Warning>) -> StepReport {
         let step = rep.step;
         let name = &self.spec.name;
         if !rep.solve.converged {
-            warnings.push(format!(
-                "object '{name}': step {step} did not converge ({} iterations, residual {:.2e}{})",
-                rep.solve.iterations,
-                rep.solve.residual,
-                if rep.solve.line_search_failed {
-                    ", line search failed"
-                } else {
-                    ""
-                }
-            ));
+            warnings.push(Warning::NotConverged {
+                object: name.clone(),
+                step,
+                iterations: rep.solve.iterations,
+                residual: rep.solve.residual,
+                line_search_failed: rep.solve.line_search_failed,
+            });
         }
         self.summary.steps.push(StepRow::from(&rep));
         self.summary.monitors.add_step(&rep.solve);
@@ -464,19 +461,19 @@ impl SceneObject {
             // Once per object: the stable Neo-Hookean energy stays finite through
             // inversion, but the result is rarely what the user meant.
             self.warned_inverted = true;
-            warnings.push(format!(
-                "object '{name}': step {step}: {} cubature point(s) inverted (det F = {:.2} <= 0); \
-                 the material is too soft for the load or the time step too large \
-                 (later inversions are counted in the monitors' min_det and each step's `inverted`)",
-                rep.solve.info.inverted, rep.solve.info.min_det
-            ));
+            warnings.push(Warning::Inverted {
+                object: name.clone(),
+                step,
+                points: rep.solve.info.inverted,
+                min_det: rep.solve.info.min_det,
+            });
         }
         if rep.solve.cholesky_fallbacks > 0 {
-            warnings.push(format!(
-                "object '{name}': step {step}: {} Newton Hessian(s) were not positive definite; \
-                 the rest Hessian was used instead",
-                rep.solve.cholesky_fallbacks
-            ));
+            warnings.push(Warning::HessianFallback {
+                object: name.clone(),
+                step,
+                count: rep.solve.cholesky_fallbacks,
+            });
         }
         rep
     }

@@ -2,7 +2,7 @@
 //! summary ([`ObjectSummary`]), the contact rows and summary, and the run's
 //! ([`RunSummary`]). Plain data, serialized as the `--json` reports.
 
-use crate::report::Monitors;
+use crate::report::{Monitors, Warning};
 use crate::sim::StepReport;
 use serde::Serialize;
 
@@ -130,7 +130,7 @@ pub struct RunSummary {
     /// Total wall time, s.
     pub total_s: f64,
     /// Warnings (non-converged steps, cache problems...).
-    pub warnings: Vec<String>,
+    pub warnings: Vec<Warning>,
     /// Object-object contact: per step the pairs tested and active, the deepest penetration
     /// and the islands; the run's worst penetration (absent without `[contact]`).
     #[serde(skip_serializing_if = "Option::is_none")]

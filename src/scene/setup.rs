@@ -15,7 +15,7 @@ use crate::precompute::skinning::Basis;
 use crate::precompute::{build_basis, sample_with_material, BasisOptions};
 use crate::precompute::{GapPolicy, ImageMaterial};
 use crate::progress::Progress;
-use crate::report::Monitors;
+use crate::report::{Monitors, Warning};
 use crate::Point3;
 use crate::Result;
 use std::path::{Path, PathBuf};
@@ -117,7 +117,7 @@ pub(super) fn object_basis(
     settings: &RunSettings,
     image: Option<&ImageMaterial>,
     progress: &dyn Progress,
-    warnings: &mut Vec<String>,
+    warnings: &mut Vec<Warning>,
 ) -> Result<ObjectBasis> {
     let opts = BasisOptions {
         image: image.cloned(),
@@ -144,16 +144,20 @@ pub(super) fn object_basis(
         None => None,
     };
     if let (Some(dir), Some(key)) = (&cache_dir, &key) {
-        let mut warn = |w: String| warnings.push(format!("object '{}': {w}", spec.name));
+        let mut warn = |message: String| {
+            warnings.push(Warning::Cache {
+                object: spec.name.clone(),
+                message,
+            })
+        };
         if let Some(loaded) = cache::load_basis(dir, key, opts.modes, &mut warn) {
             let (points, material) = sample_with_material(&shape.shape, &opts)?;
             // The warnings of the run that produced the cached basis still apply.
             let stored = loaded.metadata.warnings();
-            warnings.extend(
-                stored
-                    .iter()
-                    .map(|w| format!("object '{}': {w}", spec.name)),
-            );
+            warnings.extend(stored.into_iter().map(|message| Warning::Monitor {
+                object: Some(spec.name.clone()),
+                message,
+            }));
             return Ok(ObjectBasis {
                 basis: loaded.basis,
                 points,
@@ -165,12 +169,10 @@ pub(super) fn object_basis(
         }
     }
     let run = build_basis(&shape.shape, &opts, progress)?;
-    warnings.extend(
-        run.report
-            .warnings
-            .iter()
-            .map(|w| format!("object '{}': {w}", spec.name)),
-    );
+    warnings.extend(run.report.warnings.iter().map(|w| Warning::Monitor {
+        object: Some(spec.name.clone()),
+        message: w.clone(),
+    }));
     let mut file_out = None;
     if let (Some(dir), Some(key)) = (&cache_dir, &key) {
         let meta = BasisMetadata::for_cache(&shape.spec, &opts, &run.report);

@@ -8,7 +8,7 @@ use super::setup::ObjectBasis;
 use super::spec::Scene;
 use crate::error::check_strict;
 use crate::progress::Progress;
-use crate::report::Monitors;
+use crate::report::{Monitors, Warning};
 use crate::sim::collider::{self, Collider, Kinematics};
 use crate::sim::motion::{Motion, Rigid};
 use crate::sim::{Placement, StepReport};
@@ -66,7 +66,7 @@ pub struct World {
     /// Set when strict mode stopped a step: the world stops for good (its objects may be
     /// part-way through that step).
     stopped: bool,
-    warnings: Vec<String>,
+    warnings: Vec<Warning>,
     /// Object-object contact (scenes with `[contact]` only).
     contact: Option<WorldContact>,
 }
@@ -284,7 +284,7 @@ impl World {
     }
 
     /// Warnings so far (setup, non-converged steps, inversions, Cholesky fallbacks).
-    pub fn warnings(&self) -> &[String] {
+    pub fn warnings(&self) -> &[Warning] {
         &self.warnings
     }
 

@@ -276,7 +276,10 @@ fn basis_cache_is_reused_and_keyed_by_what_made_it() {
     std::fs::write(&f, b"not a zip").unwrap();
     let fourth = run(&mk(soft), &settings, &Silent).unwrap();
     assert!(!fourth.objects[0].basis_cached);
-    assert!(fourth.warnings.iter().any(|w| w.contains("cached basis")));
+    assert!(fourth
+        .warnings
+        .iter()
+        .any(|w| w.to_string().contains("cached basis")));
     assert_eq!(e(&first), e(&fourth));
 }
 

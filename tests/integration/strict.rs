@@ -198,6 +198,18 @@ fn a_strict_world_refuses_every_step_after_it_stopped() {
     let freeform::Error::Strict { warnings } = &first else {
         panic!("expected a strict-mode stop, got {first}");
     };
+    // The warning is typed: which object, which step, how far from converged.
+    let freeform::report::Warning::NotConverged {
+        object,
+        step,
+        iterations,
+        ..
+    } = &warnings[0]
+    else {
+        panic!("expected a step that did not converge, got {}", warnings[0]);
+    };
+    assert_eq!((object.as_str(), *step, *iterations), ("bar", 1, 1));
+    assert_eq!(first.kind(), freeform::ErrorKind::Strict);
     assert!(world.stopped());
     let (time, z) = (world.time(), world.object(0).sim().z().to_vec());
     for _ in 0..2 {

@@ -219,6 +219,11 @@ pub fn run(args: BeamArgs) -> CliResult {
             emit(&format!("  warning: {w}\n"))?;
         }
     }
-    freeform::error::check_strict(args.strict, &r.warnings)?;
+    let warnings: Vec<_> = r
+        .warnings
+        .iter()
+        .map(freeform::report::Warning::monitor)
+        .collect();
+    freeform::error::check_strict(args.strict, &warnings)?;
     Ok(())
 }

@@ -3,8 +3,9 @@
 //! puts its own flag (`--support`) in that place, or for `freeform run` the scene key
 //! (`basis.support`), since a scene file is where those users set it.
 //!
-//! Self-contained (outside its tests it uses only `std`), so library tests that check a
-//! message's advice include it with `#[path]` and see what the CLI prints.
+//! Self-contained (outside its tests it uses only `std` and the library's warning type), so
+//! library tests that check a message's advice include it with `#[path]` and see what the CLI
+//! prints.
 
 use std::error::Error;
 
@@ -51,6 +52,17 @@ pub fn localize(message: &str, front: Front) -> String {
 pub fn localize_all(messages: &mut [String], front: Front) {
     for m in messages.iter_mut() {
         *m = localize(m, front);
+    }
+}
+
+/// [`localize`] the text of every warning of `warnings` that carries a stage's own words
+/// (the monitors' and the cache's; the others name no option).
+pub fn localize_warnings(warnings: &mut [freeform::report::Warning], front: Front) {
+    use freeform::report::Warning;
+    for w in warnings.iter_mut() {
+        if let Warning::Monitor { message, .. } | Warning::Cache { message, .. } = w {
+            *message = localize(message, front);
+        }
     }
 }
 

@@ -120,7 +120,10 @@ pub fn run(args: ModesArgs) -> CliResult {
             eprintln!("warning: {w}");
         }
     }
-    freeform::error::check_strict(args.strict, &run.report.warnings)?;
+    let warnings: Vec<_> = (run.report.warnings.iter())
+        .map(freeform::report::Warning::monitor)
+        .collect();
+    freeform::error::check_strict(args.strict, &warnings)?;
     freeform::io::basis::save(&out, &run.basis, &metadata)?;
     if let Some(png) = &args.png {
         crate::render::modes_png(png, &shape, &run, args.png_modes, png_tile, &args.view)?;

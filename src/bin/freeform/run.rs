@@ -1,6 +1,6 @@
 //! `freeform run`: simulate a scene file and write frames for ParaView.
 
-use crate::messages::{localize_all, Front};
+use crate::messages::{localize_warnings, Front};
 use crate::{emit, set_threads, CliResult};
 use clap::Args;
 use freeform::progress::{Progress, Silent, TerminalProgress};
@@ -49,7 +49,7 @@ pub fn run(args: RunArgs) -> CliResult {
     };
     let mut summary = run_scene(&scene, &settings, progress)?;
     // Printed and JSON warnings name the scene keys a scene file sets.
-    localize_all(&mut summary.warnings, Front::Scene);
+    localize_warnings(&mut summary.warnings, Front::Scene);
     if args.json {
         let mut v = serde_json::to_value(&summary)?;
         v["scene"] = serde_json::Value::String(args.scene.display().to_string());
