@@ -8,14 +8,19 @@
 //! - [`island`]: objects that can touch within a step, solved together by Newton.
 //! - [`system`]: the island's Newton system in blocks, solved by block-Jacobi conjugate
 //!   gradients.
+//! - [`forest`]: union-find over objects (which share an island).
+//! - [`step`]: one step of every object, in stages (sweep, group, solve, regroup, stiffen,
+//!   report); `scene` keeps only the adaptor to its objects, warnings and report.
 //!
 //! Only scenes with a `[contact]` section build any of it ([`ContactSettings`]); without one
 //! every object steps alone, as before.
 
 pub mod energy;
+pub mod forest;
 pub mod island;
 pub mod pairs;
 pub mod samples;
+pub mod step;
 pub mod system;
 
 pub use energy::{Body, ContactStats, PairContact, PairHessian};

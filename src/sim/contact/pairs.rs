@@ -60,10 +60,11 @@ fn within(tree: &ImmutableKdTree<f64, 3>, p: &Point3, r2: f64) -> impl Iterator<
 /// Every sample pair (i of body a, j of body b, a < b) closer than `reach(a, b)` metres,
 /// for sample positions `x` (one list per body), in the order (a, b, i, j): sums over the
 /// result do not depend on the thread count.
-pub fn candidates(
-    x: &[Vec<Point3>],
+pub fn candidates<P: AsRef<[Point3]>>(
+    x: &[P],
     reach: &dyn Fn(usize, usize) -> f64,
 ) -> (Vec<Candidate>, BroadStats) {
+    let x: Vec<&[Point3]> = x.iter().map(AsRef::as_ref).collect();
     let boxes: Vec<(Point3, Point3)> = x.iter().map(|p| bounds(p)).collect();
     let mut trees: Vec<Option<ImmutableKdTree<f64, 3>>> = (0..x.len()).map(|_| None).collect();
     let mut out = Vec::new();
@@ -81,7 +82,7 @@ pub fn candidates(
             if trees[b].is_none() {
                 // A k-d tree over finite points cannot fail to build; non-finite positions
                 // (never produced by a finite z) would leave the pair untested.
-                trees[b] = ImmutableKdTree::new_from_slice(&x[b]).ok();
+                trees[b] = ImmutableKdTree::new_from_slice(x[b]).ok();
             }
             let Some(tree) = &trees[b] else { continue };
             let r2 = r * r;
