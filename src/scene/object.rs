@@ -18,8 +18,10 @@ use crate::precompute::skinning::{Basis, SkinningWeights};
 use crate::precompute::ImageMaterial;
 use crate::progress::Progress;
 use crate::report::{Stopwatch, Warning};
+use crate::sim::Environment;
 use crate::sim::{ReducedSim, SimOptions, StepReport};
 use crate::{Error, Point3, Result};
+use std::sync::Arc;
 use std::sync::OnceLock;
 
 /// The points an object is drawn with: the mesh's vertices, a point cloud's points, or (for
@@ -430,8 +432,10 @@ impl SceneObject {
     }
 
     /// Gravity from the next step on, m/s^2 (None: none); the summary's term list follows.
-    pub(super) fn set_gravity(&mut self, gravity: Option<[f64; 3]>) -> Result<()> {
-        self.sim.set_gravity(gravity)?;
+    /// Step in the world's environment `env` (its gravity and colliders) from now on; the
+    /// summary's term list follows.
+    pub(super) fn share_environment(&mut self, env: Arc<Environment>) -> Result<()> {
+        self.sim.share_environment(env)?;
         self.summary.terms = self.sim.terms();
         Ok(())
     }

@@ -9,10 +9,11 @@ use super::spec::Scene;
 use crate::error::check_strict;
 use crate::progress::Progress;
 use crate::report::{Monitors, Warning};
-use crate::sim::collider::{self, Collider, Kinematics};
+use crate::sim::collider::{Collider, Kinematics};
 use crate::sim::motion::{Motion, Rigid};
-use crate::sim::{Placement, StepReport};
+use crate::sim::{Environment, Placement, StepReport};
 use crate::{Error, Result};
+use std::sync::Arc;
 
 /// A scene being simulated, one step at a time: every object's reduced model, the shared
 /// colliders, the time and the warnings so far. [`crate::scene::run`] is a loop over it.
@@ -56,8 +57,9 @@ pub struct World {
     objects: Vec<SceneObject>,
     /// The scene's colliders as defined (meshes loaded).
     colliders: Vec<Collider>,
-    /// The colliders' obstacles and current motions (every object holds the same).
-    kinematics: Kinematics,
+    /// Gravity and the colliders' obstacles and current motions: one, shared by every object
+    /// (a setter changes it here and hands it to them again).
+    env: Arc<Environment>,
     dt: f64,
     /// Simulated time, seconds, and steps taken: advanced once every object took a step.
     time: f64,
@@ -119,7 +121,10 @@ impl World {
             shape.load(&settings.base_dir).map_err(|e| c.error(i, e))?;
             c.shape = shape;
         }
-        let kinematics = collider::kinematics(&loaded.colliders)?;
+        let env = Arc::new(Environment::new(
+            loaded.simulation.gravity,
+            &loaded.colliders,
+        )?);
         let scene = &loaded;
         let mut warnings = Vec::new();
         let mut objects = Vec::new();
@@ -153,6 +158,14 @@ impl World {
             objects.push(object);
             shapes.push(None);
         }
+        for (index, o) in objects.iter_mut().enumerate() {
+            o.share_environment(env.clone())
+                .map_err(|e| Error::Object {
+                    index,
+                    name: o.name().to_string(),
+                    source: Box::new(e),
+                })?;
+        }
         let contact = match &scene.contact {
             Some(c) => Some(WorldContact::new(
                 c,
@@ -166,7 +179,7 @@ impl World {
         Ok(World {
             objects,
             colliders: scene.colliders.clone(),
-            kinematics,
+            env,
             dt: scene.simulation.dt,
             time: 0.0,
             steps: 0,
@@ -301,9 +314,15 @@ impl World {
 
     /// Gravity for every object from the next step on, m/s^2 (None: none).
     pub fn set_gravity(&mut self, gravity: Option<[f64; 3]>) -> Result<()> {
-        // Every object validates the same value: the first refuses it or all take it.
+        Arc::make_mut(&mut self.env).set_gravity(gravity)?;
+        self.share_environment()
+    }
+
+    /// Hand the world's environment to every object again after it changed (each had the
+    /// old one; the colliders match, so none refuses).
+    fn share_environment(&mut self) -> Result<()> {
         for o in &mut self.objects {
-            o.set_gravity(gravity)?;
+            o.share_environment(self.env.clone())?;
         }
         Ok(())
     }
@@ -384,12 +403,8 @@ impl World {
                 ),
             ));
         }
-        motion.validate()?;
-        // Every object takes the same valid motion: none can refuse it after the first.
-        for o in &mut self.objects {
-            o.sim_mut().set_collider_motion(index, motion.clone())?;
-        }
-        self.kinematics.set_motion(index, motion)
+        Arc::make_mut(&mut self.env).set_collider_motion(index, motion)?;
+        self.share_environment()
     }
 
     /// The scene's colliders as defined (rest frames; meshes loaded).
@@ -399,12 +414,12 @@ impl World {
 
     /// The colliders' obstacles, motions and parents as the objects see them now.
     pub fn collider_kinematics(&self) -> &Kinematics {
-        &self.kinematics
+        self.env.kinematics()
     }
 
     /// The pose of every collider at the current time (x -> R x + t of its rest frame).
     pub fn collider_poses(&self) -> Vec<Rigid> {
-        self.kinematics.poses(self.time())
+        self.env.kinematics().poses(self.time())
     }
 
     /// The object-object contact summary so far (None without `[contact]`): per step the

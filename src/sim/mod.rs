@@ -10,6 +10,7 @@
 //!   kinematics (scripted or caller-set poses, articulated chains).
 //! - [`contact`]: object-object contact (samples, broad phase, pair penalty, islands).
 //! - [`friction`]: the smoothed lagged friction of every contact (IPC's f0, f1).
+//! - [`environment`]: gravity and the colliders, owned once by whoever steps the objects.
 //! - [`motion`]: prescribed rigid motions for boundaries.
 //! - [`newton`]: the per-step minimiser and its strategies.
 //! - [`object`]: one simulated object (setup, state, stepping).
@@ -21,6 +22,7 @@ pub mod contact;
 pub mod cubature;
 pub mod deformation;
 pub mod elastic;
+pub mod environment;
 pub mod friction;
 pub mod gaussian;
 mod lanes;
@@ -30,5 +32,6 @@ pub mod object;
 pub mod terms;
 
 pub use collider::Collider;
+pub use environment::Environment;
 pub use newton::{HessianStrategy, InitialGuess, NewtonOptions};
 pub use object::{Boundary, Placement, ReducedSim, SimOptions, StepReport};

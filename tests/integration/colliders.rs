@@ -4,7 +4,7 @@
 
 use crate::common;
 
-use common::{no_cache, small_bar, Rng};
+use common::{no_cache, small_bar};
 use freeform::error::GeometryError;
 use freeform::geometry::generate::{icosphere, torus};
 use freeform::geometry::ShapeOptions;
@@ -14,6 +14,7 @@ use freeform::material::Material;
 use freeform::precompute::sampling::Resolution;
 use freeform::precompute::{build_basis, BasisOptions, BasisRun, SolverConfig};
 use freeform::progress::Silent;
+use freeform::random::SplitMix64;
 use freeform::scene::{ObjectSpec, RunSettings, Scene, SceneBuilder, World};
 use freeform::sim::collider::{ColliderShape, MeshCollider, MeshObstacle, Sided};
 use freeform::sim::motion::{AxisAngle, Keyframe, Motion};
@@ -41,8 +42,8 @@ fn bar() -> BasisRun {
 }
 
 fn random(n: usize, scale: f64, seed: u64) -> Vec<f64> {
-    let mut rng = Rng(seed);
-    (0..n).map(|_| scale * (rng.next() - 0.5)).collect()
+    let mut rng = SplitMix64::new(seed);
+    (0..n).map(|_| scale * (rng.next_f64() - 0.5)).collect()
 }
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {
@@ -124,15 +125,30 @@ fn collider_penalties_match_finite_differences_in_z() {
         let t = 0.3;
         let eval = |z: &[f64]| {
             let mut g = vec![0.0; n];
-            let info = contact.energy_gradient(layout, t, z, &mut g);
+            let info =
+                contact.energy_gradient(sim.environment().kinematics(), layout, t, z, &mut g);
             (info, g)
         };
         let (info, g) = eval(&z);
         assert!(info.active >= 10, "{what}: only {} contacts", info.active);
         let mut exact = faer::Mat::<f64>::zeros(n, n);
-        contact.add_penalty_hessian(layout, t, &z, ContactHessian::Exact, &mut exact);
+        contact.add_penalty_hessian(
+            sim.environment().kinematics(),
+            layout,
+            t,
+            &z,
+            ContactHessian::Exact,
+            &mut exact,
+        );
         let mut psd = faer::Mat::<f64>::zeros(n, n);
-        contact.add_penalty_hessian(layout, t, &z, ContactHessian::Psd, &mut psd);
+        contact.add_penalty_hessian(
+            sim.environment().kinematics(),
+            layout,
+            t,
+            &z,
+            ContactHessian::Psd,
+            &mut psd,
+        );
         let gnorm = dot(&g, &g).sqrt();
         let hnorm = exact.norm_l2();
         for seed in 0..4 {
@@ -183,9 +199,9 @@ fn collider_penalties_match_finite_differences_in_z() {
 
 /// Deterministic points in the box [lo, hi].
 fn points_in(lo: Point3, hi: Point3, n: usize, seed: u64) -> Vec<Point3> {
-    let mut rng = Rng(seed);
+    let mut rng = SplitMix64::new(seed);
     (0..n)
-        .map(|_| std::array::from_fn(|d| lo[d] + (hi[d] - lo[d]) * rng.next()))
+        .map(|_| std::array::from_fn(|d| lo[d] + (hi[d] - lo[d]) * rng.next_f64()))
         .collect()
 }
 

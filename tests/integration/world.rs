@@ -720,3 +720,65 @@ fn render_inputs_follow_the_object_map_and_bad_ones_are_named() {
         assert!(msg.contains("object 'bar'") && msg.contains(says), "{msg}");
     }
 }
+
+/// The world holds gravity and the colliders once: every object steps in the same
+/// environment (one allocation), before and after a setter changes it, and a refused change
+/// leaves it as it was.
+#[test]
+fn every_object_steps_in_the_one_environment_of_its_world() {
+    let floor = Collider {
+        shape: ColliderShape::Plane {
+            point: [0.0, -0.5, 0.0],
+            normal: [0.0, 1.0, 0.0],
+        },
+        stiffness: None,
+        name: None,
+        motion: freeform::sim::motion::Motion::Fixed,
+        parent: None,
+    };
+    let mut second = small_bar("second");
+    second.placement.translation = [0.0, 0.0, 2.0];
+    let scene = SceneBuilder::new(0.01, 1)
+        .cubature(200)
+        .cache(no_cache())
+        .object(small_bar("first"))
+        .object(second)
+        .collider(floor)
+        .build()
+        .unwrap();
+    let mut world = World::new(&scene, &RunSettings::default(), &Silent).unwrap();
+    let shared = |w: &World| {
+        let (a, b) = (
+            w.object(0).sim().environment(),
+            w.object(1).sim().environment(),
+        );
+        std::ptr::eq(a, b)
+    };
+    assert!(shared(&world));
+    world.set_gravity(Some([0.0, -9.81, 0.0])).unwrap();
+    let up = Rigid {
+        translation: [0.0, 0.3, 0.0],
+        ..Rigid::IDENTITY
+    };
+    world.set_collider_pose(0, &up).unwrap();
+    assert!(shared(&world));
+    for i in 0..2 {
+        let env = world.object(i).sim().environment();
+        assert_eq!(env.gravity(), Some([0.0, -9.81, 0.0]));
+        assert_eq!(env.kinematics().poses(0.0)[0].translation, [0.0, 0.3, 0.0]);
+        assert!(world
+            .object(i)
+            .sim()
+            .terms()
+            .contains(&"gravity".to_string()));
+    }
+    assert!(world.set_gravity(Some([f64::NAN, 0.0, 0.0])).is_err());
+    assert_eq!(world.object(1).sim().gravity(), Some([0.0, -9.81, 0.0]));
+    world.set_gravity(None).unwrap();
+    assert!(shared(&world));
+    assert!(!world
+        .object(0)
+        .sim()
+        .terms()
+        .contains(&"gravity".to_string()));
+}

@@ -17,10 +17,11 @@ use crate::material::MaterialField;
 use crate::precompute::sampling::IntegrationPoints;
 use crate::precompute::skinning::{Basis, SkinningWeights};
 use crate::report::Stopwatch;
-use crate::sim::collider::{self, ColliderShape, Obstacle};
+use crate::sim::collider::ColliderShape;
 use crate::sim::cubature::Cubature;
 pub use crate::sim::deformation::map_points;
 use crate::sim::elastic::{ElasticTerm, Layout};
+use crate::sim::environment::Environment;
 use crate::sim::motion::Motion;
 use crate::sim::newton::{
     self, InitialGuess, NewtonOptions, Potential, SolveReport, SolverContext,
@@ -32,13 +33,17 @@ use faer::Mat;
 use options::placement_transform;
 pub use options::{Boundary, Placement, SimOptions, StepReport, PENALTY_FACTOR, SWEEP_DEPTH};
 pub(crate) use potential::{StepPotential, StepStart};
-use setup::{check_gravity, positive};
+use setup::positive;
+use std::sync::Arc;
 
 /// A simulated object.
 pub struct ReducedSim {
     layout: Layout,
     /// The terms of the incremental potential that were built.
     terms: Terms,
+    /// Gravity and the colliders: the object's own, or the one its world shares with every
+    /// object ([`ReducedSim::share_environment`]).
+    env: Arc<Environment>,
     rest_factor: Llt<f64>,
     dt: f64,
     diag: f64,
@@ -86,6 +91,7 @@ impl ReducedSim {
         let mut sim = ReducedSim {
             layout: model.layout,
             terms: model.terms,
+            env: Arc::new(model.env),
             rest_factor: model.rest_factor,
             dt: opts.dt,
             diag: model.diag,
@@ -201,11 +207,10 @@ impl ReducedSim {
                 guess[i] += self.dt * (self.zdot[i] - self.zdot_prev[i]);
             }
         }
-        let friction = self
-            .terms
-            .colliders
-            .as_ref()
-            .and_then(|c| c.step_friction(self.layout, self.time, self.dt, &self.z));
+        let friction = self.terms.colliders.as_ref().and_then(|c| {
+            let kin = self.env.kinematics();
+            c.step_friction(kin, self.layout, self.time, self.dt, &self.z)
+        });
         StepStart {
             zpred,
             guess,
@@ -218,11 +223,7 @@ impl ReducedSim {
     /// collider (>= 0; all 0 or an empty list: none), `eps_v` the smoothing velocity, m/s
     /// (sliding slower than it is treated as sticking, smoothly).
     pub fn set_collider_friction(&mut self, mu: &[f64], eps_v: f64) -> Result<()> {
-        let count = self
-            .terms
-            .colliders
-            .as_ref()
-            .map_or(0, |c| c.kinematics().len());
+        let count = self.collider_count();
         if !mu.is_empty() && mu.len() != count {
             return Err(Error::LengthMismatch {
                 what: "friction coefficients (one per collider)",
@@ -251,7 +252,7 @@ impl ReducedSim {
 
     /// The incremental potential of the step that `start` begins.
     pub(crate) fn potential<'a>(&'a self, start: &'a StepStart) -> StepPotential<'a> {
-        StepPotential::new(&self.terms, self.layout, self.dt, start)
+        StepPotential::new(&self.terms, self.layout, self.dt, &self.env, start)
     }
 
     /// The convergence measure of a step `d` in z: its mass-weighted RMS length over the
@@ -337,17 +338,56 @@ impl ReducedSim {
 
     /// Gravity from the next step on, m/s^2 (None: no gravity term).
     pub fn set_gravity(&mut self, gravity: Option<[f64; 3]>) -> Result<()> {
-        check_gravity(gravity)?;
-        self.terms.gravity = gravity.map(|g| GravityTerm {
-            g,
-            b: self.terms.inertia.mass.b.clone(),
-        });
+        Arc::make_mut(&mut self.env).set_gravity(gravity)?;
+        self.follow_environment();
         Ok(())
     }
 
     /// Gravity, m/s^2 (None: no gravity term).
     pub fn gravity(&self) -> Option<[f64; 3]> {
-        self.terms.gravity.as_ref().map(|g| g.g)
+        self.env.gravity()
+    }
+
+    /// Gravity and the colliders this object steps in.
+    pub fn environment(&self) -> &Environment {
+        &self.env
+    }
+
+    /// Step in `env` from the next step on, shared with whoever else holds it (a world gives
+    /// every object its one environment, so the colliders and gravity are held once). It must
+    /// have the colliders the object was built with (the same count: each has this object's
+    /// penalty stiffness and friction); otherwise it is refused and nothing changes.
+    pub fn share_environment(&mut self, env: Arc<Environment>) -> Result<()> {
+        let (have, got) = (self.collider_count(), env.kinematics().len());
+        if have != got {
+            return Err(Error::LengthMismatch {
+                what: "colliders of the shared environment (the object's own)",
+                expected: have,
+                got,
+            });
+        }
+        self.env = env;
+        self.follow_environment();
+        Ok(())
+    }
+
+    /// The terms that depend on the environment follow it: the gravity term is built while it
+    /// has gravity, the collider term names its obstacles' kinds.
+    fn follow_environment(&mut self) {
+        let has = self.env.gravity().is_some();
+        if has != self.terms.gravity.is_some() {
+            self.terms.gravity = has.then(|| GravityTerm {
+                b: self.terms.inertia.mass.b.clone(),
+            });
+        }
+        if let Some(c) = self.terms.colliders.as_mut() {
+            c.refresh_kinds(self.env.kinematics());
+        }
+    }
+
+    /// Colliders the object was built with.
+    fn collider_count(&self) -> usize {
+        self.terms.colliders.as_ref().map_or(0, ContactTerm::len)
     }
 
     /// Prescribe a new motion for boundary `index` (in the order of
@@ -372,31 +412,30 @@ impl ReducedSim {
     /// the next step on; its penalty stiffness, motion and parent stay. A mesh not yet
     /// [`ColliderShape::load`]ed is read here.
     pub fn set_collider_shape(&mut self, index: usize, shape: ColliderShape) -> Result<()> {
-        let obstacle = Obstacle::new(&shape)?;
-        self.contact_kinematics(index)?
-            .set_obstacle(index, obstacle)
+        self.check_collider(index)?;
+        Arc::make_mut(&mut self.env).set_collider_shape(index, &shape)?;
+        self.follow_environment();
+        Ok(())
     }
 
     /// Move collider `index` by `motion` from the next step on (evaluated at the simulation
     /// time; relative to its parent's frame if it has one), e.g. a [`Motion::Pose`] set
     /// between steps by a caller.
     pub fn set_collider_motion(&mut self, index: usize, motion: Motion) -> Result<()> {
-        self.contact_kinematics(index)?.set_motion(index, motion)
+        self.check_collider(index)?;
+        Arc::make_mut(&mut self.env).set_collider_motion(index, motion)
     }
 
-    fn contact_kinematics(&mut self, index: usize) -> Result<&mut collider::Kinematics> {
-        let count = self
-            .terms
-            .colliders
-            .as_ref()
-            .map_or(0, |c| c.kinematics().len());
-        match self.terms.colliders.as_mut() {
-            Some(c) if index < count => Ok(c.kinematics_mut()),
-            _ => Err(Error::param(
+    fn check_collider(&self, index: usize) -> Result<()> {
+        let count = self.collider_count();
+        if index < count {
+            Ok(())
+        } else {
+            Err(Error::param(
                 "collider",
                 index,
                 format!("the object has {count} colliders (indices from 0)"),
-            )),
+            ))
         }
     }
 

@@ -2,6 +2,7 @@
 //! time, with the step's predictor and lagged friction ([`StepAt`]), as Newton sees it.
 
 use crate::sim::elastic::{Layout, Precision};
+use crate::sim::environment::Environment;
 use crate::sim::friction::ColliderLag;
 use crate::sim::newton::{EvalInfo, Potential};
 use crate::sim::terms::{HessianKind, StepAt, Terms};
@@ -27,11 +28,12 @@ pub(crate) struct StepPotential<'a> {
 
 impl<'a> StepPotential<'a> {
     /// The potential of the step that `start` begins, for an object with terms `terms`,
-    /// layout `layout` and time step `dt` (s).
+    /// layout `layout` and time step `dt` (s), in the environment `env`.
     pub(crate) fn new(
         terms: &'a Terms,
         layout: Layout,
         dt: f64,
+        env: &'a Environment,
         start: &'a StepStart,
     ) -> StepPotential<'a> {
         StepPotential {
@@ -42,6 +44,7 @@ impl<'a> StepPotential<'a> {
                 dt,
                 zpred: &start.zpred,
                 friction: start.friction.as_ref().map(|(l, e)| (l.as_slice(), *e)),
+                env,
             },
         }
     }

@@ -6,9 +6,9 @@ use crate::material::MaterialField;
 use crate::precompute::boundary_modes::lift_column;
 use crate::precompute::sampling::IntegrationPoints;
 use crate::precompute::skinning::{Basis, SkinningWeights};
-use crate::sim::collider;
 use crate::sim::cubature::{self, Cubature};
 use crate::sim::elastic::{ElasticTerm, Layout};
+use crate::sim::environment::{check_gravity, Environment};
 use crate::sim::motion::Rigid;
 use crate::sim::terms::{BoundaryTerm, ContactTerm, GravityTerm, InertiaTerm, Moments, Terms};
 use crate::{Error, Point3, Result};
@@ -27,6 +27,8 @@ pub(super) struct Model {
     pub(super) cubature: Cubature,
     /// The initial placement's rigid transform.
     pub(super) placement: Rigid,
+    /// Gravity and the colliders of the options.
+    pub(super) env: Environment,
 }
 
 /// `v` is positive and finite, else an error naming `name` and saying `what` it is.
@@ -39,16 +41,6 @@ pub(super) fn positive(name: &'static str, v: f64, what: &str) -> Result<()> {
             v,
             format!("{what} must be positive and finite"),
         ))
-    }
-}
-
-/// Gravity, if any, is finite.
-pub(super) fn check_gravity(gravity: Option<[f64; 3]>) -> Result<()> {
-    match gravity {
-        Some(g) if !g.iter().all(|v| v.is_finite()) => {
-            Err(Error::param("gravity", format!("{g:?}"), "must be finite"))
-        }
-        _ => Ok(()),
     }
 }
 
@@ -152,10 +144,10 @@ pub(super) fn build(
             pointwise,
         });
     }
+    let env = Environment::new(opts.gravity, &opts.colliders)?;
     let colliders = if opts.colliders.is_empty() {
         None
     } else {
-        let kinematics = collider::kinematics(&opts.colliders)?;
         let mut ks = Vec::new();
         for (i, c) in opts.colliders.iter().enumerate() {
             let k = c.stiffness.unwrap_or(default_k);
@@ -164,7 +156,7 @@ pub(super) fn build(
             ks.push(k);
         }
         Some(ContactTerm::new(
-            kinematics,
+            env.kinematics(),
             ks,
             &cub.points,
             &cub.volumes,
@@ -172,10 +164,7 @@ pub(super) fn build(
             SWEEP_DEPTH * diag,
         ))
     };
-    let gravity = opts.gravity.map(|g| GravityTerm {
-        g,
-        b: mass.b.clone(),
-    });
+    let gravity = opts.gravity.map(|_| GravityTerm { b: mass.b.clone() });
     let terms = Terms {
         inertia: InertiaTerm { mass },
         elastic,
@@ -193,6 +182,7 @@ pub(super) fn build(
         default_penalty: default_k,
         cubature: cub,
         placement,
+        env,
     })
 }
 

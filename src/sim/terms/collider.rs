@@ -43,7 +43,9 @@ fn segment_distance(x: &Point3, dx: &[f64; 3], c: &Point3) -> f64 {
 /// ([`Kinematics`]).
 #[derive(Debug, Clone)]
 pub struct ContactTerm {
-    kinematics: Kinematics,
+    /// The obstacles' kinds ("plane", "box", ...), for reports; the obstacles themselves and
+    /// their poses come from the step's environment ([`StepAt::env`]).
+    kinds: Vec<&'static str>,
     /// Penalty stiffness per obstacle, Pa/m^2.
     pub stiffness: Vec<f64>,
     points: Vec<Point3>,
@@ -81,11 +83,12 @@ pub enum ContactHessian {
 
 impl ContactTerm {
     /// Contacts of the cubature points `points` (volumes `volumes`, skinning weights `w`)
-    /// with the obstacles of `kinematics`, one penalty stiffness (Pa/m^2) each; a line-search
+    /// with the obstacles of `kinematics` (the environment's), one penalty stiffness (Pa/m^2)
+    /// each; a line-search
     /// step takes no point deeper than `sweep_depth` (metres) beyond where it is. Frictionless
     /// until [`ContactTerm::set_friction`].
     pub fn new(
-        kinematics: Kinematics,
+        kinematics: &Kinematics,
         stiffness: Vec<f64>,
         points: &[Point3],
         volumes: &[f64],
@@ -93,7 +96,7 @@ impl ContactTerm {
         sweep_depth: f64,
     ) -> ContactTerm {
         ContactTerm {
-            kinematics,
+            kinds: kinematics.obstacles().iter().map(Obstacle::kind).collect(),
             stiffness,
             points: points.to_vec(),
             volumes: volumes.to_vec(),
@@ -110,27 +113,37 @@ impl ContactTerm {
         self.friction = friction;
     }
 
-    /// The lagged friction contacts of a step of `dt` seconds from `t0` (state `z`) and the
-    /// smoothing displacement eps_v dt, metres; None when frictionless.
+    /// The lagged friction contacts of a step of `dt` seconds from `t0` (state `z`, the
+    /// obstacles of `kin`) and the smoothing displacement eps_v dt, metres; None when
+    /// frictionless.
     pub(crate) fn step_friction(
         &self,
+        kin: &Kinematics,
         layout: Layout,
         t0: f64,
         dt: f64,
         z: &[f64],
     ) -> Option<(Vec<ColliderLag>, f64)> {
         let (mu, eps_v) = self.friction.as_ref()?;
-        Some((self.friction_lag(layout, t0, t0 + dt, z, mu), eps_v * dt))
+        Some((
+            self.friction_lag(kin, layout, t0, t0 + dt, z, mu),
+            eps_v * dt,
+        ))
     }
 
-    /// The obstacles and their motions.
-    pub fn kinematics(&self) -> &Kinematics {
-        &self.kinematics
+    /// Colliders this term was built for.
+    pub fn len(&self) -> usize {
+        self.stiffness.len()
     }
 
-    /// The obstacles and their motions, mutable (to move an obstacle between steps).
-    pub fn kinematics_mut(&mut self) -> &mut Kinematics {
-        &mut self.kinematics
+    /// Whether it has no collider (never: an object without colliders has no such term).
+    pub fn is_empty(&self) -> bool {
+        self.stiffness.is_empty()
+    }
+
+    /// Take the obstacles' kinds from `kinematics` (after a shape changed).
+    pub(crate) fn refresh_kinds(&mut self, kinematics: &Kinematics) {
+        self.kinds = kinematics.obstacles().iter().map(Obstacle::kind).collect();
     }
 
     fn b(&self, c: usize) -> impl Iterator<Item = (usize, f64)> + '_ {
@@ -151,9 +164,15 @@ impl ContactTerm {
     }
 
     /// Every penetration at `z` and time `t`: (cubature point, obstacle, penetration).
-    fn penetrations(&self, layout: Layout, t: f64, z: &[f64]) -> Vec<(usize, usize, Penetration)> {
-        let poses = self.kinematics.poses(t);
-        let obstacles = self.kinematics.obstacles();
+    fn penetrations(
+        &self,
+        kin: &Kinematics,
+        layout: Layout,
+        t: f64,
+        z: &[f64],
+    ) -> Vec<(usize, usize, Penetration)> {
+        let poses = kin.poses(t);
+        let obstacles = kin.obstacles();
         // Bounding spheres in world coordinates, for a cheap rejection.
         let bounds: Vec<Option<(Point3, f64)>> = obstacles
             .iter()
@@ -197,6 +216,7 @@ impl ContactTerm {
     /// pairs and the deepest penetration, with the obstacles at their poses at time `t` (s).
     pub fn energy_gradient(
         &self,
+        kin: &Kinematics,
         layout: Layout,
         t: f64,
         z: &[f64],
@@ -204,7 +224,7 @@ impl ContactTerm {
     ) -> ContactInfo {
         let n4 = layout.row_len();
         let mut info = ContactInfo::default();
-        for (c, o, p) in self.penetrations(layout, t, z) {
+        for (c, o, p) in self.penetrations(kin, layout, t, z) {
             let (k, v, d, u) = (self.stiffness[o], self.volumes[c], p.depth, p.normal);
             info.active += 1;
             info.deepest = info.deepest.max(d);
@@ -229,9 +249,17 @@ impl ContactTerm {
     /// it is checked at path samples delta/2 apart against depth(z) + delta/2; a path is
     /// followed for at most [`SWEEP_SAMPLES`] samples (a point moving farther near an
     /// obstacle is bounded there). Planes bound nothing.
-    pub fn swept_step(&self, layout: Layout, t: f64, z: &[f64], dir: &[f64], scale: f64) -> f64 {
-        let poses = self.kinematics.poses(t);
-        let obstacles = self.kinematics.obstacles();
+    pub fn swept_step(
+        &self,
+        kin: &Kinematics,
+        layout: Layout,
+        t: f64,
+        z: &[f64],
+        dir: &[f64],
+        scale: f64,
+    ) -> f64 {
+        let poses = kin.poses(t);
+        let obstacles = kin.obstacles();
         let swept: Vec<Sweep> = obstacles
             .iter()
             .zip(&poses)
@@ -319,14 +347,15 @@ impl ContactTerm {
     /// (the point the obstacle's surface would take it to if it stuck).
     pub fn friction_lag(
         &self,
+        kin: &Kinematics,
         layout: Layout,
         t0: f64,
         t1: f64,
         z: &[f64],
         mu: &[f64],
     ) -> Vec<ColliderLag> {
-        let (p0, p1) = (self.kinematics.poses(t0), self.kinematics.poses(t1));
-        self.penetrations(layout, t0, z)
+        let (p0, p1) = (kin.poses(t0), kin.poses(t1));
+        self.penetrations(kin, layout, t0, z)
             .into_iter()
             .filter(|(_, o, _)| mu[*o] > 0.0)
             .map(|(c, o, p)| {
@@ -403,6 +432,7 @@ impl ContactTerm {
     /// penetrating point, H the exact Hessian of d^2/2 or its PSD part ([`ContactHessian`]).
     pub fn add_penalty_hessian(
         &self,
+        kin: &Kinematics,
         layout: Layout,
         t: f64,
         z: &[f64],
@@ -410,7 +440,7 @@ impl ContactTerm {
         h: &mut Mat<f64>,
     ) {
         let blocks: Vec<(usize, crate::linalg3::Mat3)> = self
-            .penetrations(layout, t, z)
+            .penetrations(kin, layout, t, z)
             .into_iter()
             .map(|(c, o, p)| {
                 let kv = self.stiffness[o] * self.volumes[c];
@@ -449,19 +479,14 @@ impl ContactTerm {
 impl Term for ContactTerm {
     fn kind(&self) -> TermKind {
         TermKind::Colliders {
-            kinds: self
-                .kinematics
-                .obstacles()
-                .iter()
-                .map(Obstacle::kind)
-                .collect(),
+            kinds: self.kinds.clone(),
         }
     }
 
     /// A penalty whose parts (k v d^2 / 2 per penetrating point) are all positive: nothing
     /// cancels, so it adds no size to the rounding estimate.
     fn add_energy_gradient(&self, at: &StepAt<'_>, z: &[f64], sum: &mut EnergySum<'_>) {
-        let found = self.energy_gradient(at.layout, at.t, z, sum.grad);
+        let found = self.energy_gradient(at.env.kinematics(), at.layout, at.t, z, sum.grad);
         sum.energy += found.energy;
         sum.info.contacts += found.active;
         sum.info.penetration = sum.info.penetration.max(found.deepest);
@@ -476,7 +501,7 @@ impl Term for ContactTerm {
             HessianKind::Exact => ContactHessian::Exact,
             HessianKind::Projected { .. } => ContactHessian::Psd,
         };
-        self.add_penalty_hessian(at.layout, at.t, z, which, h);
+        self.add_penalty_hessian(at.env.kinematics(), at.layout, at.t, z, which, h);
         if let Some((lag, eps)) = at.friction {
             self.add_friction_hessian(at.layout, lag, eps, z, h);
         }
@@ -484,7 +509,8 @@ impl Term for ContactTerm {
 
     /// The swept bound ([`ContactTerm::swept_step`]) at the term's sweep depth.
     fn max_step(&self, at: &StepAt<'_>, z: &[f64], dir: &[f64]) -> f64 {
-        self.swept_step(at.layout, at.t, z, dir, self.sweep_depth)
+        let kin = at.env.kinematics();
+        self.swept_step(kin, at.layout, at.t, z, dir, self.sweep_depth)
     }
 
     fn is_penalty(&self) -> bool {

@@ -3,11 +3,10 @@
 use super::term::{EnergySum, HessianKind, StepAt, Term, TermKind};
 use faer::Mat;
 
-/// Gravity acting on an object.
+/// Gravity acting on an object (the acceleration is the step's environment's,
+/// [`StepAt::env`]; the object holds this term while the environment has gravity).
 #[derive(Debug, Clone)]
 pub struct GravityTerm {
-    /// Acceleration of gravity, m/s^2 (finite).
-    pub g: [f64; 3],
     /// sum rho v b over the integration points, 4 (m + 1) (the mass moments' `b`), kg m.
     pub b: Vec<f64>,
 }
@@ -18,10 +17,13 @@ impl Term for GravityTerm {
     }
 
     fn add_energy_gradient(&self, at: &StepAt<'_>, z: &[f64], sum: &mut EnergySum<'_>) {
+        let Some(g) = at.env.gravity() else {
+            return;
+        };
         let n4 = at.layout.row_len();
         for r in 0..3 {
             for k in 0..n4 {
-                let f = self.g[r] * self.b[k];
+                let f = g[r] * self.b[k];
                 sum.energy -= f * z[r * n4 + k];
                 sum.grad[r * n4 + k] -= f;
             }

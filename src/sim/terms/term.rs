@@ -3,6 +3,7 @@
 //! which Hessian is asked for ([`HessianKind`]).
 
 use crate::sim::elastic::{Layout, Precision};
+use crate::sim::environment::Environment;
 use crate::sim::friction::ColliderLag;
 use crate::sim::newton::EvalInfo;
 use faer::Mat;
@@ -22,6 +23,8 @@ pub struct StepAt<'a> {
     /// Lagged collider friction contacts and the smoothing displacement eps_v h, metres
     /// (None: frictionless).
     pub friction: Option<(&'a [ColliderLag], f64)>,
+    /// Gravity and the colliders, as the step's owner holds them.
+    pub env: &'a Environment,
 }
 
 /// The energy (J) and gradient (J per unit of z) of the terms evaluated so far, and what they
