@@ -25,15 +25,9 @@ use std::time::Instant;
 type Surface = (Vec<Point3>, Vec<[u32; 3]>);
 
 fn points(lo: Point3, hi: Point3, n: usize) -> Vec<Point3> {
-    let mut state: u64 = 0x9E3779B97F4A7C15;
-    let mut next = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rng = freeform::random::SplitMix64::new(0x9E3779B97F4A7C15);
     (0..n)
-        .map(|_| std::array::from_fn(|d| lo[d] + (hi[d] - lo[d]) * next()))
+        .map(|_| std::array::from_fn(|d| rng.uniform(lo[d], hi[d])))
         .collect()
 }
 

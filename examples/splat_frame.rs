@@ -21,17 +21,6 @@ use freeform::sim::deformation::map_points;
 use freeform::sim::elastic::Layout;
 use freeform::sim::gaussian::deform_splats;
 
-struct Lcg(u64);
-impl Lcg {
-    fn next(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((self.0 >> 11) as f64) / ((1u64 << 53) as f64)
-    }
-}
-
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let n: usize = std::env::args()
         .nth(1)
@@ -48,8 +37,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let basis = build_basis(&shape, &opts, &Silent)?.basis;
     println!("basis (K = 300, m = 16): {:.1} s", clock.elapsed());
 
-    let mut rng = Lcg(1);
-    let mut r = |lo: f64, hi: f64| lo + (hi - lo) * rng.next();
+    let mut rng = freeform::random::SplitMix64::new(1);
+    let mut r = |lo: f64, hi: f64| lo + (hi - lo) * rng.next_f64();
     let means: Vec<[f64; 3]> = (0..n)
         .map(|_| [r(0.05, 4.95), r(0.05, 0.95), r(0.05, 0.95)])
         .collect();

@@ -30,6 +30,7 @@ pub mod linalg3;
 pub mod material;
 pub mod precompute;
 pub mod progress;
+pub mod random;
 pub mod render;
 pub mod report;
 pub mod scene;

@@ -353,15 +353,8 @@ pub fn norm_2_estimate(a: &SparseMatrix, iters: usize) -> f64 {
         return 0.0;
     }
     // Deterministic start with components in every direction: 1 + small pseudo-random part.
-    let mut state = 0x2545_f491_4f6c_dd1d_u64;
-    let mut x: Vec<f64> = (0..n)
-        .map(|_| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            1.0 + ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5)
-        })
-        .collect();
+    let mut rng = crate::random::SplitMix64::new(0x2545_f491_4f6c_dd1d);
+    let mut x: Vec<f64> = (0..n).map(|_| rng.uniform(0.5, 1.5)).collect();
     let mut y = vec![0.0; n];
     let mut estimate = 0.0;
     for _ in 0..iters.max(1) {

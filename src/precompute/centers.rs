@@ -323,15 +323,10 @@ mod tests {
     use super::*;
 
     fn cloud(n: usize, seed: u64) -> Vec<Point3> {
-        let mut s = seed;
-        let mut next = || {
-            s = s.wrapping_add(0x9E3779B97F4A7C15);
-            let mut z = s;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58476D1CE4E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D049BB133111EB);
-            ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-        };
-        (0..n).map(|_| [5.0 * next(), next(), next()]).collect()
+        let mut r = crate::random::SplitMix64::new(seed);
+        (0..n)
+            .map(|_| [5.0 * r.next_f64(), r.next_f64(), r.next_f64()])
+            .collect()
     }
 
     #[test]

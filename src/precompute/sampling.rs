@@ -274,14 +274,9 @@ pub fn sample_shape(
 /// returned in input order.
 fn downsample(points: &[Point3], n: usize) -> Vec<Point3> {
     let mut idx: Vec<usize> = (0..points.len()).collect();
-    let mut state = 0x5EED_F1EE_u64;
+    let mut rng = crate::random::SplitMix64::new(0x5EED_F1EE);
     for i in 0..n {
-        state = state.wrapping_add(0x9E3779B97F4A7C15);
-        let mut z = state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58476D1CE4E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D049BB133111EB);
-        z ^= z >> 31;
-        let j = i + (z % (points.len() - i) as u64) as usize;
+        let j = i + (rng.next_u64() % (points.len() - i) as u64) as usize;
         idx.swap(i, j);
     }
     let mut keep = idx[..n].to_vec();

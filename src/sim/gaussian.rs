@@ -450,16 +450,19 @@ mod tests {
         mul(&mul(f, c), &transpose(f))
     }
 
-    /// A small deterministic generator (tests only).
-    fn lcg(state: &mut u64) -> f64 {
-        *state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((*state >> 11) as f64) / ((1u64 << 53) as f64) * 2.0 - 1.0
+    /// Uniform in [-1, 1) from the library's generator (this test moved to it from its own
+    /// linear congruential one: other random inputs, the same checks).
+    fn uniform(state: &mut crate::random::SplitMix64) -> f64 {
+        state.uniform(-1.0, 1.0)
     }
 
-    fn unit_quat(state: &mut u64) -> [f64; 4] {
-        let q = [lcg(state), lcg(state), lcg(state), lcg(state)];
+    fn unit_quat(state: &mut crate::random::SplitMix64) -> [f64; 4] {
+        let q = [
+            uniform(state),
+            uniform(state),
+            uniform(state),
+            uniform(state),
+        ];
         let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
         q.map(|v| v / n)
     }
@@ -467,7 +470,7 @@ mod tests {
     #[test]
     fn rest_keeps_scales_and_rotation() {
         let id = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-        let mut st = 7;
+        let mut st = crate::random::SplitMix64::new(7);
         for s in [
             [-3.0, -2.5, -4.0],
             [-2.0, -2.0, -5.0],
@@ -489,7 +492,7 @@ mod tests {
 
     #[test]
     fn rigid_motion_composes_rotation() {
-        let mut st = 11;
+        let mut st = crate::random::SplitMix64::new(11);
         let s = [-2.0, -3.0, -2.5];
         for _ in 0..20 {
             let q = unit_quat(&mut st);
@@ -505,18 +508,18 @@ mod tests {
 
     #[test]
     fn covariance_is_pushed_forward_under_any_affine_map() {
-        let mut st = 3;
+        let mut st = crate::random::SplitMix64::new(3);
         for case in 0..500 {
             let q = unit_quat(&mut st);
             let s = [
-                2.0 * lcg(&mut st) - 3.0,
-                2.0 * lcg(&mut st) - 3.0,
-                lcg(&mut st) - 3.0,
+                2.0 * uniform(&mut st) - 3.0,
+                2.0 * uniform(&mut st) - 3.0,
+                uniform(&mut st) - 3.0,
             ];
             let mut f = [[0.0; 3]; 3];
             for r in 0..3 {
                 for c in 0..3 {
-                    f[r][c] = 2.0 * lcg(&mut st) + if r == c { 1.0 } else { 0.0 };
+                    f[r][c] = 2.0 * uniform(&mut st) + if r == c { 1.0 } else { 0.0 };
                 }
             }
             if case % 5 == 0 {
@@ -563,16 +566,16 @@ mod tests {
 
     #[test]
     fn sh_rotation_matches_evaluation_at_the_inverse_direction() {
-        let mut st = 5;
+        let mut st = crate::random::SplitMix64::new(5);
         for degree in 1..=3 {
             let k = (degree + 1) * (degree + 1) - 1;
             for _ in 0..20 {
                 let r = quat_to_matrix(&unit_quat(&mut st));
-                let c: Vec<f64> = (0..3 * k).map(|_| lcg(&mut st)).collect();
+                let c: Vec<f64> = (0..3 * k).map(|_| uniform(&mut st)).collect();
                 let mut rc = c.clone();
                 rotate_sh(&r, degree, &mut rc);
                 for _ in 0..10 {
-                    let v = [lcg(&mut st), lcg(&mut st), lcg(&mut st)];
+                    let v = [uniform(&mut st), uniform(&mut st), uniform(&mut st)];
                     let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
                     let d = v.map(|x| x / n);
                     let rt = transpose(&r);

@@ -142,13 +142,14 @@ fn leaves_import_no_stage() {
 }
 
 /// Modules every stage may use (reports, 3 x 3 algebra, materials and the energy density, errors,
-/// progress, sparse kernels): they import no stage, only each other.
-const LEAVES: [&str; 8] = [
+/// progress, the random generator, sparse kernels): they import no stage, only each other.
+const LEAVES: [&str; 9] = [
     "elasticity",
     "error",
     "linalg3",
     "material",
     "progress",
+    "random",
     "report",
     "simd",
     "sparse",

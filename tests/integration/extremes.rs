@@ -14,7 +14,7 @@ use crate::common;
 #[allow(dead_code)]
 #[path = "../../src/bin/freeform/messages.rs"]
 mod messages;
-use common::{held_left, Rng};
+use common::held_left;
 use freeform::eigen::compare::{max_eigenvalue_rel_diff, max_subspace_angle};
 use freeform::geometry::ShapeOptions;
 use freeform::io::read_shape;
@@ -24,6 +24,7 @@ use freeform::precompute::rkpm::{evaluate, ShapeFunctionOptions};
 use freeform::precompute::sampling::{IntegrationPoints, Resolution};
 use freeform::precompute::{build_basis, BasisOptions, BasisRun, Problem, SolverConfig};
 use freeform::progress::Silent;
+use freeform::random::SplitMix64;
 use freeform::sim::motion::Motion;
 use freeform::sim::newton::SolveReport;
 use freeform::sim::{Boundary, HessianStrategy, NewtonOptions, ReducedSim, SimOptions};
@@ -508,9 +509,9 @@ fn huge_density_variation_keeps_the_volume_and_the_spectrum() {
 fn nearly_coplanar_points_are_an_error_that_names_the_place() {
     // A slab whose points all lie within 1e-9 m of the plane z = 0: the moment matrices are
     // singular in z. The pipeline must say so, not return garbage.
-    let mut rng = Rng(7);
+    let mut rng = SplitMix64::new(7);
     let p: Vec<Point3> = (0..3000)
-        .map(|_| [rng.next(), rng.next(), 1e-9 * rng.next()])
+        .map(|_| [rng.next_f64(), rng.next_f64(), 1e-9 * rng.next_f64()])
         .collect();
     let v = vec![1e-3 / 3000.0; p.len()];
     let err = from_points(p, v, 60).unwrap_err();

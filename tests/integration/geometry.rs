@@ -14,6 +14,7 @@ use freeform::io::ply::{
 };
 use freeform::io::read_shape;
 use freeform::io::stl::{read_stl, write_stl, StlFormat};
+use freeform::random::SplitMix64;
 use freeform::Point3;
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
@@ -37,22 +38,10 @@ fn open_ok() -> ShapeOptions {
     }
 }
 
-/// Deterministic uniform numbers in [0, 1).
-struct Lcg(u64);
-impl Lcg {
-    fn next(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn below(&mut self, n: usize) -> usize {
-        ((self.next() * n as f64) as usize).min(n.saturating_sub(1))
-    }
-    fn point_in(&mut self, lo: f64, hi: f64) -> Point3 {
-        [0, 1, 2].map(|_| lo + (hi - lo) * self.next())
-    }
+/// A point uniform in [lo, hi)^3 from the library's generator (these tests moved to it from
+/// their own linear congruential one: other random inputs, the same checks).
+fn point_in(rng: &mut SplitMix64, lo: f64, hi: f64) -> Point3 {
+    [0, 1, 2].map(|_| rng.uniform(lo, hi))
 }
 
 /// `n^3` cell-centred grid points filling the cube [lo, hi]^3.
@@ -341,12 +330,12 @@ fn torus_inside_matches_analytic_away_from_surface() {
 
 /// Points that stress the evaluation: uniform in a box around the mesh, plus pairs just inside
 /// and just outside every triangle's centroid (1e-4 of the size), plus the vertices' neighbours.
-fn stress_points(m: &TriMesh, rng: &mut Lcg, n_random: usize) -> Vec<Point3> {
+fn stress_points(m: &TriMesh, rng: &mut SplitMix64, n_random: usize) -> Vec<Point3> {
     let b = m.bounding_box();
     let diag = b.diagonal();
     let mut pts: Vec<Point3> = (0..n_random)
         .map(|_| {
-            let u = rng.point_in(-0.1, 1.1);
+            let u = point_in(rng, -0.1, 1.1);
             [0, 1, 2].map(|a| b.min[a] + u[a] * (b.max[a] - b.min[a]))
         })
         .collect();
@@ -387,7 +376,7 @@ fn fast_winding_number_agrees_with_exact_sum() {
         ("torus", mesh(generate::torus(2.0, 0.6, 64, 32))),
         ("hollow box", mesh(hollow)),
     ];
-    let mut rng = Lcg(42);
+    let mut rng = SplitMix64::new(42);
     for (name, m) in &meshes {
         let pts = stress_points(m, &mut rng, 3000);
         let exact = m.winding_numbers_exact(&pts);
@@ -441,7 +430,7 @@ fn fast_winding_number_agrees_with_exact_sum() {
 #[test]
 fn accuracy_parameter_trades_error() {
     let m = mesh(generate::icosphere(1.0, 4));
-    let mut rng = Lcg(3);
+    let mut rng = SplitMix64::new(3);
     let pts = stress_points(&m, &mut rng, 500);
     let exact = winding_numbers_exact(m.vertices(), m.triangles(), &pts);
     let err = |beta: f64| {
@@ -472,8 +461,10 @@ fn winding_throughput_icosphere_20k() {
     let t0 = Instant::now();
     let tree = m.winding_tree();
     let build = t0.elapsed().as_secs_f64();
-    let mut rng = Lcg(11);
-    let random: Vec<Point3> = (0..200_000).map(|_| rng.point_in(-1.2, 1.2)).collect();
+    let mut rng = SplitMix64::new(11);
+    let random: Vec<Point3> = (0..200_000)
+        .map(|_| point_in(&mut rng, -1.2, 1.2))
+        .collect();
     let g = grid(59, -1.1, 1.1); // 205,379 points
     let time = |f: &dyn Fn() -> Vec<bool>| {
         let t = Instant::now();
@@ -844,9 +835,9 @@ fn gaussian_splat_ply_reads_xyz_exactly_and_skips_the_rest() {
         ]
     );
     // Generated: full 62-property layout, values that are exact in f32.
-    let mut rng = Lcg(5);
+    let mut rng = SplitMix64::new(5);
     let xyz: Vec<Point3> = (0..500)
-        .map(|_| rng.point_in(-10.0, 10.0).map(|x| x as f32 as f64))
+        .map(|_| point_in(&mut rng, -10.0, 10.0).map(|x| x as f32 as f64))
         .collect();
     let dir = tmp();
     let p = write(dir.path(), "scene.ply", &splat_bytes(&xyz));
@@ -1294,7 +1285,7 @@ fn hostile_files_never_panic() {
         b"/",
         b"f",
     ];
-    let mut rng = Lcg(2024);
+    let mut rng = SplitMix64::new(2024);
     let mut outcomes = [0usize; 2];
     for case in 0..1200 {
         let (ext, seed) = &seeds[case % seeds.len()];

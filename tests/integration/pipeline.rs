@@ -433,15 +433,15 @@ fn mesh_files_and_point_clouds_run_through_the_pipeline() {
         assert!(w.values.iter().all(|x| x.is_finite()));
     }
     // A point cloud: a jittered grid inside the unit ball, with extra splat-like properties.
-    let mut rng = common::Rng(4);
+    let mut rng = freeform::random::SplitMix64::new(4);
     let mut pts = Vec::new();
     for i in 0..30 {
         for j in 0..30 {
             for k in 0..30 {
                 let p = [
-                    -1.0 + (i as f64 + rng.next()) / 15.0,
-                    -1.0 + (j as f64 + rng.next()) / 15.0,
-                    -1.0 + (k as f64 + rng.next()) / 15.0,
+                    -1.0 + (i as f64 + rng.next_f64()) / 15.0,
+                    -1.0 + (j as f64 + rng.next_f64()) / 15.0,
+                    -1.0 + (k as f64 + rng.next_f64()) / 15.0,
                 ];
                 if p[0] * p[0] + p[1] * p[1] + p[2] * p[2] < 1.0 {
                     pts.push(p);

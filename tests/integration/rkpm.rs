@@ -4,18 +4,25 @@
 #![allow(clippy::needless_range_loop)] // index loops mirror the formulas
 
 use crate::common;
-use common::{box_points, kernels_for, Rng};
+use common::{box_points, kernels_for};
 use freeform::precompute::rkpm::{
     evaluate, reproducing_error, KernelType, Kernels, ShapeFunctionOptions,
 };
+use freeform::random::SplitMix64;
 use freeform::Point3;
 
 const KINDS: [KernelType; 3] = [KernelType::Cubic, KernelType::Quartic, KernelType::Gaussian];
 
 fn random_queries(n: usize, size: [f64; 3], seed: u64) -> Vec<Point3> {
-    let mut r = Rng(seed);
+    let mut r = SplitMix64::new(seed);
     (0..n)
-        .map(|_| [size[0] * r.next(), size[1] * r.next(), size[2] * r.next()])
+        .map(|_| {
+            [
+                size[0] * r.next_f64(),
+                size[1] * r.next_f64(),
+                size[2] * r.next_f64(),
+            ]
+        })
         .collect()
 }
 

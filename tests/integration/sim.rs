@@ -3,13 +3,14 @@
 
 use crate::common;
 
-use common::{held_left, Rng};
+use common::held_left;
 use freeform::geometry::ShapeOptions;
 use freeform::io::read_shape;
 use freeform::material::{Material, Region};
 use freeform::precompute::sampling::Resolution;
 use freeform::precompute::{build_basis, BasisOptions, BasisRun, SolverConfig};
 use freeform::progress::Silent;
+use freeform::random::SplitMix64;
 use freeform::sim::elastic::{Precision, Projection};
 use freeform::sim::motion::{AxisAngle, Motion};
 use freeform::sim::terms::{
@@ -59,8 +60,8 @@ fn twisted_right(degrees_per_second: f64) -> Boundary {
 }
 
 fn random_z(n: usize, scale: f64, seed: u64) -> Vec<f64> {
-    let mut rng = Rng(seed);
-    (0..n).map(|_| scale * (rng.next() - 0.5)).collect()
+    let mut rng = SplitMix64::new(seed);
+    (0..n).map(|_| scale * (rng.next_f64() - 0.5)).collect()
 }
 
 #[test]
@@ -247,10 +248,11 @@ fn every_term_matches_finite_differences_and_a_toy_term_joins_with_one_call() {
         dt: 0.01,
         zpred: &zpred,
         friction: Some((&lag, 1e-3)),
+        env: s.environment(),
     };
-    let mut rng = Rng(11);
+    let mut rng = SplitMix64::new(11);
     let dirs: Vec<Vec<f64>> = (0..6)
-        .map(|_| (0..n).map(|_| rng.next() - 0.5).collect())
+        .map(|_| (0..n).map(|_| rng.next_f64() - 0.5).collect())
         .collect();
     let terms = s.potential_terms();
     let one = |term: &dyn Term, at: &StepAt<'_>, z: &[f64], g: &mut [f64]| {

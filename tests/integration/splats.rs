@@ -12,6 +12,7 @@ use freeform::io::splat::{
 };
 use freeform::linalg3::{mul, quat_to_matrix, sym_eig3, transpose, Mat3};
 use freeform::progress::Silent;
+use freeform::random::SplitMix64;
 use freeform::scene::{
     run, FrameObserver, FrameWriter, ObjectSpec, OutputSettings, RunSettings, Scene, SceneBuilder,
     World,
@@ -19,16 +20,10 @@ use freeform::scene::{
 use freeform::sim::gaussian::{covariance, deform_splats, sh_basis};
 use std::path::{Path, PathBuf};
 
-/// Deterministic numbers in [-1, 1).
-struct Lcg(u64);
-impl Lcg {
-    fn next(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((self.0 >> 11) as f64) / ((1u64 << 53) as f64) * 2.0 - 1.0
-    }
+/// Deterministic numbers in [-1, 1) from the library's generator (these tests moved to it
+/// from their own linear congruential one: other synthetic splats, the same checks).
+fn signed(rng: &mut SplitMix64) -> f64 {
+    rng.uniform(-1.0, 1.0)
 }
 
 /// The properties of the synthetic file, in order: the 3DGS layout with SH degree 3, then an
@@ -56,32 +51,37 @@ fn header_names() -> Vec<(String, &'static str)> {
 /// One row of values per splat (as f64; floats already float32), in header order: a grid of
 /// 12^3 splats 0.05 m apart in a 0.55 m cube, random unit quaternions, log-scales near -3.5.
 fn synthetic_rows(n_side: usize, seed: u64) -> Vec<Vec<f64>> {
-    let mut rng = Lcg(seed);
+    let mut rng = SplitMix64::new(seed);
     let f32r = |v: f64| v as f32 as f64;
     let mut rows = Vec::new();
     for i in 0..n_side {
         for j in 0..n_side {
             for k in 0..n_side {
                 let mut r = vec![
-                    f32r(i as f64 * 0.05 + 0.01 * rng.next()),
-                    f32r(j as f64 * 0.05 + 0.01 * rng.next()),
-                    f32r(k as f64 * 0.05 + 0.01 * rng.next()),
+                    f32r(i as f64 * 0.05 + 0.01 * signed(&mut rng)),
+                    f32r(j as f64 * 0.05 + 0.01 * signed(&mut rng)),
+                    f32r(k as f64 * 0.05 + 0.01 * signed(&mut rng)),
                     0.0,
                     0.0,
                     0.0,
                 ];
                 for _ in 0..48 {
-                    r.push(f32r(rng.next()));
+                    r.push(f32r(signed(&mut rng)));
                 }
-                r.push(f32r(3.0 * rng.next()));
+                r.push(f32r(3.0 * signed(&mut rng)));
                 for _ in 0..3 {
-                    r.push(f32r(-3.5 + 0.8 * rng.next()));
+                    r.push(f32r(-3.5 + 0.8 * signed(&mut rng)));
                 }
-                let q = [rng.next(), rng.next(), rng.next(), rng.next()];
+                let q = [
+                    signed(&mut rng),
+                    signed(&mut rng),
+                    signed(&mut rng),
+                    signed(&mut rng),
+                ];
                 let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
                 r.extend(q.iter().map(|v| f32r(v / n)));
                 r.push(((i * 7 + j * 3 + k) % 11) as f64 - 5.0);
-                r.push(rng.next() * 1e-3 + 0.5);
+                r.push(signed(&mut rng) * 1e-3 + 0.5);
                 rows.push(r);
             }
         }
@@ -354,13 +354,13 @@ fn covariances_stay_positive_definite_under_large_random_affine_maps() {
     let path = dir.path().join("g.ply");
     write_rows(&path, &rows, &header_names());
     let s = read_splats(&path).unwrap();
-    let mut rng = Lcg(9);
+    let mut rng = SplitMix64::new(9);
     let f: Vec<Mat3> = (0..s.len())
         .map(|i| {
             let mut m = [[0.0; 3]; 3];
             for row in m.iter_mut() {
                 for v in row.iter_mut() {
-                    *v = 5.0 * rng.next();
+                    *v = 5.0 * signed(&mut rng);
                 }
             }
             if i % 7 == 0 {
@@ -404,16 +404,18 @@ fn deformation_gradient_matches_finite_differences_of_the_map() {
     let mut world = World::new(&scene, &settings(dir.path()), &Silent).unwrap();
     let obj = world.object(0);
     let layout = obj.sim().layout();
-    let mut rng = Lcg(17);
-    let z: Vec<f64> = (0..layout.dofs()).map(|_| 0.05 * rng.next()).collect();
+    let mut rng = SplitMix64::new(17);
+    let z: Vec<f64> = (0..layout.dofs())
+        .map(|_| 0.05 * signed(&mut rng))
+        .collect();
     world.set_state(0, &z, &vec![0.0; z.len()]).unwrap();
     let obj = world.object(0);
     let points: Vec<[f64; 3]> = (0..20)
         .map(|_| {
             [
-                0.275 + 0.2 * rng.next(),
-                0.275 + 0.2 * rng.next(),
-                0.275 + 0.2 * rng.next(),
+                0.275 + 0.2 * signed(&mut rng),
+                0.275 + 0.2 * signed(&mut rng),
+                0.275 + 0.2 * signed(&mut rng),
             ]
         })
         .collect();

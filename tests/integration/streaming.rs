@@ -7,7 +7,7 @@
 //! in the same order, and each term is computed with the same expression, so any difference is
 //! a bug (a lost, duplicated or reordered contribution), not round-off.
 
-use crate::common::{box_points, kernels_for, Rng};
+use crate::common::{box_points, kernels_for};
 use freeform::material::{Material, MaterialField, MaterialOverride, Region};
 use freeform::precompute::centers::morton_order;
 use freeform::precompute::rkpm::{evaluate, KernelType, Kernels, ShapeFunctionOptions};
@@ -15,6 +15,7 @@ use freeform::precompute::sampling::IntegrationPoints;
 use freeform::precompute::stream::{assemble_streamed, Streamed};
 use freeform::precompute::{BasisOptions, Problem};
 use freeform::progress::Silent;
+use freeform::random::SplitMix64;
 use freeform::sparse::SparseMatrix;
 use freeform::Point3;
 
@@ -94,10 +95,10 @@ fn fixture() -> (Kernels, Vec<Point3>, Vec<f64>, Vec<f64>) {
     let mut order: Vec<usize> = (0..ip.len()).collect();
     morton_order(&ip.points, &mut order);
     // Volumes vary per point so that a misplaced volume would show.
-    let mut rng = Rng(7);
+    let mut rng = SplitMix64::new(7);
     let vol: Vec<f64> = order
         .iter()
-        .map(|&i| ip.volumes[i] * (0.5 + rng.next()))
+        .map(|&i| ip.volumes[i] * (0.5 + rng.next_f64()))
         .collect();
     let points = order.iter().map(|&i| ip.points[i]).collect();
     let w = order.iter().map(|&i| w[i]).collect();
@@ -220,9 +221,9 @@ fn chunked_skinning_weights_equal_one_shot_evaluation() {
         .unwrap()
         .basis;
     // Random queries in the box, more than one chunk, in no spatial order.
-    let mut rng = Rng(11);
+    let mut rng = SplitMix64::new(11);
     let queries: Vec<Point3> = (0..freeform::precompute::rkpm::CHUNK_POINTS + 3000)
-        .map(|_| [2.0 * rng.next(), rng.next(), rng.next()])
+        .map(|_| [2.0 * rng.next_f64(), rng.next_f64(), rng.next_f64()])
         .collect();
     let w = basis.weights(&queries).unwrap();
     let (sf, stats) = evaluate(&basis.kernels, &queries, &ShapeFunctionOptions::default());

@@ -547,17 +547,12 @@ mod tests {
         MeshObstacle::from_triangles(Path::new("test.obj"), v, t, Sided::Solid).unwrap()
     }
 
-    /// Deterministic points in [-s, s]^3 (a fixed linear congruential sequence).
+    /// Deterministic points in [-s, s]^3 (the library's generator; this test moved to it
+    /// from its own linear congruential one: other points, the same checks).
     fn points(n: usize, s: f64) -> Vec<Point3> {
-        let mut state: u64 = 12345;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut r = crate::random::SplitMix64::new(12345);
         (0..n)
-            .map(|_| std::array::from_fn(|_| s * (2.0 * next() - 1.0)))
+            .map(|_| std::array::from_fn(|_| r.uniform(-s, s)))
             .collect()
     }
 

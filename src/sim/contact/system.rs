@@ -251,13 +251,10 @@ mod tests {
     #[test]
     fn block_solve_matches_the_dense_cholesky_solve() {
         let sizes = [3, 4, 2];
-        let mut seed = 12345u64;
-        let mut rnd = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-        };
+        // The library's generator (this test moved to it from its own: other entries, the
+        // same check).
+        let mut rng = crate::random::SplitMix64::new(12345);
+        let mut rnd = move || rng.uniform(-0.5, 0.5);
         let n: usize = sizes.iter().sum();
         // H = A A^T + I restricted to the block pattern: build A with the same pattern.
         let a = Mat::from_fn(n, n, |_, _| rnd());

@@ -30,18 +30,6 @@ pub fn kernels_for(ip: &IntegrationPoints, k: usize, kind: KernelType) -> Kernel
     }
 }
 
-/// Deterministic pseudo-random numbers in [0, 1) (splitmix64).
-pub struct Rng(pub u64);
-impl Rng {
-    pub fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E3779B97F4A7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58476D1CE4E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D049BB133111EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
 /// Run the `freeform` binary with `args` and collect its output.
 pub fn freeform(args: &[&str]) -> std::process::Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_freeform"))
