@@ -18,7 +18,7 @@ use freeform::random::SplitMix64;
 use freeform::scene::{ObjectSpec, RunSettings, Scene, SceneBuilder, World};
 use freeform::sim::collider::{ColliderShape, MeshCollider, MeshObstacle, Sided};
 use freeform::sim::motion::{AxisAngle, Keyframe, Motion};
-use freeform::sim::terms::ContactHessian;
+use freeform::sim::terms::{check_derivatives, ContactHessian, Floors};
 use freeform::sim::{Collider, ReducedSim, SimOptions};
 use freeform::{Error, Point3};
 use std::path::{Path, PathBuf};
@@ -151,35 +151,34 @@ fn collider_penalties_match_finite_differences_in_z() {
         );
         let gnorm = dot(&g, &g).sqrt();
         let hnorm = exact.norm_l2();
-        for seed in 0..4 {
-            let dz = random(n, 1.0, 100 + seed);
-            let dn = dot(&dz, &dz).sqrt();
-            let h = 1e-6;
-            let zp: Vec<f64> = z.iter().zip(&dz).map(|(a, b)| a + h * b).collect();
-            let zm: Vec<f64> = z.iter().zip(&dz).map(|(a, b)| a - h * b).collect();
-            let ((ip, gp), (im, gm)) = (eval(&zp), eval(&zm));
-            // Central differences of a piecewise quadratic-in-x energy: truncation O(h^2)
-            // where smooth, rounding ~1e-16 E / h; 1e-6 relative leaves room for both but not
-            // for a missing or wrong term (those are O(1) relative).
-            let fd = (ip.energy - im.energy) / (2.0 * h);
-            assert!(
-                (fd - dot(&g, &dz)).abs() <= 1e-6 * gnorm * dn,
-                "{what}: directional derivative {fd} vs {}",
-                dot(&g, &dz)
-            );
-            let hdz: Vec<f64> = (0..n)
-                .map(|i| (0..n).map(|j| exact[(i, j)] * dz[j]).sum())
-                .collect();
-            let err: f64 = (0..n)
-                .map(|i| ((gp[i] - gm[i]) / (2.0 * h) - hdz[i]).powi(2))
-                .sum::<f64>()
-                .sqrt();
-            assert!(
-                err <= 1e-6 * hnorm * dn,
-                "{what}: |FD(grad) - H dz| = {err:e}, |H| |dz| = {:e}",
-                hnorm * dn
-            );
-        }
+        // Four random unit directions; errors relative to |g| and |H| (the floors), which
+        // bound every slope and every H d.
+        let dirs: Vec<Vec<f64>> = (0..4)
+            .map(|seed| {
+                let dz = random(n, 1.0, 100 + seed);
+                let dn = dot(&dz, &dz).sqrt();
+                dz.iter().map(|v| v / dn).collect()
+            })
+            .collect();
+        let energy = |z: &[f64], grad: &mut [f64]| {
+            let (info, g) = eval(z);
+            grad.copy_from_slice(&g);
+            info.energy
+        };
+        let hessian = |_: &[f64]| exact.clone();
+        let floors = Floors {
+            gradient: gnorm,
+            hessian: hnorm,
+        };
+        // Central differences of a piecewise quadratic-in-x energy: truncation O(h^2) where
+        // smooth, rounding ~1e-16 E / h; 1e-6 relative leaves room for both but not for a
+        // missing or wrong term (those are O(1) relative). The Hessian is the one at z: the
+        // checker compares it with the differences of the gradient around z.
+        let check = check_derivatives(energy, Some(&hessian), &z, &dirs, 1e-6, floors);
+        assert!(
+            check.gradient <= 1e-6 && check.hessian <= 1e-6,
+            "{what}: {check:?}"
+        );
         // The PSD Hessian is the exact one where that is PSD (planes, boxes, meshes); for
         // the round shapes it drops the (negative) curvature part.
         let diff = (&exact - &psd).norm_l2();

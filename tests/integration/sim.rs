@@ -14,7 +14,8 @@ use freeform::random::SplitMix64;
 use freeform::sim::elastic::{Precision, Projection};
 use freeform::sim::motion::{AxisAngle, Motion};
 use freeform::sim::terms::{
-    check_derivatives, ColliderLag, ColliderShape, EnergySum, HessianKind, StepAt, Term, TermKind,
+    check_derivatives, ColliderLag, ColliderShape, EnergySum, Floors, HessianKind, StepAt, Term,
+    TermKind,
 };
 use freeform::sim::{
     Boundary, Collider, HessianStrategy, InitialGuess, NewtonOptions, Placement, ReducedSim,
@@ -99,44 +100,34 @@ fn gradient_and_hessian_match_finite_differences() {
     let (e0, g) = s.step_potential(&zpred, t, &z);
     assert!(e0.is_finite());
     let gscale = g.iter().map(|v| v.abs()).fold(0.0, f64::max);
-    for i in (0..n).step_by(3) {
-        let h = 1e-6;
-        let (mut zp, mut zm) = (z.clone(), z.clone());
-        zp[i] += h;
-        zm[i] -= h;
-        let fd =
-            (s.step_potential(&zpred, t, &zp).0 - s.step_potential(&zpred, t, &zm).0) / (2.0 * h);
-        // Central differences: truncation h^2 E''' and round-off eps |E| / h; both are far
-        // below 1e-6 of the largest gradient entry here (the penalties' kinks excepted: a
-        // point crossing the plane within +-h changes E by O(k v h^2)).
-        assert!(
-            (fd - g[i]).abs() <= 1e-6 * gscale,
-            "dof {i}: fd {fd} vs {}",
-            g[i]
-        );
-    }
-    // Exact elastic Hessian against differences of the elastic gradient.
+    let unit = |i: usize| -> Vec<f64> { (0..n).map(|k| if k == i { 1.0 } else { 0.0 }).collect() };
+    // The step potential's gradient along every third coordinate. Central differences:
+    // truncation h^2 E''' and round-off eps |E| / h; both are far below 1e-6 of the largest
+    // gradient entry (the floor) here (the penalties' kinks excepted: a point crossing the
+    // plane within +-h changes E by O(k v h^2)).
+    let potential = |z: &[f64], grad: &mut [f64]| {
+        let (e, g) = s.step_potential(&zpred, t, z);
+        grad.copy_from_slice(&g);
+        e
+    };
+    let coords: Vec<Vec<f64>> = (0..n).step_by(3).map(unit).collect();
+    let check = check_derivatives(potential, None, &z, &coords, 1e-6, Floors::both(gscale));
+    assert!(check.gradient <= 1e-6, "step potential: {check:?}");
+    // The exact elastic Hessian against differences of the elastic gradient, every fifth
+    // column, relative to the largest diagonal entry (the floor).
     let el = s.elastic();
     let hess = el.hessian(&z, Projection::None);
     let hscale = (0..n).map(|i| hess[(i, i)].abs()).fold(0.0, f64::max);
-    let mut gp = vec![0.0; n];
-    let mut gm = vec![0.0; n];
-    for j in (0..n).step_by(5) {
-        let h = 1e-6;
-        let (mut zp, mut zm) = (z.clone(), z.clone());
-        zp[j] += h;
-        zm[j] -= h;
-        el.energy_gradient(&zp, &mut gp);
-        el.energy_gradient(&zm, &mut gm);
-        for i in 0..n {
-            let fd = (gp[i] - gm[i]) / (2.0 * h);
-            assert!(
-                (fd - hess[(i, j)]).abs() <= 1e-6 * hscale,
-                "({i},{j}): fd {fd} vs {}",
-                hess[(i, j)]
-            );
-        }
-    }
+    let elastic = |z: &[f64], grad: &mut [f64]| el.energy_gradient(z, grad).0;
+    let exact = |z: &[f64]| el.hessian(z, Projection::None);
+    let columns: Vec<Vec<f64>> = (0..n).step_by(5).map(unit).collect();
+    let floors = Floors {
+        gradient: gscale,
+        hessian: hscale,
+    };
+    let check = check_derivatives(elastic, Some(&exact), &z, &columns, 1e-6, floors);
+    // Column norms instead of entries: up to sqrt(n) ~ 5 times the entrywise 1e-6.
+    assert!(check.hessian <= 5e-6, "elastic Hessian: {check:?}");
     // The projected Hessian is symmetric and PSD; the full step Hessian is SPD.
     let hp = el.hessian(&z, Projection::PerPoint);
     let evd = hp.self_adjoint_eigen(faer::Side::Lower).unwrap();
@@ -274,7 +265,7 @@ fn every_term_matches_finite_differences_and_a_toy_term_joins_with_one_call() {
         // are both below 1e-6 of the slopes here. The collider penalty has a kink where a
         // point crosses the plane (O(k v h^2) within +-h), rare at 6 random directions.
         // The floor (1e-9 of |g| |d|, |d| ~ 1) only matters for a term with zero gradient.
-        let floor = 1e-9 * gnorm.max(1.0);
+        let floor = Floors::both(1e-9 * gnorm.max(1.0));
         let check = check_derivatives(energy, Some(&hessian), &z, &dirs, 1e-6, floor);
         assert!(
             check.gradient < 1e-6 && check.hessian < 1e-5,

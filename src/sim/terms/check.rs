@@ -10,18 +10,38 @@ pub type HessianFn<'a> = &'a dyn Fn(&[f64]) -> Mat<f64>;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DerivativeCheck {
     /// max over directions d of |(E(z + h d) - E(z - h d)) / 2h - g . d| / scale, with scale
-    /// = max(|g . d|, |the difference quotient|, `floor`).
+    /// = max(|g . d|, |the difference quotient|, `floor.gradient`).
     pub gradient: f64,
     /// max over d of |(g(z + h d) - g(z - h d)) / 2h - H d| / max(|H d|, |the quotient|,
-    /// `floor`), Euclidean norms (0 without a Hessian).
+    /// `floor.hessian`), Euclidean norms (0 without a Hessian).
     pub hessian: f64,
+}
+
+/// The sizes below which [`check_derivatives`] measures errors absolutely: where a derivative
+/// is much smaller than its typical size (a slope across the gradient, a small column of the
+/// Hessian), its rounding is relative to that size, not to itself.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Floors {
+    /// For the slopes g . d (energy units per unit of z times |d|).
+    pub gradient: f64,
+    /// For the products H d.
+    pub hessian: f64,
+}
+
+impl Floors {
+    /// The same floor for both.
+    pub fn both(floor: f64) -> Floors {
+        Floors {
+            gradient: floor,
+            hessian: floor,
+        }
+    }
 }
 
 /// Compare the gradient (and, if given, the Hessian) of `energy` at `z` with central
 /// differences along each of `directions` with step `h` (in units of z). `energy(z, grad)`
 /// returns E(z) and writes dE/dz to `grad`; `hessian(z)` returns d2E/dz2 (len(z) square).
-/// `floor` keeps the relative errors finite where a derivative vanishes (a size below which
-/// differences are rounding, in the energy's units per unit of z).
+/// `floor` keeps the relative errors finite where a derivative vanishes ([`Floors`]).
 ///
 /// The central quotient's truncation error is h^2/6 times the third derivative, its rounding
 /// about eps |E| / h: choose h where both are below the tolerance the caller asserts.
@@ -31,7 +51,7 @@ pub fn check_derivatives(
     z: &[f64],
     directions: &[Vec<f64>],
     h: f64,
-    floor: f64,
+    floor: Floors,
 ) -> DerivativeCheck {
     let n = z.len();
     let mut g = vec![0.0; n];
@@ -50,7 +70,7 @@ pub fn check_derivatives(
         let (ep, em) = (energy(&zp, &mut gp), energy(&zm, &mut gm));
         let quotient = (ep - em) / (2.0 * h);
         let slope: f64 = g.iter().zip(d).map(|(a, b)| a * b).sum();
-        let scale = slope.abs().max(quotient.abs()).max(floor);
+        let scale = slope.abs().max(quotient.abs()).max(floor.gradient);
         worst.gradient = worst.gradient.max((quotient - slope).abs() / scale);
         if let Some(hz) = &hz {
             let hd: Vec<f64> = (0..n)
@@ -62,7 +82,7 @@ pub fn check_derivatives(
                 .map(|(a, b)| (a - b) / (2.0 * h))
                 .collect();
             let diff: Vec<f64> = hd.iter().zip(&fd).map(|(a, b)| a - b).collect();
-            let scale = norm(&hd).max(norm(&fd)).max(floor);
+            let scale = norm(&hd).max(norm(&fd)).max(floor.hessian);
             worst.hessian = worst.hessian.max(norm(&diff) / scale);
         }
     }
@@ -104,9 +124,9 @@ mod tests {
         let z = [0.7, -0.4, 1.1];
         let dirs = vec![vec![1.0, 0.5, -0.3], vec![0.0, 1.0, 0.0]];
         // h = 1e-4: truncation h^2 |E'''| / 6 ~ 1e-8 relative, rounding eps / h ~ 1e-12.
-        let ok = check_derivatives(energy, Some(&right), &z, &dirs, 1e-4, 1e-12);
+        let ok = check_derivatives(energy, Some(&right), &z, &dirs, 1e-4, Floors::both(1e-12));
         assert!(ok.gradient < 1e-7 && ok.hessian < 1e-7, "{ok:?}");
-        let bad = check_derivatives(energy, Some(&wrong), &z, &dirs, 1e-4, 1e-12);
+        let bad = check_derivatives(energy, Some(&wrong), &z, &dirs, 1e-4, Floors::both(1e-12));
         assert!(bad.hessian > 0.1, "{bad:?}");
     }
 }

@@ -18,7 +18,7 @@ mod term;
 pub use crate::sim::collider::ColliderShape;
 pub use crate::sim::friction::ColliderLag;
 pub use boundary::BoundaryTerm;
-pub use check::{check_derivatives, DerivativeCheck, HessianFn};
+pub use check::{check_derivatives, DerivativeCheck, Floors, HessianFn};
 pub use collider::{ContactHessian, ContactInfo, ContactTerm, SWEEP_SAMPLES};
 pub use gravity::GravityTerm;
 pub use inertia::InertiaTerm;
