@@ -12,7 +12,7 @@ use freeform::sim::contact::energy::SEGMENT_REACH;
 use freeform::sim::contact::{
     Body, ContactSamples, ContactSettings, IslandSolver, PairContact, PairHessian,
 };
-use freeform::sim::terms::ColliderShape;
+use freeform::sim::terms::{check_derivatives, ColliderShape, Floors};
 use freeform::sim::{Collider, Placement};
 
 fn block(name: &str, size: f64, at: [f64; 3], velocity: [f64; 3]) -> ObjectSpec {
@@ -62,7 +62,7 @@ fn positions(w: &World) -> Vec<Vec<[f64; 3]>> {
 }
 
 /// The gradient `g` and exact Hessian `h` of `contact`'s energy at `z` against central
-/// differences along 6 fixed directions.
+/// differences along 6 fixed directions (the shared checker).
 fn assert_derivatives_match_central_differences(
     contact: &PairContact,
     z: &[f64],
@@ -70,40 +70,31 @@ fn assert_derivatives_match_central_differences(
     h: &faer::Mat<f64>,
 ) {
     let n = z.len();
-    let energy = |z: &[f64]| contact.stats(z).energy;
+    let energy = |z: &[f64], grad: &mut [f64]| {
+        grad.fill(0.0);
+        contact.energy_gradient(z, grad).energy
+    };
+    let mut g0 = vec![0.0; n];
+    energy(z, &mut g0);
+    assert_eq!(g0, g, "the gradient handed in is the energy's");
+    let hessian = |_: &[f64]| h.clone();
+    let dirs: Vec<Vec<f64>> = (0..6)
+        .map(|trial| {
+            (0..n)
+                .map(|k| ((k * (trial + 3)) as f64 * 1.3).cos())
+                .collect()
+        })
+        .collect();
     // Central differences with eps = 1e-7 (z is O(0.1)): truncation ~ eps^2 E''' and
     // rounding ~ 1e-16 E / eps, both far below 1e-6 of the derivatives checked; a pair
     // crossing its contact distance within eps would show as a kink of size ~eps, and the
-    // tolerance 1e-5 leaves room for a few.
-    let eps = 1e-7;
-    for trial in 0..6 {
-        let v: Vec<f64> = (0..n)
-            .map(|k| ((k * (trial + 3)) as f64 * 1.3).cos())
-            .collect();
-        let plus: Vec<f64> = z.iter().zip(&v).map(|(a, b)| a + eps * b).collect();
-        let minus: Vec<f64> = z.iter().zip(&v).map(|(a, b)| a - eps * b).collect();
-        let fd = (energy(&plus) - energy(&minus)) / (2.0 * eps);
-        let an: f64 = g.iter().zip(&v).map(|(a, b)| a * b).sum();
-        assert!(
-            (fd - an).abs() <= 1e-5 * an.abs().max(1e-9),
-            "gradient: fd {fd} analytic {an}"
-        );
-        let (mut gp, mut gm) = (vec![0.0; n], vec![0.0; n]);
-        contact.energy_gradient(&plus, &mut gp);
-        contact.energy_gradient(&minus, &mut gm);
-        let hv: Vec<f64> = (0..n)
-            .map(|i| (0..n).map(|j| h[(i, j)] * v[j]).sum())
-            .collect();
-        let scale = hv.iter().map(|x| x.abs()).fold(0.0, f64::max);
-        for i in 0..n {
-            let fd = (gp[i] - gm[i]) / (2.0 * eps);
-            assert!(
-                (fd - hv[i]).abs() <= 1e-5 * scale,
-                "Hessian row {i}: fd {fd} analytic {}",
-                hv[i]
-            );
-        }
-    }
+    // tolerance 1e-5 leaves room for a few. Hessian errors are in the Euclidean norm of
+    // H v (they were entrywise against the largest entry: the same 1e-5 held).
+    let check = check_derivatives(energy, Some(&hessian), z, &dirs, 1e-7, Floors::both(1e-9));
+    assert!(
+        check.gradient <= 1e-5 && check.hessian <= 1e-5,
+        "pair energy: {check:?}"
+    );
 }
 
 /// The energy's gradient and exact Hessian in the stacked reduced coordinates of two
@@ -169,37 +160,27 @@ fn pair_energy_gradient_and_hessian_match_finite_differences() {
         assert!(e0 > 0.0);
         let mut h = faer::Mat::<f64>::zeros(2 * n, 2 * n);
         contact.add_friction_hessian(&lag, eps, &z1, &mut h);
-        let fe = |z: &[f64]| contact.friction_energy_gradient(&lag, eps, z, &mut vec![0.0; 2 * n]);
-        // eps_fd well below the smoothing scale (eps = 1e-5 m): the potential is C2 there.
-        let step = 1e-9;
-        for trial in 0..4 {
-            let v: Vec<f64> = (0..2 * n)
-                .map(|k| ((k * (trial + 5)) as f64 * 0.9).sin())
-                .collect();
-            let plus: Vec<f64> = z1.iter().zip(&v).map(|(a, b)| a + step * b).collect();
-            let minus: Vec<f64> = z1.iter().zip(&v).map(|(a, b)| a - step * b).collect();
-            let fd = (fe(&plus) - fe(&minus)) / (2.0 * step);
-            let an: f64 = g.iter().zip(&v).map(|(a, b)| a * b).sum();
-            assert!(
-                (fd - an).abs() <= 1e-5 * an.abs().max(1e-12),
-                "friction gradient {slide}: {fd} vs {an}"
-            );
-            let (mut gp, mut gm) = (vec![0.0; 2 * n], vec![0.0; 2 * n]);
-            contact.friction_energy_gradient(&lag, eps, &plus, &mut gp);
-            contact.friction_energy_gradient(&lag, eps, &minus, &mut gm);
-            let hv: Vec<f64> = (0..2 * n)
-                .map(|i| (0..2 * n).map(|j| h[(i, j)] * v[j]).sum())
-                .collect();
-            let scale = hv.iter().map(|x| x.abs()).fold(0.0, f64::max);
-            for i in 0..2 * n {
-                let fd = (gp[i] - gm[i]) / (2.0 * step);
-                assert!(
-                    (fd - hv[i]).abs() <= 1e-4 * scale,
-                    "friction Hessian {slide} row {i}: {fd} vs {}",
-                    hv[i]
-                );
-            }
-        }
+        let fe = |z: &[f64], grad: &mut [f64]| {
+            grad.fill(0.0);
+            contact.friction_energy_gradient(&lag, eps, z, grad)
+        };
+        let hessian = |_: &[f64]| h.clone();
+        let dirs: Vec<Vec<f64>> = (0..4)
+            .map(|trial| {
+                (0..2 * n)
+                    .map(|k| ((k * (trial + 5)) as f64 * 0.9).sin())
+                    .collect()
+            })
+            .collect();
+        // A step of 1e-9 well below the smoothing scale (eps = 1e-5 m): the potential is C2
+        // there. Hessian errors in the norm of H v (they were entrywise against the largest
+        // entry: the same 1e-4 held).
+        let floors = Floors::both(1e-12);
+        let check = check_derivatives(fe, Some(&hessian), &z1, &dirs, 1e-9, floors);
+        assert!(
+            check.gradient <= 1e-5 && check.hessian <= 1e-4,
+            "friction {slide}: {check:?}"
+        );
     }
     let mut psd = faer::Mat::<f64>::zeros(2 * n, 2 * n);
     contact.add_hessian(&z, PairHessian::Psd, &mut psd);
