@@ -28,6 +28,7 @@ pub mod geometry;
 pub mod io;
 pub mod linalg3;
 pub mod material;
+pub mod names;
 pub mod precompute;
 pub mod progress;
 pub mod random;

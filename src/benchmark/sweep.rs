@@ -48,13 +48,7 @@ pub enum SweepAxis {
 impl SweepAxis {
     /// Name in reports and the CSV.
     pub fn name(self) -> &'static str {
-        match self {
-            SweepAxis::Grid => "grid",
-            SweepAxis::Base => "base",
-            SweepAxis::Points => "points",
-            SweepAxis::Cubature => "cubature",
-            SweepAxis::Hessian => "hessian",
-        }
+        crate::names::variant_name(&self)
     }
 }
 

@@ -20,22 +20,12 @@ pub enum SlepcPreset {
 impl SlepcPreset {
     /// Name as used on the command line ("ks-sinvert", "lobpcg-gamg", "lobpcg-hypre").
     pub fn name(self) -> &'static str {
-        match self {
-            SlepcPreset::KsSinvert => "ks-sinvert",
-            SlepcPreset::LobpcgGamg => "lobpcg-gamg",
-            SlepcPreset::LobpcgHypre => "lobpcg-hypre",
-        }
+        crate::names::variant_name(&self)
     }
 
     /// Parse a preset name.
     pub fn from_name(name: &str) -> Option<Self> {
-        [
-            SlepcPreset::KsSinvert,
-            SlepcPreset::LobpcgGamg,
-            SlepcPreset::LobpcgHypre,
-        ]
-        .into_iter()
-        .find(|p| p.name() == name)
+        crate::names::from_name(name)
     }
 }
 

@@ -45,10 +45,7 @@ pub enum BeamTest {
 impl BeamTest {
     /// "bend" or "twist".
     pub fn name(&self) -> &'static str {
-        match self {
-            BeamTest::Bend => "bend",
-            BeamTest::Twist => "twist",
-        }
+        crate::names::variant_name(self)
     }
 }
 

@@ -46,10 +46,7 @@ pub enum BoundaryModes {
 impl BoundaryModes {
     /// "aware" or "free".
     pub fn name(&self) -> &'static str {
-        match self {
-            BoundaryModes::Aware => "aware",
-            BoundaryModes::Free => "free",
-        }
+        crate::names::variant_name(self)
     }
 }
 

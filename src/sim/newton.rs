@@ -48,11 +48,7 @@ pub enum HessianStrategy {
 impl HessianStrategy {
     /// Name used in reports and scene files.
     pub fn name(self) -> &'static str {
-        match self {
-            HessianStrategy::Newton => "newton",
-            HessianStrategy::Fixed => "fixed",
-            HessianStrategy::Lbfgs => "lbfgs",
-        }
+        crate::names::variant_name(&self)
     }
 }
 
@@ -77,10 +73,7 @@ pub enum InitialGuess {
 impl InitialGuess {
     /// Name used in reports and scene files.
     pub fn name(self) -> &'static str {
-        match self {
-            InitialGuess::Velocity => "velocity",
-            InitialGuess::Extrapolate => "extrapolate",
-        }
+        crate::names::variant_name(&self)
     }
 }
 

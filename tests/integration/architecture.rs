@@ -143,11 +143,12 @@ fn leaves_import_no_stage() {
 
 /// Modules every stage may use (reports, 3 x 3 algebra, materials and the energy density, errors,
 /// progress, the random generator, sparse kernels): they import no stage, only each other.
-const LEAVES: [&str; 9] = [
+const LEAVES: [&str; 10] = [
     "elasticity",
     "error",
     "linalg3",
     "material",
+    "names",
     "progress",
     "random",
     "report",

@@ -243,3 +243,74 @@ proptest! {
         );
     }
 }
+
+/// Every enum's name is its serde spelling (`freeform::names`), and those spellings are the
+/// ones the CLI, the scene files and the JSON reports have always used.
+#[test]
+fn enum_names_keep_their_spellings() {
+    use freeform::benchmark::shapes::ShapeTest;
+    use freeform::benchmark::sweep::SweepAxis;
+    use freeform::eigen::SlepcPreset;
+    use freeform::fem::beam::BeamTest;
+    use freeform::precompute::rkpm::KernelType;
+    use freeform::precompute::BoundaryModes;
+    use freeform::sim::collider::Sided;
+    use freeform::sim::{HessianStrategy, InitialGuess};
+    let names = [
+        BeamTest::Bend.name(),
+        BeamTest::Twist.name(),
+        ShapeTest::FixSide.name(),
+        ShapeTest::PullFarthest.name(),
+        ShapeTest::PullEnds.name(),
+        SweepAxis::Grid.name(),
+        SweepAxis::Hessian.name(),
+        SlepcPreset::KsSinvert.name(),
+        SlepcPreset::LobpcgGamg.name(),
+        SlepcPreset::LobpcgHypre.name(),
+        KernelType::Cubic.name(),
+        KernelType::Quartic.name(),
+        KernelType::Gaussian.name(),
+        BoundaryModes::Aware.name(),
+        BoundaryModes::Free.name(),
+        Sided::Solid.name(),
+        Sided::Outside.name(),
+        HessianStrategy::Newton.name(),
+        HessianStrategy::Fixed.name(),
+        HessianStrategy::Lbfgs.name(),
+        InitialGuess::Velocity.name(),
+        InitialGuess::Extrapolate.name(),
+    ];
+    assert_eq!(
+        names,
+        [
+            "bend",
+            "twist",
+            "fix_side",
+            "pull_farthest",
+            "pull_ends",
+            "grid",
+            "hessian",
+            "ks-sinvert",
+            "lobpcg-gamg",
+            "lobpcg-hypre",
+            "cubic",
+            "quartic",
+            "gaussian",
+            "aware",
+            "free",
+            "solid",
+            "outside",
+            "newton",
+            "fixed",
+            "lbfgs",
+            "velocity",
+            "extrapolate"
+        ]
+    );
+    assert_eq!(
+        SlepcPreset::from_name("lobpcg-gamg"),
+        Some(SlepcPreset::LobpcgGamg)
+    );
+    assert_eq!(KernelType::from_name("quartic"), Some(KernelType::Quartic));
+    assert_eq!(KernelType::from_name("Quartic"), None);
+}

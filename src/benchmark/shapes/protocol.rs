@@ -31,11 +31,7 @@ impl ShapeTest {
 
     /// "fix_side", "pull_farthest" or "pull_ends".
     pub fn name(&self) -> &'static str {
-        match self {
-            ShapeTest::FixSide => "fix_side",
-            ShapeTest::PullFarthest => "pull_farthest",
-            ShapeTest::PullEnds => "pull_ends",
-        }
+        crate::names::variant_name(self)
     }
 }
 

@@ -25,21 +25,12 @@ pub enum KernelType {
 impl KernelType {
     /// Lower-case name as used on the command line and in files.
     pub fn name(self) -> &'static str {
-        match self {
-            KernelType::Cubic => "cubic",
-            KernelType::Quartic => "quartic",
-            KernelType::Gaussian => "gaussian",
-        }
+        crate::names::variant_name(&self)
     }
 
     /// Parse a lower-case name.
     pub fn from_name(name: &str) -> Option<Self> {
-        match name {
-            "cubic" => Some(KernelType::Cubic),
-            "quartic" => Some(KernelType::Quartic),
-            "gaussian" => Some(KernelType::Gaussian),
-            _ => None,
-        }
+        crate::names::from_name(name)
     }
 
     /// Window value w(s) and w'(s) / s for s >= 0 (both 0 for s >= 1). The ratio is finite at

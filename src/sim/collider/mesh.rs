@@ -49,10 +49,7 @@ pub enum Sided {
 impl Sided {
     /// The scene-file name: "solid" or "outside".
     pub fn name(self) -> &'static str {
-        match self {
-            Sided::Solid => "solid",
-            Sided::Outside => "outside",
-        }
+        crate::names::variant_name(&self)
     }
 }
 
