@@ -144,20 +144,7 @@ unsafe fn world_mut<'a>(w: *mut FfWorld) -> CResult<&'a mut FfWorld> {
 
 /// Object `index`, or the library's out-of-range message.
 fn object(w: &World, index: usize) -> CResult<&SceneObject> {
-    w.objects().get(index).ok_or_else(|| {
-        (
-            Status::InvalidArgument,
-            freeform::Error::param(
-                "object",
-                index,
-                format!(
-                    "the scene has {} objects (indices from 0)",
-                    w.objects().len()
-                ),
-            )
-            .to_string(),
-        )
-    })
+    w.object_at(index).map_err(lib_err)
 }
 
 fn lib_err(e: freeform::Error) -> (Status, String) {
@@ -356,9 +343,9 @@ pub unsafe extern "C" fn ff_world_contact_report(
                 rep.sample_pairs_active = row.sample_pairs_active;
                 rep.penetration = row.penetration;
                 rep.penetration_fraction = row.penetration_fraction;
-                rep.islands = row.islands.len();
+                rep.islands = row.island_count();
                 // Sizes are sorted largest first.
-                rep.largest_island = row.islands.first().copied().unwrap_or(0);
+                rep.largest_island = row.largest_island();
                 rep.regrouped = row.regrouped;
                 rep.wall_ms = row.wall_ms;
             }
@@ -434,16 +421,7 @@ pub unsafe extern "C" fn ff_world_object_index(
         }
         // SAFETY: the caller passes a NUL-terminated string.
         let name = unsafe { CStr::from_ptr(name) }.to_string_lossy();
-        let index = w.world.object_index(&name).ok_or_else(|| {
-            let names: Vec<&str> = w.world.objects().iter().map(|o| o.name()).collect();
-            (
-                Status::InvalidArgument,
-                format!(
-                    "no object named '{name}' (the scene has: {})",
-                    names.join(", ")
-                ),
-            )
-        })?;
+        let index = w.world.object_named(&name).map_err(lib_err)?;
         // SAFETY: checked non-NULL above.
         unsafe { *out = index };
         Ok(())

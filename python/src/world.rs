@@ -213,50 +213,31 @@ pub struct PyWorld {
     world: World,
 }
 
-/// An object given by index or name.
+/// An object given by index or name (the library checks both).
 fn object_index(py: Python<'_>, world: &World, object: &Bound<'_, PyAny>) -> PyResult<usize> {
-    let count = world.objects().len();
     if let Ok(name) = object.extract::<String>() {
-        return world.object_index(&name).ok_or_else(|| {
-            let names: Vec<&str> = world.objects().iter().map(|o| o.name()).collect();
-            invalid(
-                py,
-                format!("no object named '{name}'; the objects are {names:?}"),
-            )
-        });
+        return world.object_named(&name).map_err(|e| to_py(py, &e));
     }
     let index: i64 = object
         .extract()
         .map_err(|_| invalid(py, "object: give its index (int) or its name (str)"))?;
-    usize::try_from(index)
-        .ok()
-        .filter(|&i| i < count)
-        .ok_or_else(|| {
-            invalid(
-                py,
-                format!("object {index}: the scene has {count} objects (indices from 0)"),
-            )
-        })
+    let index = usize::try_from(index).map_err(|_| {
+        invalid(
+            py,
+            format!("object {index}: indices count from 0"),
+        )
+    })?;
+    world.object_at(index).map_err(|e| to_py(py, &e))?;
+    Ok(index)
 }
 
+/// A step report as a dict: the JSON report's step row (serde), with the object's name, the
+/// time and the boundary deviation always present (None without boundaries).
 fn step_dict<'py>(py: Python<'py>, name: &str, r: &StepReport) -> PyResult<Bound<'py, PyDict>> {
     let row = StepRow::from(r);
-    let d = PyDict::new(py);
+    let d = report(py, &row)?.cast_into::<PyDict>()?;
     d.set_item("object", name)?;
-    d.set_item("step", row.step)?;
     d.set_item("time", r.time)?;
-    d.set_item("wall_ms", row.wall_ms)?;
-    d.set_item("converged", row.converged)?;
-    d.set_item("iterations", row.iterations)?;
-    d.set_item("evaluations", row.evaluations)?;
-    d.set_item("residual", row.residual)?;
-    d.set_item("energy", row.energy)?;
-    d.set_item("line_search_cutbacks", row.line_search_cutbacks)?;
-    d.set_item("line_search_failed", row.line_search_failed)?;
-    d.set_item("min_det", row.min_det)?;
-    d.set_item("inverted", row.inverted)?;
-    d.set_item("contacts", row.contacts)?;
-    d.set_item("penetration", row.penetration)?;
     d.set_item("boundary_rms_deviation", row.boundary_rms_deviation)?;
     Ok(d)
 }
@@ -600,8 +581,8 @@ impl PyWorld {
             return Ok(None);
         };
         let d = report(py, row)?;
-        d.set_item("island_count", row.islands.len())?;
-        d.set_item("largest_island", row.islands.first().copied().unwrap_or(0))?;
+        d.set_item("island_count", row.island_count())?;
+        d.set_item("largest_island", row.largest_island())?;
         Ok(Some(d))
     }
 

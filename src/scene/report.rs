@@ -165,6 +165,18 @@ pub struct ContactStepRow {
     pub stiffened: usize,
 }
 
+impl ContactStepRow {
+    /// Islands of two or more objects solved this step.
+    pub fn island_count(&self) -> usize {
+        self.islands.len()
+    }
+
+    /// Objects in the largest island (0 without islands).
+    pub fn largest_island(&self) -> usize {
+        self.islands.first().copied().unwrap_or(0)
+    }
+}
+
 /// Object-object contact over a run.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ContactSummary {

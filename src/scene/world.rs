@@ -303,11 +303,30 @@ impl World {
 
     fn checked(&mut self, index: usize) -> Result<&mut SceneObject> {
         let count = self.objects.len();
-        self.objects.get_mut(index).ok_or_else(|| {
+        self.objects
+            .get_mut(index)
+            .ok_or_else(|| no_object_at(index, count))
+    }
+
+    /// Object `index`, or an error saying how many there are (the check every front end
+    /// uses).
+    pub fn object_at(&self, index: usize) -> Result<&SceneObject> {
+        self.objects
+            .get(index)
+            .ok_or_else(|| no_object_at(index, self.objects.len()))
+    }
+
+    /// The index of the object named `name`, or an error listing the names.
+    pub fn object_named(&self, name: &str) -> Result<usize> {
+        self.object_index(name).ok_or_else(|| {
+            let names: Vec<&str> = self.objects.iter().map(|o| o.name()).collect();
             Error::param(
                 "object",
-                index,
-                format!("the scene has {count} objects (indices from 0)"),
+                format!("'{name}'"),
+                format!(
+                    "no object named '{name}'; the scene has: {}",
+                    names.join(", ")
+                ),
             )
         })
     }
@@ -436,4 +455,13 @@ impl World {
             .map(|o| super::report::finish_summary(o.summary().clone()))
             .collect()
     }
+}
+
+/// The error for object `index` of `count`.
+fn no_object_at(index: usize, count: usize) -> Error {
+    Error::param(
+        "object",
+        index,
+        format!("the scene has {count} objects (indices from 0)"),
+    )
 }
