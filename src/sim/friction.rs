@@ -92,33 +92,40 @@ pub struct ColliderLag {
 mod tests {
     use super::*;
 
-    /// Gradient and Hessian against central differences on both sides of eps, and the force
-    /// never above mu lambda.
+    /// Gradient and Hessian against central differences on both sides of eps (the shared
+    /// checker, along the coordinates), and the force never above mu lambda.
     #[test]
     fn derivatives_match_finite_differences() {
+        use crate::sim::check::{check_derivatives, Floors};
         let p = tangent_projector(&[0.0, 0.6, 0.8]);
         let (ml, eps) = (2.5, 1e-3);
+        let coords: Vec<Vec<f64>> = (0..3)
+            .map(|k| (0..3).map(|i| if i == k { 1.0 } else { 0.0 }).collect())
+            .collect();
         for scale in [1e-5, 4e-4, 9e-4, 2e-3, 5e-2] {
             let d = [0.7 * scale, -0.3 * scale, 0.5 * scale];
             let g = gradient(ml, eps, &p, &d);
-            let h = hessian(ml, eps, &p, &d);
-            let e = |d: &[f64; 3]| potential(ml, eps, &project(&p, d));
-            let step = 1e-4 * scale;
-            for k in 0..3 {
-                let mut a = d;
-                let mut b = d;
-                a[k] += step;
-                b[k] -= step;
-                // Central differences: O(step^2) truncation, well below 1e-6 relative here.
-                let fd = (e(&a) - e(&b)) / (2.0 * step);
-                assert!((fd - g[k]).abs() <= 1e-6 * ml, "{scale}: {fd} vs {}", g[k]);
-                let (ga, gb) = (gradient(ml, eps, &p, &a), gradient(ml, eps, &p, &b));
-                for r in 0..3 {
-                    let fd = (ga[r] - gb[r]) / (2.0 * step);
-                    let tol = 1e-5 * ml / scale.min(eps);
-                    assert!((fd - h[r][k]).abs() <= tol, "{scale}: {fd} vs {}", h[r][k]);
-                }
-            }
+            let energy = |x: &[f64], grad: &mut [f64]| {
+                let x = [x[0], x[1], x[2]];
+                grad.copy_from_slice(&gradient(ml, eps, &p, &x));
+                potential(ml, eps, &project(&p, &x))
+            };
+            let hess = |x: &[f64]| {
+                let h = hessian(ml, eps, &p, &[x[0], x[1], x[2]]);
+                faer::Mat::from_fn(3, 3, |r, c| h[r][c])
+            };
+            // Central differences: O(step^2) truncation, well below 1e-6 relative here. The
+            // slopes are at most mu lambda, the curvature mu lambda / min(|d|, eps): the
+            // floors, so the bounds are the old absolute ones (1e-6 ml, 1e-5 ml / min).
+            let floors = Floors {
+                gradient: ml,
+                hessian: ml / scale.min(eps),
+            };
+            let check = check_derivatives(energy, Some(&hess), &d, &coords, 1e-4 * scale, floors);
+            assert!(
+                check.gradient <= 1e-6 && check.hessian <= 1e-5,
+                "{scale}: {check:?}"
+            );
             assert!(norm(&g) <= ml * (1.0 + 1e-12));
         }
     }

@@ -206,6 +206,7 @@ pub fn kinematics(colliders: &[Collider]) -> Result<Kinematics> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sim::check::{check_derivatives, Floors};
     use crate::sim::motion::{rotation_matrix, AxisAngle, Rigid};
     use crate::Point3;
 
@@ -306,7 +307,9 @@ mod tests {
             o.penetration(&pose, x)
                 .map_or([0.0; 3], |p| p.normal.map(|u| -p.depth * u))
         };
-        let h = 1e-6;
+        let coords: Vec<Vec<f64>> = (0..3)
+            .map(|k| (0..3).map(|i| if i == k { 1.0 } else { 0.0 }).collect())
+            .collect();
         for shape in &shapes {
             let o = Obstacle::new(shape).unwrap();
             let mut inside = 0;
@@ -315,30 +318,21 @@ mod tests {
                     continue;
                 };
                 inside += 1;
-                let grad = g(&o, x);
-                for i in 0..3 {
-                    let mut xp = *x;
-                    let mut xm = *x;
-                    xp[i] += h;
-                    xm[i] -= h;
-                    // Central differences of smooth quadratics: error O(h^2) ~ 1e-12,
-                    // rounding ~ 1e-16 / h = 1e-10.
-                    let fd = (f(&o, &xp) - f(&o, &xm)) / (2.0 * h);
-                    assert!(
-                        (fd - grad[i]).abs() < 1e-8,
-                        "{shape:?} grad {i}: {fd} vs {}",
-                        grad[i]
-                    );
-                    let (gp, gm) = (g(&o, &xp), g(&o, &xm));
-                    for j in 0..3 {
-                        let fd = (gp[j] - gm[j]) / (2.0 * h);
-                        assert!(
-                            (fd - p.hessian[j][i]).abs() < 1e-7,
-                            "{shape:?} hessian {j}{i}: {fd} vs {}",
-                            p.hessian[j][i]
-                        );
-                    }
-                }
+                let energy = |y: &[f64], grad: &mut [f64]| {
+                    let y = [y[0], y[1], y[2]];
+                    grad.copy_from_slice(&g(&o, &y));
+                    f(&o, &y)
+                };
+                let hess = |_: &[f64]| faer::Mat::from_fn(3, 3, |r, c| p.hessian[r][c]);
+                // Central differences of smooth quadratics: error O(h^2) ~ 1e-12, rounding
+                // ~ 1e-16 / h = 1e-10. Floors of 1 (depths and normals are O(1)) make the
+                // bounds the old absolute ones, 1e-8 and 1e-7.
+                let check =
+                    check_derivatives(energy, Some(&hess), x, &coords, 1e-6, Floors::both(1.0));
+                assert!(
+                    check.gradient < 1e-8 && check.hessian < 1e-7,
+                    "{shape:?} at {x:?}: {check:?}"
+                );
             }
             assert!(inside >= 2, "{shape:?}: only {inside} test points inside");
         }

@@ -4,10 +4,10 @@
 //! sums them.
 //!
 //! Leaves first: `term` (the trait and what it is given), `moments` (the quadratic forms'
-//! coefficients), then one file per term, then this file's sum.
+//! coefficients), then one file per term, then this file's sum. Every term's test checks its
+//! derivatives with [`check_derivatives`] (`sim/check.rs`, re-exported here).
 
 mod boundary;
-mod check;
 mod collider;
 mod elastic;
 mod gravity;
@@ -15,10 +15,10 @@ mod inertia;
 mod moments;
 mod term;
 
+pub use crate::sim::check::{check_derivatives, DerivativeCheck, Floors, HessianFn};
 pub use crate::sim::collider::ColliderShape;
 pub use crate::sim::friction::ColliderLag;
 pub use boundary::BoundaryTerm;
-pub use check::{check_derivatives, DerivativeCheck, Floors, HessianFn};
 pub use collider::{ContactHessian, ContactInfo, ContactTerm, SWEEP_SAMPLES};
 pub use gravity::GravityTerm;
 pub use inertia::InertiaTerm;

@@ -151,7 +151,7 @@ impl fmt::Display for TermKind {
 /// A new term is a type implementing this trait, registered with
 /// [`crate::sim::ReducedSim::add_term`] (or, built in, one entry of
 /// [`super::Terms::iter`]). Its energy, gradient and Hessian are checked against each other
-/// by [`super::check_derivatives`].
+/// by [`crate::sim::check::check_derivatives`].
 pub trait Term: Send + Sync {
     /// What the term is, for reports.
     fn kind(&self) -> TermKind;
