@@ -221,12 +221,8 @@ fn object_index(py: Python<'_>, world: &World, object: &Bound<'_, PyAny>) -> PyR
     let index: i64 = object
         .extract()
         .map_err(|_| invalid(py, "object: give its index (int) or its name (str)"))?;
-    let index = usize::try_from(index).map_err(|_| {
-        invalid(
-            py,
-            format!("object {index}: indices count from 0"),
-        )
-    })?;
+    let index = usize::try_from(index)
+        .map_err(|_| invalid(py, format!("object {index}: indices count from 0")))?;
     world.object_at(index).map_err(|e| to_py(py, &e))?;
     Ok(index)
 }
@@ -338,7 +334,11 @@ impl PyWorld {
     /// Warnings so far (setup, non-converged steps, inversions).
     #[getter]
     fn warnings(&self) -> Vec<String> {
-        self.world.warnings().iter().map(ToString::to_string).collect()
+        self.world
+            .warnings()
+            .iter()
+            .map(ToString::to_string)
+            .collect()
     }
 
     /// Deformed render points of an object (index or name): mesh vertices, point-cloud
