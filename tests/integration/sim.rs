@@ -18,8 +18,8 @@ use freeform::sim::terms::{
     TermKind,
 };
 use freeform::sim::{
-    Boundary, Collider, HessianStrategy, InitialGuess, NewtonOptions, Placement, ReducedSim,
-    SimOptions,
+    Boundary, Collider, Environment, HessianStrategy, InitialGuess, NewtonOptions, Placement,
+    ReducedSim, SimOptions,
 };
 
 /// Basis of a 1 x 0.2 x 0.2 m bar (soft rubber-like default material).
@@ -65,10 +65,10 @@ fn random_z(n: usize, scale: f64, seed: u64) -> Vec<f64> {
     (0..n).map(|_| scale * (rng.next_f64() - 0.5)).collect()
 }
 
-#[test]
-fn gradient_and_hessian_match_finite_differences() {
-    let run = bar(40, 4, 2000);
-    let opts = SimOptions {
+/// Options that build every term: gravity, a boundary turning about the bar's axis, and a
+/// plane collider through the bar's lower part.
+fn every_term_options() -> SimOptions {
+    SimOptions {
         gravity: Some([0.0, -9.81, 0.0]),
         cubature: 300,
         boundaries: vec![Boundary {
@@ -86,11 +86,17 @@ fn gradient_and_hessian_match_finite_differences() {
             },
             stiffness: Some(1e7),
             name: None,
-            motion: freeform::sim::motion::Motion::Fixed,
+            motion: Motion::Fixed,
             parent: None,
         }],
         ..SimOptions::default()
-    };
+    }
+}
+
+#[test]
+fn gradient_and_hessian_match_finite_differences() {
+    let run = bar(40, 4, 2000);
+    let opts = every_term_options();
     let s = sim(&run, &opts);
     let n = s.layout().dofs();
     // A moderately large deformation (F far from I, some contacts active).
@@ -153,7 +159,7 @@ struct TranslationSpring {
 }
 
 impl Term for TranslationSpring {
-    fn kind(&self) -> TermKind {
+    fn kind(&self, _env: &Environment) -> TermKind {
         TermKind::Custom("translation spring".into())
     }
 
@@ -182,29 +188,7 @@ impl Term for TranslationSpring {
 #[test]
 fn every_term_matches_finite_differences_and_a_toy_term_joins_with_one_call() {
     let run = bar(40, 4, 2000);
-    let opts = SimOptions {
-        gravity: Some([0.0, -9.81, 0.0]),
-        cubature: 300,
-        boundaries: vec![Boundary {
-            motion: Motion::Rotate {
-                pivot: [0.0, 0.1, 0.1],
-                axis: [1.0, 0.0, 0.0],
-                degrees_per_second: 90.0,
-            },
-            ..held_left()
-        }],
-        colliders: vec![Collider {
-            shape: ColliderShape::Plane {
-                point: [0.0, 0.02, 0.0],
-                normal: [0.0, 1.0, 0.0],
-            },
-            stiffness: Some(1e7),
-            name: None,
-            motion: Motion::Fixed,
-            parent: None,
-        }],
-        ..SimOptions::default()
-    };
+    let opts = every_term_options();
     let mut s = sim(&run, &opts);
     let target = [0.1, -0.2, 0.05];
     s.add_term(Box::new(TranslationSpring { k: 3e4, target }))
@@ -270,7 +254,7 @@ fn every_term_matches_finite_differences_and_a_toy_term_joins_with_one_call() {
         assert!(
             check.gradient < 1e-6 && check.hessian < 1e-5,
             "{}: {check:?}",
-            term.kind()
+            term.kind(s.environment())
         );
     }
     // The potential is the sum of its terms.

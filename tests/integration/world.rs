@@ -383,18 +383,23 @@ fn a_new_placement_puts_the_rest_shape_where_asked() {
     assert_eq!(world.object(0).sim().z(), z);
 }
 
-#[test]
-fn a_raised_floor_pushes_the_object_up_and_bad_poses_are_refused() {
-    let floor = Collider {
+/// A fixed floor, the plane y = `y` (metres) facing up.
+fn floor_at(y: f64) -> Collider {
+    Collider {
         shape: ColliderShape::Plane {
-            point: [0.0, -0.5, 0.0],
+            point: [0.0, y, 0.0],
             normal: [0.0, 1.0, 0.0],
         },
         stiffness: None,
         name: None,
-        motion: freeform::sim::motion::Motion::Fixed,
+        motion: Motion::Fixed,
         parent: None,
-    };
+    }
+}
+
+#[test]
+fn a_raised_floor_pushes_the_object_up_and_bad_poses_are_refused() {
+    let floor = floor_at(-0.5);
     let wall = Collider {
         shape: ColliderShape::Box {
             min: [5.0, 5.0, 5.0],
@@ -726,16 +731,7 @@ fn render_inputs_follow_the_object_map_and_bad_ones_are_named() {
 /// leaves it as it was.
 #[test]
 fn every_object_steps_in_the_one_environment_of_its_world() {
-    let floor = Collider {
-        shape: ColliderShape::Plane {
-            point: [0.0, -0.5, 0.0],
-            normal: [0.0, 1.0, 0.0],
-        },
-        stiffness: None,
-        name: None,
-        motion: freeform::sim::motion::Motion::Fixed,
-        parent: None,
-    };
+    let floor = floor_at(-0.5);
     let mut second = small_bar("second");
     second.placement.translation = [0.0, 0.0, 2.0];
     let scene = SceneBuilder::new(0.01, 1)

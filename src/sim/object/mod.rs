@@ -135,7 +135,8 @@ impl ReducedSim {
     /// (terms the setup did not ask for are neither built nor evaluated), as reports name
     /// them ([`crate::sim::terms::TermKind`]).
     pub fn terms(&self) -> Vec<String> {
-        self.terms.kinds().iter().map(ToString::to_string).collect()
+        let kinds = self.terms.kinds(&self.env);
+        kinds.iter().map(ToString::to_string).collect()
     }
 
     /// The terms themselves, to evaluate or inspect one by one.
@@ -371,17 +372,13 @@ impl ReducedSim {
         Ok(())
     }
 
-    /// The terms that depend on the environment follow it: the gravity term is built while it
-    /// has gravity, the collider term names its obstacles' kinds.
+    /// The gravity term is built while the environment has gravity.
     fn follow_environment(&mut self) {
         let has = self.env.gravity().is_some();
         if has != self.terms.gravity.is_some() {
             self.terms.gravity = has.then(|| GravityTerm {
                 b: self.terms.inertia.mass.b.clone(),
             });
-        }
-        if let Some(c) = self.terms.colliders.as_mut() {
-            c.refresh_kinds(self.env.kinematics());
         }
     }
 
@@ -413,9 +410,7 @@ impl ReducedSim {
     /// [`ColliderShape::load`]ed is read here.
     pub fn set_collider_shape(&mut self, index: usize, shape: ColliderShape) -> Result<()> {
         self.check_collider(index)?;
-        Arc::make_mut(&mut self.env).set_collider_shape(index, &shape)?;
-        self.follow_environment();
-        Ok(())
+        Arc::make_mut(&mut self.env).set_collider_shape(index, &shape)
     }
 
     /// Move collider `index` by `motion` from the next step on (evaluated at the simulation

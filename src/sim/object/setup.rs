@@ -156,7 +156,6 @@ pub(super) fn build(
             ks.push(k);
         }
         Some(ContactTerm::new(
-            env.kinematics(),
             ks,
             &cub.points,
             &cub.volumes,

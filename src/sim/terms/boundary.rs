@@ -4,6 +4,7 @@
 use super::moments::{add_block_diagonal, Moments};
 use super::term::{EnergySum, HessianKind, StepAt, Term, TermKind};
 use crate::sim::elastic::Layout;
+use crate::sim::environment::Environment;
 use crate::sim::motion::{Motion, Rigid};
 use crate::Point3;
 use faer::Mat;
@@ -146,7 +147,7 @@ impl BoundaryTerm {
 }
 
 impl Term for BoundaryTerm {
-    fn kind(&self) -> TermKind {
+    fn kind(&self, _env: &Environment) -> TermKind {
         TermKind::Boundary {
             index: self.index,
             points: self.points.len(),

@@ -7,6 +7,7 @@ use crate::linalg3::dot;
 use crate::precompute::skinning::SkinningWeights;
 use crate::sim::collider::{Kinematics, Obstacle, Penetration};
 use crate::sim::elastic::Layout;
+use crate::sim::environment::Environment;
 use crate::sim::friction::ColliderLag;
 use crate::Point3;
 use faer::Mat;
@@ -43,9 +44,6 @@ fn segment_distance(x: &Point3, dx: &[f64; 3], c: &Point3) -> f64 {
 /// ([`Kinematics`]).
 #[derive(Debug, Clone)]
 pub struct ContactTerm {
-    /// The obstacles' kinds ("plane", "box", ...), for reports; the obstacles themselves and
-    /// their poses come from the step's environment ([`StepAt::env`]).
-    kinds: Vec<&'static str>,
     /// Penalty stiffness per obstacle, Pa/m^2.
     pub stiffness: Vec<f64>,
     points: Vec<Point3>,
@@ -83,12 +81,10 @@ pub enum ContactHessian {
 
 impl ContactTerm {
     /// Contacts of the cubature points `points` (volumes `volumes`, skinning weights `w`)
-    /// with the obstacles of `kinematics` (the environment's), one penalty stiffness (Pa/m^2)
-    /// each; a line-search
+    /// with the environment's obstacles, one penalty stiffness (Pa/m^2) each; a line-search
     /// step takes no point deeper than `sweep_depth` (metres) beyond where it is. Frictionless
     /// until [`ContactTerm::set_friction`].
     pub fn new(
-        kinematics: &Kinematics,
         stiffness: Vec<f64>,
         points: &[Point3],
         volumes: &[f64],
@@ -96,7 +92,6 @@ impl ContactTerm {
         sweep_depth: f64,
     ) -> ContactTerm {
         ContactTerm {
-            kinds: kinematics.obstacles().iter().map(Obstacle::kind).collect(),
             stiffness,
             points: points.to_vec(),
             volumes: volumes.to_vec(),
@@ -139,11 +134,6 @@ impl ContactTerm {
     /// Whether it has no collider (never: an object without colliders has no such term).
     pub fn is_empty(&self) -> bool {
         self.stiffness.is_empty()
-    }
-
-    /// Take the obstacles' kinds from `kinematics` (after a shape changed).
-    pub(crate) fn refresh_kinds(&mut self, kinematics: &Kinematics) {
-        self.kinds = kinematics.obstacles().iter().map(Obstacle::kind).collect();
     }
 
     fn b(&self, c: usize) -> impl Iterator<Item = (usize, f64)> + '_ {
@@ -477,9 +467,10 @@ impl ContactTerm {
 }
 
 impl Term for ContactTerm {
-    fn kind(&self) -> TermKind {
+    fn kind(&self, env: &Environment) -> TermKind {
+        let obstacles = env.kinematics().obstacles();
         TermKind::Colliders {
-            kinds: self.kinds.clone(),
+            kinds: obstacles.iter().map(Obstacle::kind).collect(),
         }
     }
 

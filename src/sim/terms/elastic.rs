@@ -2,6 +2,7 @@
 
 use super::term::{EnergySum, HessianKind, StepAt, Term, TermKind};
 use crate::sim::elastic::{ElasticTerm, Layout, Precision, Projection};
+use crate::sim::environment::Environment;
 use faer::Mat;
 
 /// Add `b` to `a`, entry by entry (both square, the same size).
@@ -14,7 +15,7 @@ fn add_matrix(a: &mut Mat<f64>, b: &Mat<f64>) {
 }
 
 impl Term for ElasticTerm {
-    fn kind(&self) -> TermKind {
+    fn kind(&self, _env: &Environment) -> TermKind {
         TermKind::Elastic
     }
 

@@ -1,6 +1,7 @@
 //! The work of gravity, -sum rho v g . (X + B z): linear in z (the constant part is dropped).
 
 use super::term::{EnergySum, HessianKind, StepAt, Term, TermKind};
+use crate::sim::environment::Environment;
 use faer::Mat;
 
 /// Gravity acting on an object (the acceleration is the step's environment's,
@@ -12,7 +13,7 @@ pub struct GravityTerm {
 }
 
 impl Term for GravityTerm {
-    fn kind(&self) -> TermKind {
+    fn kind(&self, _env: &Environment) -> TermKind {
         TermKind::Gravity
     }
 

@@ -3,6 +3,7 @@
 use super::moments::{add_block_diagonal, add_block_product, Moments};
 use super::term::{EnergySum, HessianKind, StepAt, Term, TermKind};
 use crate::sim::elastic::Layout;
+use crate::sim::environment::Environment;
 use faer::Mat;
 
 /// The inertia of an object: its mass moments (coefficients rho v per integration point).
@@ -14,7 +15,7 @@ pub struct InertiaTerm {
 }
 
 impl Term for InertiaTerm {
-    fn kind(&self) -> TermKind {
+    fn kind(&self, _env: &Environment) -> TermKind {
         TermKind::Inertia
     }
 

@@ -26,6 +26,7 @@ pub use moments::{add_block_diagonal, add_block_product, add_outer_blocks, Momen
 pub use term::{EnergySum, HessianKind, StepAt, Term, TermKind};
 
 use crate::sim::elastic::{ElasticTerm, Layout};
+use crate::sim::environment::Environment;
 use crate::sim::newton::EvalInfo;
 use faer::Mat;
 
@@ -97,8 +98,8 @@ impl Terms {
             .fold(f64::INFINITY, f64::min)
     }
 
-    /// Every term's description, in evaluation order.
-    pub fn kinds(&self) -> Vec<TermKind> {
-        self.iter().map(|t| t.kind()).collect()
+    /// Every term's description in the environment `env`, in evaluation order.
+    pub fn kinds(&self, env: &Environment) -> Vec<TermKind> {
+        self.iter().map(|t| t.kind(env)).collect()
     }
 }

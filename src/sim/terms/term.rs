@@ -95,14 +95,6 @@ pub enum HessianKind {
     },
 }
 
-impl HessianKind {
-    /// The PSD Hessian from every cubature point in double precision.
-    pub const PROJECTED: HessianKind = HessianKind::Projected {
-        stride: 1,
-        precision: Precision::Double,
-    };
-}
-
 /// What a term is, for reports ([`crate::sim::ReducedSim::terms`]); its `Display` is the
 /// report's text.
 #[derive(Debug, Clone, PartialEq)]
@@ -153,8 +145,9 @@ impl fmt::Display for TermKind {
 /// [`super::Terms::iter`]). Its energy, gradient and Hessian are checked against each other
 /// by [`crate::sim::check::check_derivatives`].
 pub trait Term: Send + Sync {
-    /// What the term is, for reports.
-    fn kind(&self) -> TermKind;
+    /// What the term is, for reports, in the environment `env` (the colliders' kinds are
+    /// the environment's).
+    fn kind(&self, env: &Environment) -> TermKind;
 
     /// Add the energy (J) at `z` to `sum.energy` and its gradient to `sum.grad`. A penalty
     /// term ([`Term::is_penalty`]) reports the size of its summed parts with
