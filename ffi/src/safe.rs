@@ -295,6 +295,28 @@ impl Session {
         self.allreduce(comm, values, op)
     }
 
+    /// Overwrite `values` on every rank of `comm` with rank `root`'s (collective; every rank
+    /// passes the same length).
+    pub fn broadcast(&self, comm: Comm, values: &mut [f64], root: usize) -> Result<()> {
+        let count = c_int::try_from(values.len()).map_err(|_| PetscError {
+            call: "MPI_Bcast",
+            code: -1,
+            message: format!("{} values do not fit one MPI count", values.len()),
+        })?;
+        let root = c_int::try_from(root).unwrap_or(c_int::MAX);
+        // SAFETY: a buffer of `count` doubles on every rank; collective on comm.
+        let code = unsafe {
+            sys::MPI_Bcast(
+                values.as_mut_ptr().cast(),
+                count,
+                std::ptr::addr_of_mut!(sys::ompi_mpi_double).cast(),
+                root,
+                comm.0,
+            )
+        };
+        mpi_check("MPI_Bcast", code)
+    }
+
     /// Insert options into PETSc's global database, e.g. `"-eps_type lobpcg -st_pc_type
     /// gamg"`. Values starting with `-` survive here (they do not on a shell command line).
     pub fn options_insert(&self, options: &str) -> Result<()> {

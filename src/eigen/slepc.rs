@@ -100,6 +100,17 @@ pub fn allreduce_max(values: &mut [f64]) -> Result<(), EigenError> {
     session.allreduce_max(world, values).map_err(backend)
 }
 
+/// Overwrite `values` on every rank of `PETSC_COMM_WORLD` with rank `root`'s (collective;
+/// every rank passes the same length).
+///
+/// # Errors
+/// [`EigenError::Backend`] with the MPI/PETSc error.
+pub fn broadcast(values: &mut [f64], root: usize) -> Result<(), EigenError> {
+    let session = petsc::session().map_err(backend)?;
+    let world = session.world();
+    session.broadcast(world, values, root).map_err(backend)
+}
+
 /// Load a PETSc binary matrix file (e.g. `hessian.petsc` from `freeform export`) with PETSc's
 /// own `MatLoad` on this rank and compare it with `a`: returns max_i |(A_file x - A x)_i| /
 /// max_i |(A x)_i| for a fixed pseudo-random x (0 when the file holds exactly `a`).

@@ -41,6 +41,9 @@ struct Row {
 #[derive(Debug, Clone)]
 pub struct Accumulator {
     rows: Vec<Row>,
+    /// The rows wanted (all of them, or one MPI rank's block): entries with neither index in
+    /// it are not summed.
+    own: std::ops::Range<usize>,
     /// Scratch: kernel -> index among the current chunk's kernels (`NONE` outside a chunk).
     local: Vec<u32>,
 }
@@ -65,7 +68,29 @@ impl Accumulator {
         }
         Ok(Self {
             rows: vec![Row::default(); k],
+            own: 0..k,
             local: vec![NONE; k],
+        })
+    }
+
+    /// Empty sums for rows `own` of K = `k` kernels only (one MPI rank's block): an entry
+    /// (i, j) is summed when i or j is in `own`, so the rows come out complete when the points
+    /// added are all points of those kernels' supports. Each summed entry is the same running
+    /// sum as in [`Accumulator::new`]'s, bit for bit. Finish with [`Accumulator::finish_rows`].
+    ///
+    /// # Errors
+    /// As [`Accumulator::new`]; [`Error::InvalidParameter`] when `own` is not within 0..k.
+    pub fn for_rows(k: usize, own: std::ops::Range<usize>) -> Result<Self> {
+        if own.start > own.end || own.end > k {
+            return Err(Error::param(
+                "rows",
+                format!("{own:?}"),
+                format!("not a row range of {k} kernels"),
+            ));
+        }
+        Ok(Self {
+            own,
+            ..Self::new(k)?
         })
     }
 
@@ -111,6 +136,11 @@ impl Accumulator {
             self.local[j as usize] = l as u32;
         }
         let kl = present.len();
+        // The wanted rows' span in local numbering (local order is global order).
+        let own_local = (
+            present.partition_point(|&j| (j as usize) < self.own.start) as u32,
+            present.partition_point(|&j| (j as usize) < self.own.end) as u32,
+        );
         let lpat: Vec<u32> = sf
             .pattern
             .kernels
@@ -148,6 +178,7 @@ impl Accumulator {
             lpat: &lpat,
             local: &self.local,
             present: &present,
+            own_local,
             volumes,
             weights,
             tptr: &tptr,
@@ -167,9 +198,17 @@ impl Accumulator {
     /// Mirror the upper triangle into H_w and M (full symmetric CSC, K x K).
     ///
     /// # Errors
-    /// [`Error::NonFinite`] when a sum is not finite (bad volumes or material values).
+    /// [`Error::InvalidParameter`] for an accumulator of some rows only
+    /// ([`Accumulator::for_rows`]); [`Error::NonFinite`] when a sum is not finite (bad volumes or material values).
     pub fn finish(self) -> Result<Assembled> {
         let k = self.rows.len();
+        if self.own != (0..k) {
+            return Err(Error::param(
+                "rows",
+                format!("{:?}", self.own),
+                "an accumulator of some rows only has no full matrices: use finish_rows",
+            ));
+        }
         let mut rows = self.rows;
         let (ptr, idx, hval, mval) = mirror(&mut rows, k);
         drop(rows);
@@ -183,6 +222,99 @@ impl Accumulator {
         Ok(Assembled {
             hessian: from_compressed(k, ptr.clone(), idx.clone(), hval),
             mass: from_compressed(k, ptr, idx, mval),
+        })
+    }
+}
+
+/// Rows `first..first + ptr.len() - 1` of H_w and M (both triangles, columns ascending,
+/// global column indices): one MPI rank's block, from [`Accumulator::finish_rows`].
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LocalRows {
+    /// Global index of the first row.
+    pub first: usize,
+    /// Row pointers, length rows + 1.
+    pub ptr: Vec<usize>,
+    /// Global column indices, shared by both matrices.
+    pub cols: Vec<usize>,
+    /// H_w's values, Pa m.
+    pub hessian: Vec<f64>,
+    /// M's values, m^3.
+    pub mass: Vec<f64>,
+}
+
+impl LocalRows {
+    /// Number of rows.
+    pub fn rows(&self) -> usize {
+        self.ptr.len().saturating_sub(1)
+    }
+}
+
+impl Accumulator {
+    /// The wanted rows ([`Accumulator::for_rows`]) of H_w and M with both triangles, as the
+    /// same rows of [`Accumulator::finish`]'s matrices, bit for bit, without forming the
+    /// K x K matrices.
+    ///
+    /// # Errors
+    /// [`Error::NonFinite`] when a sum is not finite (bad volumes or material values).
+    pub fn finish_rows(self) -> Result<LocalRows> {
+        let (a, b) = (self.own.start, self.own.end);
+        let mut rows = self.rows;
+        let wanted = |j: usize| j >= a && j < b;
+        let mut ptr = vec![0usize; b - a + 1];
+        for (i, r) in rows[..b].iter().enumerate() {
+            if i >= a {
+                ptr[i - a + 1] += r.cols.len();
+            }
+            for &j in r.cols.iter() {
+                let j = j as usize;
+                if j != i && wanted(j) {
+                    ptr[j - a + 1] += 1;
+                }
+            }
+        }
+        for r in 0..b - a {
+            ptr[r + 1] += ptr[r];
+        }
+        let nnz = ptr[b - a];
+        let (mut cols, mut hv, mut mv) = (vec![0usize; nnz], vec![0.0; nnz], vec![0.0; nnz]);
+        // As `mirror`: lower entries first, rows visited ascending, then the row's own upper.
+        let mut next = ptr[..b - a].to_vec();
+        for (i, r) in rows[..b].iter().enumerate() {
+            for (e, &j) in r.cols.iter().enumerate() {
+                let j = j as usize;
+                if j != i && wanted(j) {
+                    let d = next[j - a];
+                    cols[d] = i;
+                    hv[d] = r.h[e];
+                    mv[d] = r.m[e];
+                    next[j - a] += 1;
+                }
+            }
+        }
+        for i in a..b {
+            let r = std::mem::take(&mut rows[i]);
+            let d = next[i - a];
+            let c = r.cols.len();
+            for (slot, &j) in cols[d..d + c].iter_mut().zip(r.cols.iter()) {
+                *slot = j as usize;
+            }
+            hv[d..d + c].copy_from_slice(&r.h);
+            mv[d..d + c].copy_from_slice(&r.m);
+        }
+        drop(rows);
+        release_freed_memory();
+        if let Some(bad) = hv.iter().chain(&mv).position(|v| !v.is_finite()) {
+            return Err(Error::NonFinite {
+                what: "assembled matrices (check volumes and material values)",
+                index: bad,
+            });
+        }
+        Ok(LocalRows {
+            first: a,
+            ptr,
+            cols,
+            hessian: hv,
+            mass: mv,
         })
     }
 }
@@ -243,6 +375,8 @@ struct ChunkView<'a> {
     local: &'a [u32],
     /// Local index -> global kernel, ascending.
     present: &'a [u32],
+    /// Local indices of the wanted rows, `[first, end)`.
+    own_local: (u32, u32),
     volumes: &'a [f64],
     weights: &'a [f64],
     tptr: &'a [usize],
@@ -263,8 +397,13 @@ impl ChunkView<'_> {
         let mut acc_m = vec![0.0f64; kl];
         let mut seen = vec![false; kl];
         let mut touched: Vec<usize> = Vec::new();
+        let (own_lo, own_hi) = (self.own_local.0 as usize, self.own_local.1 as usize);
         for (r, row) in rows.iter_mut().enumerate() {
             let li = first + r;
+            if li >= own_hi {
+                // Its columns j >= li are all past the wanted rows: nothing to sum.
+                continue;
+            }
             // Resume the sums of the columns this chunk touches; the others stay as they are.
             for (c, &j) in row.cols.iter().enumerate() {
                 let l = self.local[j as usize];
@@ -283,10 +422,21 @@ impl ChunkView<'_> {
                 let wh = self.volumes[p] * self.weights[p];
                 let wm = self.volumes[p];
                 let end = sf.pattern.ptr[p + 1];
-                for ((&j, gj), &fj) in self.lpat[ei..end]
+                // A row before the wanted ones sums only their columns (a point's kernels are
+                // ascending, so they are one stretch).
+                let (from, to) = if li < own_lo {
+                    let seg = &self.lpat[ei..end];
+                    (
+                        ei + seg.partition_point(|&j| (j as usize) < own_lo),
+                        ei + seg.partition_point(|&j| (j as usize) < own_hi),
+                    )
+                } else {
+                    (ei, end)
+                };
+                for ((&j, gj), &fj) in self.lpat[from..to]
                     .iter()
-                    .zip(&sf.grad[ei..end])
-                    .zip(&sf.phi[ei..end])
+                    .zip(&sf.grad[from..to])
+                    .zip(&sf.phi[from..to])
                 {
                     let j = j as usize;
                     if !seen[j] {

@@ -269,6 +269,21 @@ pub fn morton_order(points: &[Point3], indices: &mut [usize]) {
     if indices.is_empty() {
         return;
     }
+    let frame = morton_frame(points, indices);
+    morton_order_in(points, indices, &frame);
+}
+
+/// The box a Morton order quantizes over: lower corner (metres) and the largest extent.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MortonFrame {
+    /// Lower corner of the bounding box, metres.
+    pub lo: Point3,
+    /// Largest edge of the bounding box, metres (0 for coincident points).
+    pub extent: f64,
+}
+
+/// The bounding box of `points[indices]` as a [`MortonFrame`].
+pub fn morton_frame(points: &[Point3], indices: &[usize]) -> MortonFrame {
     let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
     for &i in indices.iter() {
         for d in 0..3 {
@@ -276,13 +291,22 @@ pub fn morton_order(points: &[Point3], indices: &mut [usize]) {
             hi[d] = hi[d].max(points[i][d]);
         }
     }
-    let ext = (0..3).map(|d| hi[d] - lo[d]).fold(0.0, f64::max);
-    let scale = if ext > 0.0 {
-        ((1u64 << 21) - 1) as f64 / ext
+    let extent = (0..3).map(|d| hi[d] - lo[d]).fold(0.0, f64::max);
+    MortonFrame { lo, extent }
+}
+
+/// [`morton_order`] over a given frame: a subset of a point set ordered in the whole set's
+/// frame keeps the whole set's relative order (ties by index, so the subset's indices must
+/// keep the whole set's order).
+pub fn morton_order_in(points: &[Point3], indices: &mut [usize], frame: &MortonFrame) {
+    let lo = frame.lo;
+    let scale = if frame.extent > 0.0 {
+        ((1u64 << 21) - 1) as f64 / frame.extent
     } else {
         0.0
     };
     let code = |i: usize| {
+        // Points outside the frame clamp to its faces (`as` saturates).
         let q = |d: usize| ((points[i][d] - lo[d]) * scale) as u64;
         spread3(q(0)) | (spread3(q(1)) << 1) | (spread3(q(2)) << 2)
     };
@@ -344,6 +368,24 @@ mod tests {
             farthest_point_sampling(&grid, 150).unwrap(),
             farthest_point_sampling_brute(&grid, 150).unwrap()
         );
+    }
+
+    #[test]
+    fn a_subset_ordered_in_the_whole_frame_keeps_the_whole_order() {
+        let pts = cloud(2000, 11);
+        let mut all: Vec<usize> = (0..pts.len()).collect();
+        morton_order(&pts, &mut all);
+        let frame = morton_frame(&pts, &(0..pts.len()).collect::<Vec<_>>());
+        let keep = |i: usize| pts[i][0] < 0.3 && pts[i][1] > -0.2;
+        let sub: Vec<Point3> = (0..pts.len())
+            .filter(|&i| keep(i))
+            .map(|i| pts[i])
+            .collect();
+        let back: Vec<usize> = (0..pts.len()).filter(|&i| keep(i)).collect();
+        let mut order: Vec<usize> = (0..sub.len()).collect();
+        morton_order_in(&sub, &mut order, &frame);
+        let want: Vec<usize> = all.into_iter().filter(|&i| keep(i)).collect();
+        assert_eq!(order.iter().map(|&i| back[i]).collect::<Vec<_>>(), want);
     }
 
     #[test]

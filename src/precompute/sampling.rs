@@ -78,53 +78,147 @@ impl IntegrationPoints {
 /// exhausting memory): 2^31, ~50 GB of candidate points.
 pub const MAX_GRID_CELLS: u128 = 1 << 31;
 
-/// Grid cell centres over `aabb` at spacing about `h` (each axis gets round(L / h) >= 1 cells
-/// of exactly L / n, so the cells tile the box), kept where `inside` is true. Volumes are the
-/// cell volumes, rescaled to `exact_volume` when given.
+/// The cells of a bounding box at spacing about `h`: each axis gets round(L / h) >= 1 cells of
+/// exactly L / n, so the cells tile the box. [`grid_points`] keeps the centres inside a shape;
+/// [`Grid::centers_in`] keeps those inside a window too, the same coordinates bit for bit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Grid {
+    /// Lower corner of the box, metres.
+    pub min: Point3,
+    /// Cells per axis.
+    pub cells: [usize; 3],
+    /// Cell edge per axis, metres.
+    pub step: [f64; 3],
+}
+
+impl Grid {
+    /// The grid of `aabb` at spacing about `h` (metres).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] for a flat box or more than [`MAX_GRID_CELLS`] cells.
+    pub fn new(aabb: &Aabb, h: f64) -> Result<Self> {
+        let mut cells = [0usize; 3];
+        let mut step = [0.0; 3];
+        for d in 0..3 {
+            let len = aabb.max[d] - aabb.min[d];
+            if !(len.is_finite() && len > 0.0) {
+                return Err(Error::param(
+                    "shape",
+                    format!("extent {len} along axis {d}"),
+                    "the shape is flat or empty along this axis",
+                ));
+            }
+            cells[d] = ((len / h).round() as usize).max(1);
+            step[d] = len / cells[d] as f64;
+        }
+        let count = cells.iter().map(|&v| v as u128).product::<u128>();
+        if count > MAX_GRID_CELLS {
+            return Err(Error::param("spacing", h, format!("gives {count} grid cells over the bounding box; use a larger spacing or fewer points")));
+        }
+        Ok(Self {
+            min: aabb.min,
+            cells,
+            step,
+        })
+    }
+
+    /// Volume of one cell, m^3.
+    pub fn cell_volume(&self) -> f64 {
+        self.step[0] * self.step[1] * self.step[2]
+    }
+
+    /// Centre coordinate of cell `i` along axis `d` (the one formula every caller uses).
+    fn center(&self, d: usize, i: usize) -> f64 {
+        self.min[d] + (i as f64 + 0.5) * self.step[d]
+    }
+
+    /// Cell indices along axis `d` whose centres may lie in `[lo, hi]` (one cell of margin
+    /// either side against rounding; the exact test is the caller's).
+    fn index_range(&self, d: usize, lo: f64, hi: f64) -> std::ops::Range<usize> {
+        let n = self.cells[d];
+        let first = ((lo - self.min[d]) / self.step[d] - 1.5).floor();
+        let last = ((hi - self.min[d]) / self.step[d] + 0.5).ceil();
+        let first = if first.is_nan() || first < 0.0 {
+            0
+        } else {
+            (first as usize).min(n)
+        };
+        let last = if last.is_nan() || last < 0.0 {
+            0
+        } else {
+            (last as usize).min(n)
+        };
+        first..last.max(first)
+    }
+
+    /// Cell centres with `lo <= p <= hi` (every axis) where `inside` is true, in the order of
+    /// the whole grid (z-slabs, then y rows, then x), so the result is the whole grid's
+    /// [`grid_points`] filtered to the window, bit for bit. Cost: the window's cells only.
+    pub fn centers_in(
+        &self,
+        lo: Point3,
+        hi: Point3,
+        inside: &(dyn Fn(&[Point3]) -> Vec<bool> + Sync),
+    ) -> Vec<Point3> {
+        let r: Vec<std::ops::Range<usize>> =
+            (0..3).map(|d| self.index_range(d, lo[d], hi[d])).collect();
+        let within = |p: &Point3| (0..3).all(|d| p[d] >= lo[d] && p[d] <= hi[d]);
+        self.slabs(
+            r[2].clone(),
+            r[1].clone(),
+            r[0].clone(),
+            &|p| within(p),
+            inside,
+        )
+    }
+
+    /// Centres of cells `xs x ys x zs` kept by `keep` and then `inside`, one z-slab at a time
+    /// (memory: the kept points plus one slab of candidates).
+    fn slabs(
+        &self,
+        zs: std::ops::Range<usize>,
+        ys: std::ops::Range<usize>,
+        xs: std::ops::Range<usize>,
+        keep: &(dyn Fn(&Point3) -> bool + Sync),
+        inside: &(dyn Fn(&[Point3]) -> Vec<bool> + Sync),
+    ) -> Vec<Point3> {
+        let slabs: Vec<Vec<Point3>> = zs
+            .into_par_iter()
+            .map(|k| {
+                let z = self.center(2, k);
+                let cand: Vec<Point3> = ys
+                    .clone()
+                    .flat_map(|j| {
+                        let y = self.center(1, j);
+                        xs.clone().map(move |i| [self.center(0, i), y, z])
+                    })
+                    .filter(|p| keep(p))
+                    .collect();
+                if cand.is_empty() {
+                    return cand;
+                }
+                let inner = inside(&cand);
+                cand.into_iter()
+                    .zip(inner)
+                    .filter_map(|(p, k)| k.then_some(p))
+                    .collect()
+            })
+            .collect();
+        slabs.into_iter().flatten().collect()
+    }
+}
+
+/// Grid cell centres over `aabb` at spacing about `h` ([`Grid`]), kept where `inside` is
+/// true. Volumes are the cell volumes, rescaled to `exact_volume` when given.
 pub fn grid_points(
     aabb: &Aabb,
     h: f64,
     exact_volume: Option<f64>,
     inside: &(dyn Fn(&[Point3]) -> Vec<bool> + Sync),
 ) -> Result<IntegrationPoints> {
-    let mut n = [0usize; 3];
-    let mut step = [0.0; 3];
-    for d in 0..3 {
-        let len = aabb.max[d] - aabb.min[d];
-        if !(len.is_finite() && len > 0.0) {
-            return Err(Error::param(
-                "shape",
-                format!("extent {len} along axis {d}"),
-                "the shape is flat or empty along this axis",
-            ));
-        }
-        n[d] = ((len / h).round() as usize).max(1);
-        step[d] = len / n[d] as f64;
-    }
-    let cells = n.iter().map(|&v| v as u128).product::<u128>();
-    if cells > MAX_GRID_CELLS {
-        return Err(Error::param("spacing", h, format!("gives {cells} grid cells over the bounding box; use a larger spacing or fewer points")));
-    }
-    let cell_volume = step[0] * step[1] * step[2];
-    // One z-slab at a time keeps memory at the kept points plus one slab of candidates.
-    let slabs: Vec<Vec<Point3>> = (0..n[2])
-        .into_par_iter()
-        .map(|k| {
-            let z = aabb.min[2] + (k as f64 + 0.5) * step[2];
-            let cand: Vec<Point3> = (0..n[1])
-                .flat_map(|j| {
-                    let y = aabb.min[1] + (j as f64 + 0.5) * step[1];
-                    (0..n[0]).map(move |i| [aabb.min[0] + (i as f64 + 0.5) * step[0], y, z])
-                })
-                .collect();
-            let keep = inside(&cand);
-            cand.into_iter()
-                .zip(keep)
-                .filter_map(|(p, k)| k.then_some(p))
-                .collect()
-        })
-        .collect();
-    let points: Vec<Point3> = slabs.into_iter().flatten().collect();
+    let grid = Grid::new(aabb, h)?;
+    let [nx, ny, nz] = grid.cells;
+    let points = grid.slabs(0..nz, 0..ny, 0..nx, &|_| true, inside);
     if points.is_empty() {
         return Err(Error::param(
             "spacing",
@@ -134,7 +228,7 @@ pub fn grid_points(
     }
     let v = match exact_volume {
         Some(vol) => vol / points.len() as f64,
-        None => cell_volume,
+        None => grid.cell_volume(),
     };
     Ok(IntegrationPoints {
         volumes: vec![v; points.len()],
@@ -257,17 +351,35 @@ pub fn sample_shape(
         solid => {
             let aabb = solid.bounding_box();
             let exact = solid.volume();
-            let size = [
-                aabb.max[0] - aabb.min[0],
-                aabb.max[1] - aabb.min[1],
-                aabb.max[2] - aabb.min[2],
-            ];
-            let vol = exact.unwrap_or(size[0] * size[1] * size[2]);
-            let h = resolution.spacing(vol)?;
+            let h = resolution.spacing(exact.unwrap_or_else(|| box_volume(&aabb)))?;
             let inside = |p: &[Point3]| solid.contains(p).unwrap_or_else(|| vec![true; p.len()]);
             grid_points(&aabb, h, exact, &inside)
         }
     }
+}
+
+fn box_volume(aabb: &Aabb) -> f64 {
+    (0..3).map(|d| aabb.max[d] - aabb.min[d]).product()
+}
+
+/// The sampling grid of a solid (not a point cloud) at `resolution`, and its exact volume
+/// (m^3) where the shape knows it: what [`sample_shape`] samples, for callers that sample
+/// parts of it ([`Grid::centers_in`]).
+///
+/// # Errors
+/// As [`sample_shape`]; [`Error::InvalidParameter`] for a point cloud.
+pub fn solid_grid(shape: &Shape, resolution: Resolution) -> Result<(Grid, Option<f64>)> {
+    if matches!(shape, Shape::PointCloud(_)) {
+        return Err(Error::param(
+            "shape",
+            "a point cloud",
+            "a point cloud has no sampling grid; its points are its integration points",
+        ));
+    }
+    let aabb = shape.bounding_box();
+    let exact = shape.volume();
+    let h = resolution.spacing(exact.unwrap_or_else(|| box_volume(&aabb)))?;
+    Ok((Grid::new(&aabb, h)?, exact))
 }
 
 /// A deterministic, spatially unbiased subset of `n` points (seeded partial Fisher-Yates),
@@ -305,6 +417,37 @@ pub fn sample_with_material(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_window_of_the_grid_is_the_grid_filtered_to_it_bit_for_bit() {
+        // A sphere's inside test and a step that does not divide the box: the window's
+        // points must be exactly the full grid's inside it, in the same order (the MPI path
+        // relies on it for bit-identical rows).
+        let shape = Shape::Sphere { radius: 0.7 };
+        let (grid, _) = solid_grid(&shape, Resolution::Count(3000)).unwrap();
+        let inside = |p: &[Point3]| shape.contains(p).unwrap();
+        let [nx, ny, nz] = grid.cells;
+        let all = grid.slabs(0..nz, 0..ny, 0..nx, &|_| true, &inside);
+        for (lo, hi) in [
+            ([-0.31, -0.2, -0.05], [0.12, 0.33, 0.4]),
+            ([-1.0; 3], [1.0; 3]),
+            ([0.5, 0.5, 0.5], [0.6, 0.6, 0.6]),
+            ([2.0; 3], [3.0; 3]),
+        ] {
+            let want: Vec<Point3> = (all.iter().copied())
+                .filter(|p| (0..3).all(|d| p[d] >= lo[d] && p[d] <= hi[d]))
+                .collect();
+            assert_eq!(grid.centers_in(lo, hi, &inside), want, "{lo:?}..{hi:?}");
+        }
+        // The whole grid through sample_shape is the same set.
+        let full = sample_shape(&shape, Resolution::Count(3000), &Default::default()).unwrap();
+        assert_eq!(full.points, all);
+        assert!(solid_grid(
+            &Shape::PointCloud(crate::geometry::PointCloud::new(vec![[0.0; 3]; 4]).unwrap()),
+            Resolution::Count(10)
+        )
+        .is_err());
+    }
 
     #[test]
     fn box_grid_tiles_exactly() {

@@ -3,7 +3,7 @@
 //! O(nnz(H_w) + N) instead of O(N x kernels per point); the matrices are the same bit for bit
 //! for any chunk size and thread count (see [`super::assembly`]).
 
-use super::assembly::{Accumulator, Assembled};
+use super::assembly::{Accumulator, Assembled, LocalRows};
 use super::rkpm::{
     evaluate_chunk, reproducing_error, ChunkedStats, Kernels, ReproducingError,
     ShapeFunctionOptions, ShapeStats,
@@ -13,11 +13,12 @@ use crate::progress::Progress;
 use crate::report::Stopwatch;
 use crate::{Error, Point3, Result};
 
-/// Outcome of [`assemble_streamed`] when every point was well covered.
+/// Outcome of [`assemble_streamed`] when every point was well covered (`A` = [`Assembled`]),
+/// or of [`assemble_streamed_rows`] (`A` = [`LocalRows`]).
 #[derive(Debug, Clone)]
-pub struct StreamedAssembly {
-    /// H_w (Pa m) and M (m^3), K x K.
-    pub assembled: Assembled,
+pub struct StreamedAssembly<A = Assembled> {
+    /// H_w (Pa m) and M (m^3): K x K, or the wanted rows.
+    pub assembled: A,
     /// Shape-function figures over all points (point indices in the order given).
     pub stats: ShapeStats,
     /// Largest violation of the reproducing identities over all points.
@@ -34,9 +35,9 @@ pub struct StreamedAssembly {
 
 /// What [`assemble_streamed`] returns.
 #[derive(Debug, Clone)]
-pub enum Streamed {
+pub enum Streamed<A = Assembled> {
     /// Every point was covered: the matrices.
-    Assembled(Box<StreamedAssembly>),
+    Assembled(Box<StreamedAssembly<A>>),
     /// Some points failed the moment-matrix check; the figures list all of them (indices in
     /// the order given). Assembly stops at the first failing chunk; the remaining chunks are
     /// still evaluated so that the list is complete.
@@ -61,6 +62,62 @@ pub fn assemble_streamed(
     chunk: usize,
     progress: &dyn Progress,
 ) -> Result<Streamed> {
+    let acc = Accumulator::new(kernels.len())?;
+    stream(
+        acc,
+        kernels,
+        points,
+        volumes,
+        weights,
+        opts,
+        chunk,
+        progress,
+        Accumulator::finish,
+    )
+}
+
+/// [`assemble_streamed`] for rows `own` of H_w and M only ([`Accumulator::for_rows`]): one
+/// MPI rank's block, complete when `points` are all points of those kernels' supports.
+///
+/// # Errors
+/// As [`assemble_streamed`]; [`Error::InvalidParameter`] for a range outside 0..K.
+#[allow(clippy::too_many_arguments)]
+pub fn assemble_streamed_rows(
+    kernels: &Kernels,
+    points: &[Point3],
+    volumes: &[f64],
+    weights: &[f64],
+    opts: &ShapeFunctionOptions,
+    chunk: usize,
+    own: std::ops::Range<usize>,
+    progress: &dyn Progress,
+) -> Result<Streamed<LocalRows>> {
+    let acc = Accumulator::for_rows(kernels.len(), own)?;
+    stream(
+        acc,
+        kernels,
+        points,
+        volumes,
+        weights,
+        opts,
+        chunk,
+        progress,
+        Accumulator::finish_rows,
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
+fn stream<A>(
+    mut acc: Accumulator,
+    kernels: &Kernels,
+    points: &[Point3],
+    volumes: &[f64],
+    weights: &[f64],
+    opts: &ShapeFunctionOptions,
+    chunk: usize,
+    progress: &dyn Progress,
+    finish: impl FnOnce(Accumulator) -> Result<A>,
+) -> Result<Streamed<A>> {
     let n = points.len();
     super::assembly::check_point_lengths(n, volumes, weights)?;
     if chunk == 0 {
@@ -70,7 +127,6 @@ pub fn assemble_streamed(
             "need at least one point per chunk",
         ));
     }
-    let mut acc = Accumulator::new(kernels.len())?;
     let mut stats = ChunkedStats::default();
     let mut repro = ReproducingError::default();
     let (mut neighbors_s, mut shape_functions_s, mut assembly_s) = (0.0, 0.0, 0.0);
@@ -108,7 +164,7 @@ pub fn assemble_streamed(
         return Ok(Streamed::Uncovered(stats));
     }
     let clock = Stopwatch::start();
-    let assembled = acc.finish()?;
+    let assembled = finish(acc)?;
     assembly_s += clock.elapsed();
     Ok(Streamed::Assembled(Box::new(StreamedAssembly {
         assembled,
