@@ -17,6 +17,7 @@ pub mod lobpcg;
 pub mod operator;
 pub mod operator_problem;
 pub mod q1_operator;
+pub mod rows;
 #[cfg(feature = "slepc")]
 pub mod slepc;
 mod slepc_options;
@@ -32,6 +33,7 @@ pub use operator::{
     OperatorError, Preconditioner,
 };
 pub use operator_problem::OperatorProblem;
+pub use rows::{block_range, RowPencil};
 pub use slepc_options::{SlepcOptions, SlepcPreset};
 pub use solver::Eigensolver;
 
@@ -368,6 +370,17 @@ pub enum EigenError {
         library: &'static str,
         /// The library's error message (with the call that failed).
         message: String,
+    },
+    /// Under MPI, other ranks failed in a stage of the run; their errors are their own (each
+    /// rank prints its own). Every rank stops, so none is left waiting in a collective call.
+    #[error(
+        "MPI rank(s) {ranks:?} failed during {stage}; their own errors say why; every rank stops"
+    )]
+    OtherRanks {
+        /// The stage that failed.
+        stage: &'static str,
+        /// The ranks that failed, ascending.
+        ranks: Vec<usize>,
     },
     /// A SLEPc configuration was asked for in a build without the `slepc` feature.
     #[error(

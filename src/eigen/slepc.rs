@@ -168,15 +168,7 @@ pub fn abort_if_parallel(code: i32) {
     petsc::abort_world_if_parallel(code);
 }
 
-/// Rows `[start, end)` owned by `rank` of `size` ranks in a block distribution of `n` rows
-/// (the first `n % size` ranks get one more). Used for the PETSc layout and, under MPI, for
-/// which kernels a rank assembles.
-pub fn block_range(n: usize, rank: usize, size: usize) -> std::ops::Range<usize> {
-    let base = n / size.max(1);
-    let rem = n % size.max(1);
-    let start = rank * base + rank.min(rem);
-    start..start + base + usize::from(rank < rem)
-}
+pub use super::rows::block_range;
 
 /// A block of consecutive rows of a K x K sparse matrix in CSR form with global column
 /// indices: row `first + r` holds `cols[ptr[r]..ptr[r + 1]]` / `vals[..]`.
@@ -515,21 +507,6 @@ impl Eigensolver for SlepcSolver {
 mod tests {
     use super::*;
     use crate::eigen::{EigenStatus, SlepcLobpcgStop};
-
-    #[test]
-    fn block_ranges_tile() {
-        for n in [0, 1, 5, 17] {
-            for size in 1..5 {
-                let mut next = 0;
-                for rank in 0..size {
-                    let r = block_range(n, rank, size);
-                    assert_eq!(r.start, next);
-                    next = r.end;
-                }
-                assert_eq!(next, n);
-            }
-        }
-    }
 
     /// The failure as SLEPc 3.18 reported it for `modes box:5,1,1 --kernels 3000 --modes 32
     /// --solver slepc --slepc lobpcg-gamg` (message recorded by our error handler).

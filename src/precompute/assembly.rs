@@ -16,6 +16,7 @@
 //! symmetric.
 
 use super::rkpm::ShapeFunctions;
+use crate::eigen::RowPencil;
 use crate::sparse::{from_compressed, SparseMatrix};
 use crate::{Error, Result};
 use rayon::prelude::*;
@@ -226,29 +227,6 @@ impl Accumulator {
     }
 }
 
-/// Rows `first..first + ptr.len() - 1` of H_w and M (both triangles, columns ascending,
-/// global column indices): one MPI rank's block, from [`Accumulator::finish_rows`].
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct LocalRows {
-    /// Global index of the first row.
-    pub first: usize,
-    /// Row pointers, length rows + 1.
-    pub ptr: Vec<usize>,
-    /// Global column indices, shared by both matrices.
-    pub cols: Vec<usize>,
-    /// H_w's values, Pa m.
-    pub hessian: Vec<f64>,
-    /// M's values, m^3.
-    pub mass: Vec<f64>,
-}
-
-impl LocalRows {
-    /// Number of rows.
-    pub fn rows(&self) -> usize {
-        self.ptr.len().saturating_sub(1)
-    }
-}
-
 impl Accumulator {
     /// The wanted rows ([`Accumulator::for_rows`]) of H_w and M with both triangles, as the
     /// same rows of [`Accumulator::finish`]'s matrices, bit for bit, without forming the
@@ -256,7 +234,7 @@ impl Accumulator {
     ///
     /// # Errors
     /// [`Error::NonFinite`] when a sum is not finite (bad volumes or material values).
-    pub fn finish_rows(self) -> Result<LocalRows> {
+    pub fn finish_rows(self) -> Result<RowPencil> {
         let (a, b) = (self.own.start, self.own.end);
         let mut rows = self.rows;
         let wanted = |j: usize| j >= a && j < b;
@@ -276,7 +254,7 @@ impl Accumulator {
             ptr[r + 1] += ptr[r];
         }
         let nnz = ptr[b - a];
-        let (mut cols, mut hv, mut mv) = (vec![0usize; nnz], vec![0.0; nnz], vec![0.0; nnz]);
+        let (mut cols, mut hv, mut mv) = (vec![0u32; nnz], vec![0.0; nnz], vec![0.0; nnz]);
         // As `mirror`: lower entries first, rows visited ascending, then the row's own upper.
         let mut next = ptr[..b - a].to_vec();
         for (i, r) in rows[..b].iter().enumerate() {
@@ -284,7 +262,7 @@ impl Accumulator {
                 let j = j as usize;
                 if j != i && wanted(j) {
                     let d = next[j - a];
-                    cols[d] = i;
+                    cols[d] = i as u32;
                     hv[d] = r.h[e];
                     mv[d] = r.m[e];
                     next[j - a] += 1;
@@ -295,9 +273,7 @@ impl Accumulator {
             let r = std::mem::take(&mut rows[i]);
             let d = next[i - a];
             let c = r.cols.len();
-            for (slot, &j) in cols[d..d + c].iter_mut().zip(r.cols.iter()) {
-                *slot = j as usize;
-            }
+            cols[d..d + c].copy_from_slice(&r.cols);
             hv[d..d + c].copy_from_slice(&r.h);
             mv[d..d + c].copy_from_slice(&r.m);
         }
@@ -309,7 +285,7 @@ impl Accumulator {
                 index: bad,
             });
         }
-        Ok(LocalRows {
+        Ok(RowPencil {
             first: a,
             ptr,
             cols,

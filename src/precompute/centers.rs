@@ -68,6 +68,8 @@ fn too_few_distinct(k: usize, found: usize) -> Error {
 /// occupied cell), CSR by cell.
 struct CellGrid {
     lo: Point3,
+    /// Upper corner of the points' bounding box.
+    hi: Point3,
     size: f64,
     dims: [usize; 3],
     /// Cell c holds `order[start[c]..start[c + 1]]` (point indices, ascending).
@@ -106,6 +108,7 @@ impl CellGrid {
         }
         let mut grid = CellGrid {
             lo,
+            hi,
             size,
             dims,
             start: Vec::new(),
@@ -160,44 +163,90 @@ fn cell_max(grid: &CellGrid, dist: &[f64], c: usize) -> (u64, u32) {
 /// Errors if k is 0, exceeds N, or exceeds the number of distinct points.
 ///
 /// Points are bucketed into grid cells; a max-heap over cells holds each cell's farthest
-/// point. A new centre at squared distance d_max can only bring closer the points within
-/// sqrt(d_max) of it, so only the cells meeting that ball are visited and rescanned. Heap keys
-/// are (squared distance bits, lowest index), so the sequence is exactly that of the brute
-/// force, ties included.
+/// point ([`FarthestPoints`]). A new centre at squared distance d_max can only bring closer the
+/// points within sqrt(d_max) of it, so only the cells meeting that ball are visited and
+/// rescanned. Heap keys are (squared distance bits, lowest index), so the sequence is exactly
+/// that of the brute force, ties included.
 pub fn farthest_point_sampling(points: &[Point3], k: usize) -> Result<Vec<usize>> {
     check(points, k)?;
-    let grid = CellGrid::new(points);
     let s0 = start_index(points);
-    let mut dist: Vec<f64> = points.iter().map(|p| dist2(p, &points[s0])).collect();
-    let ncell = grid.start.len() - 1;
-    let mut best: Vec<(u64, u32)> = (0..ncell).map(|c| cell_max(&grid, &dist, c)).collect();
-    // Non-negative f64 bit patterns order like the numbers; Reverse makes the lowest index
-    // win ties, as in the brute force.
-    let mut heap: BinaryHeap<(u64, Reverse<u32>, u32)> = best
-        .iter()
-        .enumerate()
-        .filter(|(_, b)| b.1 != u32::MAX)
-        .map(|(c, &(bits, i))| (bits, Reverse(i), c as u32))
-        .collect();
+    let mut state = FarthestPoints::new(points, &points[s0]);
     let mut chosen = Vec::with_capacity(k);
     chosen.push(s0);
     while chosen.len() < k {
-        let (bits, idx) = loop {
-            match heap.pop() {
-                Some((bits, Reverse(i), c)) if best[c as usize] == (bits, i) => {
-                    break (bits, i as usize)
-                }
-                Some(_) => continue, // stale: the cell's farthest point changed since
-                None => return Err(too_few_distinct(k, chosen.len())),
-            }
+        let Some((d_max, idx)) = state.farthest() else {
+            return Err(too_few_distinct(k, chosen.len()));
         };
-        let d_max = f64::from_bits(bits);
         if d_max <= 0.0 {
             return Err(too_few_distinct(k, chosen.len()));
         }
         chosen.push(idx);
-        let c = points[idx];
+        state.add_center(&points[idx], d_max);
+    }
+    Ok(chosen)
+}
+
+/// The state of an exact farthest point sampling over one set of points (all points, or one
+/// MPI rank's part of them): each point's squared distance to the nearest centre so far, and
+/// the farthest point, found through a grid of cells and a max-heap over them.
+pub struct FarthestPoints<'a> {
+    points: &'a [Point3],
+    grid: CellGrid,
+    dist: Vec<f64>,
+    /// Each cell's farthest point: (squared distance bits, lowest index attaining it).
+    best: Vec<(u64, u32)>,
+    /// Cells by their farthest point; entries whose cell changed since are stale.
+    heap: BinaryHeap<(u64, Reverse<u32>, u32)>,
+}
+
+impl<'a> FarthestPoints<'a> {
+    /// Distances of `points` (N x 3, metres; at most 2^32 of them) to a first centre `first`.
+    pub fn new(points: &'a [Point3], first: &Point3) -> Self {
+        let grid = CellGrid::new(points);
+        let dist: Vec<f64> = points.iter().map(|p| dist2(p, first)).collect();
+        let ncell = grid.start.len() - 1;
+        let best: Vec<(u64, u32)> = (0..ncell).map(|c| cell_max(&grid, &dist, c)).collect();
+        // Non-negative f64 bit patterns order like the numbers; Reverse makes the lowest index
+        // win ties, as in the brute force.
+        let heap = best
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| b.1 != u32::MAX)
+            .map(|(c, &(bits, i))| (bits, Reverse(i), c as u32))
+            .collect();
+        Self {
+            points,
+            grid,
+            dist,
+            best,
+            heap,
+        }
+    }
+
+    /// The farthest point from the centres so far: (squared distance, m^2; its index, the
+    /// lowest on ties). None for an empty set.
+    pub fn farthest(&mut self) -> Option<(f64, usize)> {
+        loop {
+            let &(bits, Reverse(i), c) = self.heap.peek()?;
+            if self.best[c as usize] == (bits, i) {
+                return Some((f64::from_bits(bits), i as usize));
+            }
+            self.heap.pop(); // stale: the cell's farthest point changed since
+        }
+    }
+
+    /// Add a centre `c` that was the farthest point overall at squared distance `d_max`: only
+    /// points within sqrt(d_max) of it can come closer, so only those cells are visited.
+    pub fn add_center(&mut self, c: &Point3, d_max: f64) {
+        if self.points.is_empty() {
+            return;
+        }
         let r = d_max.sqrt();
+        let grid = &self.grid;
+        // A ball that misses this set's bounding box changes nothing (another rank's part).
+        if (0..3).any(|d| c[d] + r < grid.lo[d] || c[d] - r > grid.hi[d]) {
+            return;
+        }
         let lo = [0, 1, 2].map(|d| grid.coord(&[c[0] - r, c[1] - r, c[2] - r], d));
         let hi = [0, 1, 2].map(|d| grid.coord(&[c[0] + r, c[1] + r, c[2] + r], d));
         for z in lo[2]..=hi[2] {
@@ -207,22 +256,21 @@ pub fn farthest_point_sampling(points: &[Point3], k: usize) -> Result<Vec<usize>
                     let mut changed = false;
                     for &i in grid.points(cell) {
                         let i = i as usize;
-                        let d = dist2(&points[i], &c);
-                        if d < dist[i] {
-                            dist[i] = d;
+                        let d = dist2(&self.points[i], c);
+                        if d < self.dist[i] {
+                            self.dist[i] = d;
                             changed = true;
                         }
                     }
                     if changed {
-                        let b = cell_max(&grid, &dist, cell);
-                        best[cell] = b;
-                        heap.push((b.0, Reverse(b.1), cell as u32));
+                        let b = cell_max(grid, &self.dist, cell);
+                        self.best[cell] = b;
+                        self.heap.push((b.0, Reverse(b.1), cell as u32));
                     }
                 }
             }
         }
     }
-    Ok(chosen)
 }
 
 /// Brute-force O(N K) farthest point sampling; the reference that
@@ -291,26 +339,38 @@ pub fn morton_frame(points: &[Point3], indices: &[usize]) -> MortonFrame {
             hi[d] = hi[d].max(points[i][d]);
         }
     }
-    let extent = (0..3).map(|d| hi[d] - lo[d]).fold(0.0, f64::max);
-    MortonFrame { lo, extent }
+    MortonFrame::from_bounds(lo, hi)
+}
+
+impl MortonFrame {
+    /// The frame of a bounding box with corners `lo` and `hi` (metres), e.g. one reduced over
+    /// MPI ranks: the same frame as [`morton_frame`] of the points it bounds.
+    pub fn from_bounds(lo: Point3, hi: Point3) -> Self {
+        let extent = (0..3).map(|d| hi[d] - lo[d]).fold(0.0, f64::max);
+        MortonFrame { lo, extent }
+    }
+
+    /// The Morton code of `p` (points outside the frame clamp to its faces).
+    pub fn code(&self, p: &Point3) -> u64 {
+        let scale = if self.extent > 0.0 {
+            ((1u64 << 21) - 1) as f64 / self.extent
+        } else {
+            0.0
+        };
+        // `as` saturates.
+        let q = |d: usize| ((p[d] - self.lo[d]) * scale) as u64;
+        spread3(q(0)) | (spread3(q(1)) << 1) | (spread3(q(2)) << 2)
+    }
 }
 
 /// [`morton_order`] over a given frame: a subset of a point set ordered in the whole set's
 /// frame keeps the whole set's relative order (ties by index, so the subset's indices must
 /// keep the whole set's order).
 pub fn morton_order_in(points: &[Point3], indices: &mut [usize], frame: &MortonFrame) {
-    let lo = frame.lo;
-    let scale = if frame.extent > 0.0 {
-        ((1u64 << 21) - 1) as f64 / frame.extent
-    } else {
-        0.0
-    };
-    let code = |i: usize| {
-        // Points outside the frame clamp to its faces (`as` saturates).
-        let q = |d: usize| ((points[i][d] - lo[d]) * scale) as u64;
-        spread3(q(0)) | (spread3(q(1)) << 1) | (spread3(q(2)) << 2)
-    };
-    let mut keyed: Vec<(u64, usize)> = indices.par_iter().map(|&i| (code(i), i)).collect();
+    let mut keyed: Vec<(u64, usize)> = indices
+        .par_iter()
+        .map(|&i| (frame.code(&points[i]), i))
+        .collect();
     keyed.par_sort_unstable();
     for (slot, (_, i)) in indices.iter_mut().zip(keyed) {
         *slot = i;

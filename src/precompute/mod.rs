@@ -19,7 +19,6 @@ pub mod assembly;
 pub mod boundary_modes;
 pub mod centers;
 mod compare;
-#[cfg(feature = "slepc")]
 pub mod distributed;
 pub mod image_material;
 pub mod memory;

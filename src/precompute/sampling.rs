@@ -172,6 +172,54 @@ impl Grid {
         )
     }
 
+    /// Number of grid rows (a row: one y and one z index, all x), nz x ny. Row r = k ny + j;
+    /// the grid's points run row by row ([`grid_points`]'s order).
+    pub fn rows(&self) -> usize {
+        self.cells[1] * self.cells[2]
+    }
+
+    /// The centres of rows `rows` where `inside` is true, in the grid's order, and how many
+    /// each row holds (bit for bit [`grid_points`]'s points of those rows).
+    pub fn row_points(
+        &self,
+        rows: std::ops::Range<usize>,
+        inside: &(dyn Fn(&[Point3]) -> Vec<bool> + Sync),
+    ) -> (Vec<Point3>, Vec<u32>) {
+        let [nx, ny, _] = self.cells;
+        // Batches of about 8,192 candidates per inside test, in parallel.
+        let batch = (8192 / nx.max(1)).max(1);
+        let starts: Vec<usize> = rows.clone().step_by(batch).collect();
+        let parts: Vec<(Vec<Point3>, Vec<u32>)> = starts
+            .into_par_iter()
+            .map(|first| {
+                let last = (first + batch).min(rows.end);
+                let cand: Vec<Point3> = (first..last)
+                    .flat_map(|r| {
+                        let (y, z) = (self.center(1, r % ny), self.center(2, r / ny));
+                        (0..nx).map(move |i| [self.center(0, i), y, z])
+                    })
+                    .collect();
+                let keep = inside(&cand);
+                let counts = keep
+                    .chunks(nx.max(1))
+                    .map(|row| row.iter().filter(|&&k| k).count() as u32)
+                    .collect();
+                let points = cand
+                    .into_iter()
+                    .zip(keep)
+                    .filter_map(|(p, k)| k.then_some(p))
+                    .collect();
+                (points, counts)
+            })
+            .collect();
+        let (mut points, mut counts) = (Vec::new(), Vec::with_capacity(rows.len()));
+        for (p, c) in parts {
+            points.extend(p);
+            counts.extend(c);
+        }
+        (points, counts)
+    }
+
     /// Centres of cells `xs x ys x zs` kept by `keep` and then `inside`, one z-slab at a time
     /// (memory: the kept points plus one slab of candidates).
     fn slabs(

@@ -3,18 +3,19 @@
 //! O(nnz(H_w) + N) instead of O(N x kernels per point); the matrices are the same bit for bit
 //! for any chunk size and thread count (see [`super::assembly`]).
 
-use super::assembly::{Accumulator, Assembled, LocalRows};
+use super::assembly::{Accumulator, Assembled};
 use super::rkpm::{
     evaluate_chunk, reproducing_error, ChunkedStats, Kernels, ReproducingError,
     ShapeFunctionOptions, ShapeStats,
 };
+use crate::eigen::RowPencil;
 use crate::error::check_cancelled;
 use crate::progress::Progress;
 use crate::report::Stopwatch;
 use crate::{Error, Point3, Result};
 
 /// Outcome of [`assemble_streamed`] when every point was well covered (`A` = [`Assembled`]),
-/// or of [`assemble_streamed_rows`] (`A` = [`LocalRows`]).
+/// or of [`assemble_streamed_rows`] (`A` = [`RowPencil`]).
 #[derive(Debug, Clone)]
 pub struct StreamedAssembly<A = Assembled> {
     /// H_w (Pa m) and M (m^3): K x K, or the wanted rows.
@@ -91,7 +92,7 @@ pub fn assemble_streamed_rows(
     chunk: usize,
     own: std::ops::Range<usize>,
     progress: &dyn Progress,
-) -> Result<Streamed<LocalRows>> {
+) -> Result<Streamed<RowPencil>> {
     let acc = Accumulator::for_rows(kernels.len(), own)?;
     stream(
         acc,
