@@ -79,6 +79,15 @@ pub fn check(call: &'static str, code: sys::PetscErrorCode) -> Result<()> {
     })
 }
 
+/// `n` as an MPI count (`int`), or an error naming the call.
+fn mpi_count(call: &'static str, n: usize) -> Result<c_int> {
+    c_int::try_from(n).map_err(|_| PetscError {
+        call,
+        code: -1,
+        message: format!("{n} values do not fit one MPI count"),
+    })
+}
+
 fn mpi_check(call: &'static str, code: c_int) -> Result<()> {
     if code == 0 {
         Ok(())
@@ -317,6 +326,76 @@ impl Session {
         mpi_check("MPI_Bcast", code)
     }
 
+    /// Every rank's `mine` (the same length on every rank), concatenated in rank order on
+    /// every rank (collective, `MPI_Allgather`).
+    pub fn all_gather(&self, comm: Comm, mine: &[f64]) -> Result<Vec<f64>> {
+        let size = self.size(comm)?;
+        let count = mpi_count("MPI_Allgather", mine.len())?;
+        let mut all = vec![0.0; mine.len() * size];
+        // SAFETY: `count` doubles sent, `count` received from each of `size` ranks into a
+        // buffer of size x count; collective on comm.
+        let code = unsafe {
+            let double = std::ptr::addr_of_mut!(sys::ompi_mpi_double).cast();
+            sys::MPI_Allgather(
+                mine.as_ptr().cast(),
+                count,
+                double,
+                all.as_mut_ptr().cast(),
+                count,
+                double,
+                comm.0,
+            )
+        };
+        mpi_check("MPI_Allgather", code)?;
+        Ok(all)
+    }
+
+    /// Every rank's `mine` (any lengths, each below 2^31) concatenated in rank order on rank
+    /// `root`; `None` on the other ranks (collective, `MPI_Gatherv`).
+    pub fn gather_to_root(
+        &self,
+        comm: Comm,
+        mine: &[f64],
+        root: usize,
+    ) -> Result<Option<Vec<f64>>> {
+        let (rank, size) = (self.rank(comm)?, self.size(comm)?);
+        let counts: Vec<c_int> = self
+            .all_gather(comm, &[mine.len() as f64])?
+            .into_iter()
+            .map(|c| mpi_count("MPI_Gatherv", c as usize))
+            .collect::<Result<_>>()?;
+        let mut displs = Vec::with_capacity(size);
+        let mut total = 0usize;
+        for &c in &counts {
+            displs.push(mpi_count("MPI_Gatherv", total)?);
+            total += c as usize;
+        }
+        let mut all = if rank == root {
+            vec![0.0; total]
+        } else {
+            Vec::new()
+        };
+        let root_c = mpi_count("MPI_Gatherv", root)?;
+        // SAFETY: `mine.len()` doubles sent; on root, a buffer of sum(counts) doubles with
+        // displacements from the same counts; collective on comm.
+        let code = unsafe {
+            let double = std::ptr::addr_of_mut!(sys::ompi_mpi_double).cast();
+            sys::MPI_Gatherv(
+                mine.as_ptr().cast(),
+                counts[rank],
+                double,
+                all.as_mut_ptr().cast(),
+                counts.as_ptr(),
+                displs.as_ptr(),
+                double,
+                root_c,
+                comm.0,
+            )
+        };
+        mpi_check("MPI_Gatherv", code)?;
+        Ok((rank == root).then_some(all))
+    }
+
     /// Insert options into PETSc's global database, e.g. `"-eps_type lobpcg -st_pc_type
     /// gamg"`. Values starting with `-` survive here (they do not on a shell command line).
     pub fn options_insert(&self, options: &str) -> Result<()> {
@@ -354,11 +433,15 @@ impl<'s> Mat<'s> {
     /// A square AIJ matrix of global size `n` x `n` on `comm`, from this rank's rows
     /// `first_row .. first_row + row_ptr.len() - 1` in CSR form: row r's global column indices
     /// are `cols[row_ptr[r]..row_ptr[r + 1]]` with values `vals[..]` at the same positions.
-    /// The local column block equals the local row block (the layout of the vectors).
-    /// `symmetric` marks the matrix symmetric for the solvers. Collective on `comm`.
+    /// The local column block equals the local row block (the layout of the vectors), and the
+    /// ranks' row blocks must tile 0..n in rank order. `symmetric` marks the matrix symmetric
+    /// for the solvers. One call per matrix (`Mat*AIJSetPreallocationCSR`: PETSc preallocates
+    /// and copies the rows itself); the 32-bit column indices are handed over as they are
+    /// where `PetscInt` is 32 bits (Debian's PETSc), without a copy. Collective on `comm`.
     ///
     /// # Errors
-    /// PETSc's error; sizes beyond `PetscInt`; a column index `>= n`.
+    /// PETSc's error; arrays of inconsistent lengths; a column index `>= n` or beyond
+    /// `PetscInt`.
     #[allow(clippy::too_many_arguments)]
     pub fn aij_from_rows(
         _session: &'s Session,
@@ -366,26 +449,43 @@ impl<'s> Mat<'s> {
         n: usize,
         first_row: usize,
         row_ptr: &[usize],
-        cols: &[usize],
+        cols: &[u32],
         vals: &[f64],
         symmetric: bool,
     ) -> Result<Self> {
+        let call = "MatMPIAIJSetPreallocationCSR";
         let local = row_ptr.len().saturating_sub(1);
-        let call = "MatSetValues";
-        if cols.len() != vals.len() || row_ptr.last().copied().unwrap_or(0) != cols.len() {
+        if cols.len() != vals.len()
+            || row_ptr.first().copied().unwrap_or(0) != 0
+            || row_ptr.last().copied().unwrap_or(0) != cols.len()
+        {
             return Err(PetscError {
                 code: -1,
                 call,
                 message: "CSR arrays disagree in length".into(),
             });
         }
-        if let Some(&bad) = cols.iter().find(|&&c| c >= n) {
+        let limit = n.min(sys::PetscInt::MAX as usize);
+        if let Some(&bad) = cols.iter().find(|&&c| c as usize >= limit) {
             return Err(PetscError {
                 code: -1,
                 call,
-                message: format!("column index {bad} >= matrix size {n}"),
+                message: format!("column index {bad} >= matrix size {n} (or beyond PetscInt)"),
             });
         }
+        let ptr: Vec<sys::PetscInt> = row_ptr
+            .iter()
+            .map(|&p| petsc_int(call, p))
+            .collect::<Result<_>>()?;
+        let converted: Vec<sys::PetscInt>;
+        let j: &[sys::PetscInt] = if std::mem::size_of::<sys::PetscInt>() == 4 {
+            // SAFETY: same size and alignment as u32, and every index is below
+            // PetscInt::MAX (checked above), so each u32 reads as the same PetscInt.
+            unsafe { std::slice::from_raw_parts(cols.as_ptr().cast(), cols.len()) }
+        } else {
+            converted = cols.iter().map(|&c| c as sys::PetscInt).collect();
+            &converted
+        };
         let mut raw: sys::Mat = std::ptr::null_mut();
         // SAFETY: out-pointer to a fresh handle on a valid communicator.
         check("MatCreate", unsafe { sys::MatCreate(comm.0, &mut raw) })?;
@@ -397,7 +497,8 @@ impl<'s> Mat<'s> {
             petsc_int("MatSetSizes", local)?,
             petsc_int("MatSetSizes", n)?,
         );
-        // SAFETY: valid handle (below as well); sizes checked.
+        // SAFETY: valid handle (below as well); sizes checked; arrays of local + 1 and nnz
+        // entries, read by PETSc during the calls only.
         check("MatSetSizes", unsafe {
             sys::MatSetSizes(mat.raw, nl, nl, ng, ng)
         })?;
@@ -405,47 +506,25 @@ impl<'s> Mat<'s> {
         check("MatSetType", unsafe {
             sys::MatSetType(mat.raw, aij.as_ptr())
         })?;
-        let end = first_row + local;
-        let mut diag = Vec::with_capacity(local);
-        let mut off = Vec::with_capacity(local);
-        let mut total = Vec::with_capacity(local);
-        for r in 0..local {
-            let row = &cols[row_ptr[r]..row_ptr[r + 1]];
-            let d = row.iter().filter(|&&c| c >= first_row && c < end).count();
-            diag.push(petsc_int("MatMPIAIJSetPreallocation", d)?);
-            off.push(petsc_int("MatMPIAIJSetPreallocation", row.len() - d)?);
-            total.push(petsc_int("MatSeqAIJSetPreallocation", row.len())?);
-        }
         // Both calls are made; PETSc ignores the one that does not match the actual type.
-        check("MatSeqAIJSetPreallocation", unsafe {
-            sys::MatSeqAIJSetPreallocation(mat.raw, 0, total.as_ptr())
+        check("MatSeqAIJSetPreallocationCSR", unsafe {
+            sys::MatSeqAIJSetPreallocationCSR(mat.raw, ptr.as_ptr(), j.as_ptr(), vals.as_ptr())
         })?;
-        check("MatMPIAIJSetPreallocation", unsafe {
-            sys::MatMPIAIJSetPreallocation(mat.raw, 0, diag.as_ptr(), 0, off.as_ptr())
+        check(call, unsafe {
+            sys::MatMPIAIJSetPreallocationCSR(mat.raw, ptr.as_ptr(), j.as_ptr(), vals.as_ptr())
         })?;
-        let mut idx: Vec<sys::PetscInt> = Vec::new();
-        for r in 0..local {
-            let range = row_ptr[r]..row_ptr[r + 1];
-            idx.clear();
-            for &c in &cols[range.clone()] {
-                idx.push(petsc_int(call, c)?);
-            }
-            let row = petsc_int(call, first_row + r)?;
-            let ncols = petsc_int(call, idx.len())?;
-            // SAFETY: one row index, `ncols` column indices and values.
-            check(call, unsafe {
-                sys::MatSetValues(
-                    mat.raw,
-                    1,
-                    &row,
-                    ncols,
-                    idx.as_ptr(),
-                    vals[range].as_ptr(),
-                    sys::INSERT_VALUES,
-                )
-            })?;
+        // PETSc lays rows out in rank order from the local sizes: they must be the caller's.
+        let (start, _) = mat.ownership_range()?;
+        if start != first_row {
+            return Err(PetscError {
+                code: -1,
+                call,
+                message: format!(
+                    "this rank's rows start at {first_row}, but the ranks' row counts place \
+                     them at {start}: the row blocks must tile 0..{n} in rank order"
+                ),
+            });
         }
-        mat.assemble()?;
         if symmetric {
             for opt in [sys::MAT_SYMMETRIC, sys::MAT_SYMMETRY_ETERNAL] {
                 check("MatSetOption", unsafe {
@@ -456,14 +535,14 @@ impl<'s> Mat<'s> {
         Ok(mat)
     }
 
-    fn assemble(&self) -> Result<()> {
-        // SAFETY: valid handle.
-        check("MatAssemblyBegin", unsafe {
-            sys::MatAssemblyBegin(self.raw, sys::MAT_FINAL_ASSEMBLY)
+    /// The 1-norm (largest absolute column sum). Collective.
+    pub fn norm_one(&self) -> Result<f64> {
+        let mut v = 0.0;
+        // SAFETY: valid handle, out-pointer.
+        check("MatNorm", unsafe {
+            sys::MatNorm(self.raw, sys::NORM_1, &mut v)
         })?;
-        check("MatAssemblyEnd", unsafe {
-            sys::MatAssemblyEnd(self.raw, sys::MAT_FINAL_ASSEMBLY)
-        })
+        Ok(v)
     }
 
     /// Read a matrix from a PETSc binary file (as written by `MatView` with a binary viewer).

@@ -6,17 +6,18 @@
 use freeform_ffi::{session, Convergence, Eps, Ksp, Mat, ProblemType, Which};
 
 /// Rows of the n x n tridiagonal matrix tridiag(-1, d, -1) in CSR form.
-fn tridiagonal(n: usize, d: f64) -> (Vec<usize>, Vec<usize>, Vec<f64>) {
+fn tridiagonal(n: usize, d: f64) -> (Vec<usize>, Vec<u32>, Vec<f64>) {
     let (mut ptr, mut cols, mut vals) = (vec![0], Vec::new(), Vec::new());
     for i in 0..n {
+        let iu = i as u32;
         if i > 0 {
-            cols.push(i - 1);
+            cols.push(iu - 1);
             vals.push(-1.0);
         }
-        cols.push(i);
+        cols.push(iu);
         vals.push(d);
         if i + 1 < n {
-            cols.push(i + 1);
+            cols.push(iu + 1);
             vals.push(-1.0);
         }
         ptr.push(cols.len());
@@ -35,7 +36,7 @@ fn cg_solves_a_known_system() {
     let b_vals: Vec<f64> = (0..n)
         .map(|i| {
             (ptr[i]..ptr[i + 1])
-                .map(|e| vals[e] * x_true[cols[e]])
+                .map(|e| vals[e] * x_true[cols[e] as usize])
                 .sum()
         })
         .collect();
@@ -81,7 +82,7 @@ fn ghep_with_known_eigenvalues() {
     let (ptr, cols, vals) = tridiagonal(n, 2.0);
     let a = Mat::aij_from_rows(&s, s.world(), n, 0, &ptr, &cols, &vals, true).unwrap();
     let bptr: Vec<usize> = (0..=n).collect();
-    let bcols: Vec<usize> = (0..n).collect();
+    let bcols: Vec<u32> = (0..n as u32).collect();
     let b = Mat::aij_from_rows(&s, s.world(), n, 0, &bptr, &bcols, &vec![2.0; n], true).unwrap();
     let mut eps = Eps::new(&s, s.world()).unwrap();
     eps.set_operators(&a, &b).unwrap();

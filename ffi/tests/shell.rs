@@ -32,7 +32,7 @@ fn shell_product_equals_the_aij_product() {
     for i in 0..n {
         for (j, v) in [(i.wrapping_sub(1), -1.0), (i, 2.0), (i + 1, -1.0)] {
             if j < n {
-                cols.push(j);
+                cols.push(j as u32);
                 vals.push(v);
             }
         }

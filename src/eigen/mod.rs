@@ -22,6 +22,10 @@ pub mod rows;
 pub mod slepc;
 mod slepc_options;
 #[cfg(feature = "slepc")]
+mod slepc_pencil;
+#[cfg(feature = "slepc")]
+mod slepc_rows;
+#[cfg(feature = "slepc")]
 mod slepc_shell;
 #[cfg(feature = "slepc")]
 mod slepc_status;

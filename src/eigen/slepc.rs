@@ -37,7 +37,9 @@ use crate::sparse::SparseMatrix;
 use faer::Mat;
 use freeform_ffi as petsc;
 
-use super::slepc_status::{backend, option_names};
+use super::slepc_pencil::{shift, solve_pencil};
+pub use super::slepc_rows::{solve_distributed, DistributedSolution};
+use super::slepc_status::backend;
 pub use super::slepc_status::{convergence_status, SolveStatus};
 pub use super::{SlepcOptions, SlepcPreset};
 
@@ -111,6 +113,17 @@ pub fn broadcast(values: &mut [f64], root: usize) -> Result<(), EigenError> {
     session.broadcast(world, values, root).map_err(backend)
 }
 
+/// Every rank's `mine` (the same length on every rank), concatenated in rank order on every
+/// rank of `PETSC_COMM_WORLD` (collective).
+///
+/// # Errors
+/// [`EigenError::Backend`] with the MPI/PETSc error.
+pub fn all_gather(mine: &[f64]) -> Result<Vec<f64>, EigenError> {
+    let session = petsc::session().map_err(backend)?;
+    let world = session.world();
+    session.all_gather(world, mine).map_err(backend)
+}
+
 /// Load a PETSc binary matrix file (e.g. `hessian.petsc` from `freeform export`) with PETSc's
 /// own `MatLoad` on this rank and compare it with `a`: returns max_i |(A_file x - A x)_i| /
 /// max_i |(A x)_i| for a fixed pseudo-random x (0 when the file holds exactly `a`).
@@ -178,8 +191,8 @@ pub struct RowBlock {
     pub first: usize,
     /// Row pointers, length rows + 1.
     pub ptr: Vec<usize>,
-    /// Global column indices.
-    pub cols: Vec<usize>,
+    /// Global column indices (below 2^32).
+    pub cols: Vec<u32>,
     /// Values.
     pub vals: Vec<f64>,
 }
@@ -195,7 +208,8 @@ impl RowBlock {
         };
         for j in range {
             let r = sym.col_range(j);
-            out.cols.extend_from_slice(&sym.row_idx()[r.clone()]);
+            out.cols
+                .extend(sym.row_idx()[r.clone()].iter().map(|&i| i as u32));
             out.vals.extend_from_slice(&a.val()[r]);
             out.ptr.push(out.cols.len());
         }
@@ -212,7 +226,7 @@ impl RowBlock {
         (0..self.rows())
             .map(|r| {
                 (self.ptr[r]..self.ptr[r + 1])
-                    .filter(|&e| self.cols[e] == self.first + r)
+                    .filter(|&e| self.cols[e] as usize == self.first + r)
                     .map(|e| self.vals[e])
                     .sum::<f64>()
             })
@@ -234,47 +248,6 @@ pub struct RowsSolution {
     pub notes: Vec<String>,
 }
 
-fn lapack_failure(message: &str) -> Option<(String, i64)> {
-    let rest = message.split("Error in LAPACK subroutine ").nth(1)?;
-    let (routine, rest) = rest.split_once(": info=")?;
-    let digits: String = rest
-        .chars()
-        .enumerate()
-        .take_while(|&(i, c)| c.is_ascii_digit() || (i == 0 && c == '-'))
-        .map(|(_, c)| c)
-        .collect();
-    let info = digits.parse().ok()?;
-    let routine = routine.trim();
-    (!routine.is_empty() && !routine.contains(char::is_whitespace))
-        .then(|| (routine.to_string(), info))
-}
-
-/// What a failed `EPSSolve` means for the user. A LAPACK failure inside SLEPc's LOBPCG
-/// (`EPSSolve_LOBPCG` in the call chain; in practice `sygvd` in its Rayleigh-Ritz step, after
-/// the basis lost B-orthogonality) becomes [`EigenError::SlepcLobpcgBreakdown`] with the
-/// ways out; anything else stays [`EigenError::Backend`] with PETSc's message.
-fn solve_error(
-    e: petsc::PetscError,
-    k: usize,
-    nev: usize,
-    block_size: Option<usize>,
-) -> EigenError {
-    if e.message.contains("EPSSolve_LOBPCG()") {
-        if let Some((routine, info)) = lapack_failure(&e.message) {
-            return EigenError::SlepcLobpcgBreakdown {
-                routine,
-                info,
-                k,
-                nev,
-                block_size,
-                message: e.to_string(),
-            };
-        }
-    }
-    backend(e)
-}
-
-/// Option names (`-eps_type`) in an options string: tokens starting with `-` and a letter.
 /// Solve H x = lambda M x with SLEPc on `PETSC_COMM_WORLD`, where this rank holds rows
 /// `h.first .. h.first + h.rows()` of H and the same rows of M (collective: every rank calls
 /// it with its own block; blocks must tile 0..k in rank order). H, M: K x K symmetric
@@ -296,58 +269,14 @@ pub fn solve_rows(
     let world = session.world();
     let mut traces = [h.diagonal_sum(), m.diagonal_sum()];
     session.allreduce_sum(world, &mut traces).map_err(backend)?;
-    let sigma = options
-        .shift
-        .unwrap_or(-1e-4 * traces[0] / traces[1].max(f64::MIN_POSITIVE));
-    if !sigma.is_finite() {
-        return Err(EigenError::NonFinite(format!(
-            "SLEPc shift sigma = {sigma} (tr H = {}, tr M = {})",
-            traces[0], traces[1]
-        )));
-    }
+    let sigma = shift(options, traces)?;
     let hm = petsc::Mat::aij_from_rows(&session, world, k, h.first, &h.ptr, &h.cols, &h.vals, true)
         .map_err(backend)?;
     let mm = petsc::Mat::aij_from_rows(&session, world, k, m.first, &m.ptr, &m.cols, &m.vals, true)
         .map_err(backend)?;
-    let mut eps = petsc::Eps::new(&session, world).map_err(backend)?;
-    configure(&mut eps, &hm, &mm, request, options, sigma).map_err(backend)?;
-    // User options go into the global database only for this solve.
-    let names = option_names(&options.petsc_options);
-    let from_options = session
-        .options_insert(&options.petsc_options)
-        .and_then(|_| eps.set_from_options());
-    for name in &names {
-        // Clearing an option that is not set is not an error in PETSc.
-        let _ = session.options_clear(name);
-    }
-    from_options.map_err(backend)?;
-    // Options that switch to LOBPCG (e.g. "-eps_type lobpcg" on top of ks-sinvert) would keep
-    // the relative test and abort on the zero eigenvalue: use ours unless the user chose one.
-    let chosen_type = eps.describe().map_err(backend)?[0].clone();
-    if chosen_type == "lobpcg" && !names.iter().any(|n| n.starts_with("-eps_conv_")) {
-        eps.set_convergence_test(petsc::Convergence::Norm)
-            .map_err(backend)?;
-    }
-    let solved = eps.solve();
-    // SLEPc sets the LOBPCG block size up inside EPSSolve and reports it after a failed solve
-    // too; the error and the status both name it.
-    let block_size = if chosen_type == "lobpcg" {
-        eps.lobpcg_block_size().ok().filter(|&b| b > 0)
-    } else {
-        None
-    };
-    if let Err(e) = solved {
-        return Err(solve_error(e, k, request.nev, block_size));
-    }
-    let converged = eps.converged().map_err(backend)?;
-    let iterations = eps.iterations().map_err(backend)?;
-    let status = SolveStatus {
-        eps_type: chosen_type.clone(),
-        iterations,
-        converged,
-        reason: eps.converged_reason().map_err(backend)?,
-        block_size,
-    };
+    let solved = solve_pencil(&session, &hm, &mm, k, request, options, sigma)?;
+    let (eps, status, notes) = (solved.eps, solved.status, solved.notes);
+    let converged = status.converged;
     let mut x = hm.create_vector().map_err(backend)?;
     let mut pairs: Vec<(f64, Vec<f64>)> = Vec::new();
     for i in 0..converged.min(request.nev) {
@@ -355,22 +284,6 @@ pub fn solve_rows(
         pairs.push((lambda, x.gather_all().map_err(backend)?));
     }
     pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let [eps_type, st_type, ksp_type, pc_type, package] = eps.describe().map_err(backend)?;
-    let ranks = session.size(world).map_err(backend)?;
-    let mut notes = vec![
-        format!(
-            "slepc: eps {eps_type}, st {st_type}, ksp {ksp_type}, pc {pc_type}{}",
-            if package.is_empty() {
-                String::new()
-            } else {
-                format!(" ({package})")
-            }
-        ),
-        format!("slepc: target/shift {sigma:.6e}, {ranks} MPI rank(s), {converged} converged"),
-    ];
-    if !options.petsc_options.is_empty() {
-        notes.push(format!("slepc: options {}", options.petsc_options));
-    }
     let mut vectors = Mat::<f64>::zeros(k, pairs.len());
     for (j, (_, v)) in pairs.iter().enumerate() {
         for (i, &x) in v.iter().enumerate().take(k) {
@@ -383,54 +296,6 @@ pub fn solve_rows(
         status,
         notes,
     })
-}
-
-/// The preset's settings on a fresh EPS (before the options database is applied).
-fn configure<'s>(
-    eps: &mut petsc::Eps<'s>,
-    hm: &petsc::Mat<'s>,
-    mm: &petsc::Mat<'s>,
-    request: &EigenRequest,
-    options: &SlepcOptions,
-    sigma: f64,
-) -> petsc::Result<()> {
-    eps.set_operators(hm, mm)?;
-    eps.set_problem_type(petsc::ProblemType::Ghep)?;
-    eps.set_dimensions(request.nev)?;
-    eps.set_tolerances(request.tol, request.max_iter)?;
-    match options.preset {
-        SlepcPreset::KsSinvert => {
-            // The Krylov residual lives in the transformed problem (theta = 1 / (lambda -
-            // sigma), never 0 here): SLEPc's relative test is the right one there. The
-            // EPS_CONV_NORM test would divide that residual by ||H||, of the original
-            // problem's scale, and stop after one restart with residuals ~1e-4 (measured).
-            eps.set_convergence_test(petsc::Convergence::Relative)?;
-            eps.set_type("krylovschur")?;
-            eps.set_which(petsc::Which::TargetMagnitude)?;
-            eps.set_target(sigma)?;
-            eps.set_spectral_transform(
-                Some("sinvert"),
-                Some("preonly"),
-                Some("cholesky"),
-                Some("mumps"),
-            )?;
-        }
-        SlepcPreset::LobpcgGamg | SlepcPreset::LobpcgHypre => {
-            // Our own residual definition; the relative default divides by |lambda| = 0 for
-            // the constant mode and aborts in LAPACK.
-            eps.set_convergence_test(petsc::Convergence::Norm)?;
-            eps.set_type("lobpcg")?;
-            eps.set_which(petsc::Which::SmallestReal)?;
-            let pc = if options.preset == SlepcPreset::LobpcgGamg {
-                "gamg"
-            } else {
-                "hypre"
-            };
-            eps.set_spectral_transform(Some("precond"), Some("preonly"), Some(pc), None)?;
-            eps.set_st_shift(sigma)?;
-        }
-    }
-    Ok(())
 }
 
 /// [`super::SLEPC_RESIDUAL_SLACK`] under its earlier name (it lives in `eigen` so the error
@@ -505,6 +370,7 @@ impl Eigensolver for SlepcSolver {
 
 #[cfg(test)]
 mod tests {
+    use super::super::slepc_pencil::{lapack_failure, solve_error};
     use super::*;
     use crate::eigen::{EigenStatus, SlepcLobpcgStop};
 

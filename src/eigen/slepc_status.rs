@@ -28,8 +28,7 @@ pub(super) fn backend(e: petsc::PetscError) -> EigenError {
     }
 }
 
-/// A LAPACK failure as SLEPc words it (`SlepcCheckLapackInfo`): "Error in LAPACK subroutine
-/// sygvd: info=74" gives `("sygvd", 74)`.
+/// Option names (`-eps_type`) in an options string: tokens starting with `-` and a letter.
 pub(super) fn option_names(options: &str) -> Vec<&str> {
     options
         .split_whitespace()

@@ -38,6 +38,31 @@ const COVER_AT_DEFAULT: f64 = 36.0;
 /// transpose 8, neighbour lists 4.
 const BYTES_PER_PAIR: f64 = 52.0;
 
+/// Bytes per integration point a rank of the distributed precomputation holds for each point
+/// it owns: the positions and farthest-point distances of its part (~40), and the points of its
+/// kernels' supports with volumes, materials and sorted copies (~110 each, about 1.5 times as
+/// many as it owns: the halo).
+const BYTES_PER_OWN_POINT: f64 = 200.0;
+
+/// Bytes per kernel every rank of the distributed precomputation holds: all centres and radii
+/// (32), the farthest-point choices and their sort (40), the accumulator's empty rows (48).
+const BYTES_PER_KERNEL_ON_EVERY_RANK: f64 = 120.0;
+
+/// One rank's share of SLEPc's storage: `own` entries of each of H_w and M on this rank, `rows`
+/// rows, `nev` pairs. Shift-and-invert holds a Cholesky factor (MUMPS: about 17 x the entries
+/// of H_w at K = 100,000, growing as K^(1/3) in 3D, 12 bytes each); the preconditioned solvers
+/// the shifted matrix and an AMG hierarchy (about twice its entries) and blocks of vectors.
+fn slepc_bytes(opts: &BasisOptions, own: f64, rows: f64, nev: f64) -> f64 {
+    use crate::eigen::SlepcPreset;
+    match &opts.solver {
+        SolverConfig::Slepc(s) if s.preset == SlepcPreset::KsSinvert => {
+            let fill = 17.0 * (opts.kernels as f64 / 1e5).cbrt().max(0.5);
+            12.0 * fill * own + 8.0 * rows * 3.0 * nev
+        }
+        _ => 36.0 * own + 8.0 * rows * 10.0 * nev,
+    }
+}
+
 /// Peak memory of a precomputation, estimated before it runs, by part (bytes).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct MemoryEstimate {
@@ -95,6 +120,38 @@ impl MemoryEstimate {
             nnz: nnz as u64,
             points_bytes: points_bytes as u64,
             stream_bytes: stream_bytes as u64,
+            matrices_bytes: matrices as u64,
+            eigensolver_bytes: eigensolver as u64,
+            total_bytes: total as u64,
+            available_bytes: 0,
+        }
+    }
+
+    /// The estimate for one of `ranks` MPI ranks of the distributed precomputation
+    /// ([`crate::precompute::distributed`]) with `points` integration points in all: its share
+    /// of the points and of their halo, the kernels every rank holds, one stream chunk, its
+    /// rows of H_w and M (its own copy and PETSc's while PETSc takes them), and its share of
+    /// the SLEPc solver's storage.
+    pub fn per_rank(opts: &BasisOptions, points: usize, ranks: usize) -> Self {
+        let one = Self::new(opts, points);
+        let p = ranks.max(1) as f64;
+        let (k, n, nnz) = (opts.kernels as f64, points as f64, one.nnz as f64);
+        let own = nnz / p;
+        let points_bytes = BYTES_PER_OWN_POINT * n / p + BYTES_PER_KERNEL_ON_EVERY_RANK * k;
+        // The rows as assembled (20 bytes per entry for both matrices) and PETSc's AIJ copies
+        // (12 bytes per entry each), both alive while PETSc takes them.
+        let matrices = 44.0 * own + 16.0 * k / p;
+        let nev = opts.modes as f64 + 1.0;
+        let eigensolver = slepc_bytes(opts, own, k / p, nev);
+        let accumulating = 30.0 * own;
+        let total = points_bytes
+            + (one.stream_bytes as f64 + accumulating).max(matrices.max(24.0 * own + eigensolver));
+        Self {
+            points,
+            kernels: opts.kernels,
+            nnz: one.nnz,
+            points_bytes: points_bytes as u64,
+            stream_bytes: one.stream_bytes,
             matrices_bytes: matrices as u64,
             eigensolver_bytes: eigensolver as u64,
             total_bytes: total as u64,

@@ -419,8 +419,15 @@ impl Problem {
             warnings,
             memory,
         };
-        let mut report =
-            ModesReport::of_solve(&opts, kernels.len(), &points, &solution, repro, facts);
+        let mut report = ModesReport::of_solve(
+            &opts,
+            kernels.len(),
+            points.len(),
+            points.total_volume(),
+            &solution,
+            repro,
+            facts,
+        );
         report.boundaries = boundaries;
         let basis = Basis {
             kernels,

@@ -5,7 +5,6 @@ use super::boundary_modes::BoundaryRegionReport;
 use super::memory::MemoryEstimate;
 use super::options::BasisOptions;
 use super::rkpm::{KernelType, ReproducingError, SupportOptions};
-use super::sampling::IntegrationPoints;
 use crate::eigen::{EigenInfo, EigenSolution};
 use crate::report::{peak_memory_bytes, Monitors, Timings};
 use serde::Serialize;
@@ -115,20 +114,22 @@ pub struct SolveFacts {
 }
 
 impl ModesReport {
-    /// The report of a finished precomputation on `points` with `kernels` kernels: sizes and
+    /// The report of a finished precomputation on `points` integration points (of total volume
+    /// `volume`, m^3) with `kernels` kernels: sizes and
     /// options, the solution's eigenvalues and residuals, the reproducing error, the peak
     /// memory so far, then the monitors and warnings of [`check_quality`].
     pub fn of_solve(
         opts: &BasisOptions,
         kernels: usize,
-        points: &IntegrationPoints,
+        points: usize,
+        volume: f64,
         solution: &EigenSolution,
         reproducing: ReproducingError,
         facts: SolveFacts,
     ) -> ModesReport {
         let mut report = ModesReport {
             kernels,
-            points: points.len(),
+            points,
             modes: opts.modes,
             nnz_hessian: facts.nnz.0,
             nnz_mass: facts.nnz.1,
@@ -140,7 +141,7 @@ impl ModesReport {
             reproducing_detail: reproducing,
             timings_s: facts.timings,
             peak_memory_bytes: peak_memory_bytes().unwrap_or(0),
-            volume: points.total_volume(),
+            volume,
             kernel: opts.kernel,
             support: opts.support,
             coverage: facts.coverage,

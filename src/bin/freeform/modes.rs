@@ -101,34 +101,70 @@ pub fn run(args: ModesArgs) -> CliResult {
     } else {
         &Silent
     };
-    let (mut run, distributed) = match distributed_run(&args, &shape, &opts, progress)? {
-        Some(run) => run,
-        None => (
-            Problem::from_shape(&shape, &opts, progress)?.solve(progress)?,
-            None,
-        ),
+    let Computed {
+        mut report,
+        basis,
+        points,
+        distributed,
+    } = match distributed_run(&args, &shape, &opts, progress)? {
+        Some(computed) => computed,
+        None => {
+            let run = Problem::from_shape(&shape, &opts, progress)?.solve(progress)?;
+            Computed {
+                report: run.report,
+                basis: Some(run.basis),
+                points: Some(run.points.points),
+                distributed: None,
+            }
+        }
     };
     // Every printed and JSON warning names the command line's flags.
-    localize_all(&mut run.report.warnings, Front::Flags);
-    // Under mpirun every rank computed the same basis; only rank 0 writes and prints.
+    localize_all(&mut report.warnings, Front::Flags);
+    // Under mpirun only rank 0 (which holds the basis) writes and prints.
+    let Some(basis) = basis else {
+        return Ok(());
+    };
     if !crate::is_root_rank(&opts.solver)? {
         return Ok(());
     }
-    let metadata = BasisMetadata::for_modes(&shape_arg, &opts, &run.report);
-    if args.strict && !run.report.warnings.is_empty() {
-        for w in &run.report.warnings {
+    let metadata = BasisMetadata::for_modes(&shape_arg, &opts, &report);
+    if args.strict && !report.warnings.is_empty() {
+        for w in &report.warnings {
             eprintln!("warning: {w}");
         }
     }
-    let warnings: Vec<_> = (run.report.warnings.iter())
+    let warnings: Vec<_> = (report.warnings.iter())
         .map(freeform::report::Warning::monitor)
         .collect();
     freeform::error::check_strict(args.strict, &warnings)?;
-    freeform::io::basis::save(&out, &run.basis, &metadata)?;
+    freeform::io::basis::save(&out, &basis, &metadata)?;
     if let Some(png) = &args.png {
-        crate::render::modes_png(png, &shape, &run, args.png_modes, png_tile, &args.view)?;
+        let sampled;
+        let points = match &points {
+            Some(p) => p,
+            None => {
+                // A distributed run keeps no point set: sample one for the picture.
+                let count = report.points.min(PICTURE_POINTS);
+                sampled = freeform::precompute::sample_shape(
+                    &shape,
+                    freeform::precompute::sampling::Resolution::Count(count),
+                    &opts.cloud,
+                )?
+                .points;
+                &sampled
+            }
+        };
+        crate::render::modes_png(
+            png,
+            &shape,
+            &basis,
+            points,
+            args.png_modes,
+            png_tile,
+            &args.view,
+        )?;
     }
-    let r = &run.report;
+    let r = &report;
     if args.json {
         let mut value = serde_json::to_value(r)?;
         value["shape"] = serde_json::Value::String(shape_arg.clone());
@@ -193,8 +229,17 @@ pub fn solver_config(
     }
 }
 
-/// A distributed run: the basis and the per-rank figures (`DistributedReport` as JSON).
-type DistributedRun = (freeform::precompute::BasisRun, Option<serde_json::Value>);
+/// What `modes` computed: the report, the basis (on the rank that writes it), the integration
+/// points (a one-process run) and the per-rank figures (`DistributedReport` as JSON).
+struct Computed {
+    report: freeform::precompute::ModesReport,
+    basis: Option<freeform::precompute::skinning::Basis>,
+    points: Option<Vec<[f64; 3]>>,
+    distributed: Option<serde_json::Value>,
+}
+
+/// Integration points drawn by `--png` after a distributed run (which keeps none).
+const PICTURE_POINTS: usize = 200_000;
 
 /// The MPI-distributed pipeline when asked for (`--distributed`) or when running on several
 /// ranks with `--solver slepc`; `None` otherwise.
@@ -204,7 +249,7 @@ fn distributed_run(
     shape: &freeform::geometry::Shape,
     opts: &BasisOptions,
     progress: &dyn Progress,
-) -> Result<Option<DistributedRun>, Box<dyn std::error::Error>> {
+) -> Result<Option<Computed>, Box<dyn std::error::Error>> {
     use freeform::eigen::slepc::world_rank;
     let SolverConfig::Slepc(slepc) = &opts.solver else {
         if args.distributed {
@@ -215,9 +260,13 @@ fn distributed_run(
     if !args.distributed && world_rank()?.1 == 1 {
         return Ok(None);
     }
-    let (run, dist) =
-        freeform::precompute::distributed::build_basis_mpi(shape, opts, slepc, progress)?;
-    Ok(Some((run, Some(serde_json::to_value(&dist)?))))
+    let run = freeform::precompute::distributed::build_basis_mpi(shape, opts, slepc, progress)?;
+    Ok(Some(Computed {
+        distributed: Some(serde_json::to_value(&run.distributed)?),
+        report: run.report,
+        basis: run.basis,
+        points: None,
+    }))
 }
 
 #[cfg(not(feature = "slepc"))]
@@ -226,7 +275,7 @@ fn distributed_run(
     _shape: &freeform::geometry::Shape,
     _opts: &BasisOptions,
     _progress: &dyn Progress,
-) -> Result<Option<DistributedRun>, Box<dyn std::error::Error>> {
+) -> Result<Option<Computed>, Box<dyn std::error::Error>> {
     if args.distributed {
         return Err(crate::no_slepc());
     }

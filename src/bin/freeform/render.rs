@@ -515,11 +515,12 @@ pub fn ground_below(bounds: &Aabb, axis: usize, height: f64) -> Ground {
 /// `freeform modes --png`: the first `count` non-constant modes' weights on the shape, one
 /// tile of `tile` pixels each (three per row), blue (negative) to red (positive), each mode
 /// scaled to its largest |W_j|. Meshes are drawn by their triangles, point clouds and
-/// primitives as discs at their points (a primitive's integration points).
+/// primitives as discs at `points` (a primitive's integration points, N x 3, metres).
 pub fn modes_png(
     path: &Path,
     shape: &freeform::geometry::Shape,
-    run: &freeform::precompute::BasisRun,
+    basis: &freeform::precompute::skinning::Basis,
+    points: &[[f64; 3]],
     count: usize,
     tile: (u32, u32),
     view: &ViewArgs,
@@ -529,16 +530,16 @@ pub fn modes_png(
     let (positions, triangles): (&[[f64; 3]], Option<&[[u32; 3]]>) = match shape {
         Shape::Mesh(m) => (m.vertices(), Some(m.triangles())),
         Shape::PointCloud(c) => (c.points(), None),
-        Shape::Box { .. } | Shape::Sphere { .. } | Shape::Image(_) => (&run.points.points, None),
+        Shape::Box { .. } | Shape::Sphere { .. } | Shape::Image(_) => (points, None),
     };
-    let modes = run.basis.modes();
+    let modes = basis.modes();
     let count = count.min(modes.saturating_sub(1));
     if count == 0 {
         return Err(
             "--png needs at least one non-constant mode (--modes >= 1, --png-modes >= 1)".into(),
         );
     }
-    let weights = run.basis.weights(positions)?;
+    let weights = basis.weights(positions)?;
     let bounds = Aabb::from_points(positions).unwrap_or_else(|| shape.bounding_box());
     let camera = Camera::fit(&bounds, &camera_options);
     let radius = disc_radius_from_spacing(positions);
@@ -581,7 +582,7 @@ pub fn modes_png(
             height: th,
         };
         draw(&mut image, rect, &camera, &[item], &options)?;
-        let ev = run.basis.eigenvalues.get(j).copied().unwrap_or(f64::NAN);
+        let ev = basis.eigenvalues.get(j).copied().unwrap_or(f64::NAN);
         draw_text(
             &mut image,
             rect.x as i32 + 8,

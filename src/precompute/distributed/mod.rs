@@ -22,3 +22,12 @@ pub use collective::{agree, arg_max, run_ranks, Collective};
 pub use fps::place_kernels_parts;
 pub use partition::{sample_part, PointPart};
 pub use rows::{assemble_own_rows, OwnRows};
+#[cfg(feature = "slepc")]
+mod mpi;
+#[cfg(feature = "slepc")]
+mod pipeline;
+
+#[cfg(feature = "slepc")]
+pub use mpi::MpiWorld;
+#[cfg(feature = "slepc")]
+pub use pipeline::{build_basis_mpi, DistributedReport, DistributedRun};

@@ -125,6 +125,14 @@ impl PointPart {
         self.first..self.first + self.points.len()
     }
 
+    /// The volume of all N points, m^3, summed as the one-process report sums it (in order).
+    pub fn total_volume(&self) -> f64 {
+        match &self.source {
+            Source::Grid { volume, .. } => (0..self.total).fold(0.0, |sum, _| sum + volume),
+            Source::Cloud(all) => all.total_volume(),
+        }
+    }
+
     /// Every integration point (of all ranks) with `lo <= p <= hi` on every axis, in the
     /// one-process order, with its volume (m^3): bit for bit the one-process points and
     /// volumes. Cost: the window's grid cells (a cloud: a scan of its points).

@@ -1,0 +1,191 @@
+//! One SLEPc solve on assembled PETSc matrices, shared by the SLEPc paths (feature `slepc`):
+//! the preset's configuration, the caller's PETSc options on top, `EPSSolve`, and what a
+//! failure means for the user.
+
+use super::slepc_status::{backend, option_names, SolveStatus};
+use super::{EigenError, EigenRequest, SlepcOptions, SlepcPreset};
+use freeform_ffi as petsc;
+
+/// The shift sigma of `options`, or -1e-4 tr(H)/tr(M) from the traces `[tr H, tr M]`.
+///
+/// # Errors
+/// [`EigenError::NonFinite`] when it is not finite.
+pub(super) fn shift(options: &SlepcOptions, traces: [f64; 2]) -> Result<f64, EigenError> {
+    let sigma = options
+        .shift
+        .unwrap_or(-1e-4 * traces[0] / traces[1].max(f64::MIN_POSITIVE));
+    if !sigma.is_finite() {
+        return Err(EigenError::NonFinite(format!(
+            "SLEPc shift sigma = {sigma} (tr H = {}, tr M = {})",
+            traces[0], traces[1]
+        )));
+    }
+    Ok(sigma)
+}
+
+/// A LAPACK failure as SLEPc words it (`SlepcCheckLapackInfo`): "Error in LAPACK subroutine
+/// sygvd: info=74" gives `("sygvd", 74)`.
+pub(super) fn lapack_failure(message: &str) -> Option<(String, i64)> {
+    let rest = message.split("Error in LAPACK subroutine ").nth(1)?;
+    let (routine, rest) = rest.split_once(": info=")?;
+    let digits: String = rest
+        .chars()
+        .enumerate()
+        .take_while(|&(i, c)| c.is_ascii_digit() || (i == 0 && c == '-'))
+        .map(|(_, c)| c)
+        .collect();
+    let info = digits.parse().ok()?;
+    let routine = routine.trim();
+    (!routine.is_empty() && !routine.contains(char::is_whitespace))
+        .then(|| (routine.to_string(), info))
+}
+
+/// What a failed `EPSSolve` means for the user. A LAPACK failure inside SLEPc's LOBPCG
+/// (`EPSSolve_LOBPCG` in the call chain; in practice `sygvd` in its Rayleigh-Ritz step, after
+/// the basis lost B-orthogonality) becomes [`EigenError::SlepcLobpcgBreakdown`] with the
+/// ways out; anything else stays [`EigenError::Backend`] with PETSc's message.
+pub(super) fn solve_error(
+    e: petsc::PetscError,
+    k: usize,
+    nev: usize,
+    block_size: Option<usize>,
+) -> EigenError {
+    if e.message.contains("EPSSolve_LOBPCG()") {
+        if let Some((routine, info)) = lapack_failure(&e.message) {
+            return EigenError::SlepcLobpcgBreakdown {
+                routine,
+                info,
+                k,
+                nev,
+                block_size,
+                message: e.to_string(),
+            };
+        }
+    }
+    backend(e)
+}
+
+/// A finished `EPSSolve` on (H, M): the solver (to read pairs from), how it ended, and notes
+/// on the configuration used.
+pub(super) struct Solved<'s> {
+    pub(super) eps: petsc::Eps<'s>,
+    pub(super) status: SolveStatus,
+    pub(super) notes: Vec<String>,
+}
+
+/// Configure an EPS on the assembled pencil (`hm`, `mm`: K x K) with the preset of
+/// `options`, then its PETSc options, and solve. The shift sigma is the preset's target.
+pub(super) fn solve_pencil<'s>(
+    session: &'s petsc::Session,
+    hm: &petsc::Mat<'s>,
+    mm: &petsc::Mat<'s>,
+    k: usize,
+    request: &EigenRequest,
+    options: &SlepcOptions,
+    sigma: f64,
+) -> Result<Solved<'s>, EigenError> {
+    let world = session.world();
+    let mut eps = petsc::Eps::new(session, world).map_err(backend)?;
+    configure(&mut eps, hm, mm, request, options, sigma).map_err(backend)?;
+    // User options go into the global database only for this solve.
+    let names = option_names(&options.petsc_options);
+    let from_options = session
+        .options_insert(&options.petsc_options)
+        .and_then(|_| eps.set_from_options());
+    for name in &names {
+        // Clearing an option that is not set is not an error in PETSc.
+        let _ = session.options_clear(name);
+    }
+    from_options.map_err(backend)?;
+    // Options that switch to LOBPCG (e.g. "-eps_type lobpcg" on top of ks-sinvert) would keep
+    // the relative test and abort on the zero eigenvalue: use ours unless the user chose one.
+    let chosen_type = eps.describe().map_err(backend)?[0].clone();
+    if chosen_type == "lobpcg" && !names.iter().any(|n| n.starts_with("-eps_conv_")) {
+        eps.set_convergence_test(petsc::Convergence::Norm)
+            .map_err(backend)?;
+    }
+    let solved = eps.solve();
+    // SLEPc sets the LOBPCG block size up inside EPSSolve and reports it after a failed solve
+    // too; the error and the status both name it.
+    let block_size = if chosen_type == "lobpcg" {
+        eps.lobpcg_block_size().ok().filter(|&b| b > 0)
+    } else {
+        None
+    };
+    if let Err(e) = solved {
+        return Err(solve_error(e, k, request.nev, block_size));
+    }
+    let converged = eps.converged().map_err(backend)?;
+    let status = SolveStatus {
+        eps_type: chosen_type,
+        iterations: eps.iterations().map_err(backend)?,
+        converged,
+        reason: eps.converged_reason().map_err(backend)?,
+        block_size,
+    };
+    let [eps_type, st_type, ksp_type, pc_type, package] = eps.describe().map_err(backend)?;
+    let ranks = session.size(world).map_err(backend)?;
+    let mut notes = vec![
+        format!(
+            "slepc: eps {eps_type}, st {st_type}, ksp {ksp_type}, pc {pc_type}{}",
+            if package.is_empty() {
+                String::new()
+            } else {
+                format!(" ({package})")
+            }
+        ),
+        format!("slepc: target/shift {sigma:.6e}, {ranks} MPI rank(s), {converged} converged"),
+    ];
+    if !options.petsc_options.is_empty() {
+        notes.push(format!("slepc: options {}", options.petsc_options));
+    }
+    Ok(Solved { eps, status, notes })
+}
+
+/// The preset's settings on a fresh EPS (before the options database is applied).
+pub(super) fn configure<'s>(
+    eps: &mut petsc::Eps<'s>,
+    hm: &petsc::Mat<'s>,
+    mm: &petsc::Mat<'s>,
+    request: &EigenRequest,
+    options: &SlepcOptions,
+    sigma: f64,
+) -> petsc::Result<()> {
+    eps.set_operators(hm, mm)?;
+    eps.set_problem_type(petsc::ProblemType::Ghep)?;
+    eps.set_dimensions(request.nev)?;
+    eps.set_tolerances(request.tol, request.max_iter)?;
+    match options.preset {
+        SlepcPreset::KsSinvert => {
+            // The Krylov residual lives in the transformed problem (theta = 1 / (lambda -
+            // sigma), never 0 here): SLEPc's relative test is the right one there. The
+            // EPS_CONV_NORM test would divide that residual by ||H||, of the original
+            // problem's scale, and stop after one restart with residuals ~1e-4 (measured).
+            eps.set_convergence_test(petsc::Convergence::Relative)?;
+            eps.set_type("krylovschur")?;
+            eps.set_which(petsc::Which::TargetMagnitude)?;
+            eps.set_target(sigma)?;
+            eps.set_spectral_transform(
+                Some("sinvert"),
+                Some("preonly"),
+                Some("cholesky"),
+                Some("mumps"),
+            )?;
+        }
+        SlepcPreset::LobpcgGamg | SlepcPreset::LobpcgHypre => {
+            // Our own residual definition; the relative default divides by |lambda| = 0 for
+            // the constant mode and aborts in LAPACK.
+            eps.set_convergence_test(petsc::Convergence::Norm)?;
+            eps.set_type("lobpcg")?;
+            eps.set_which(petsc::Which::SmallestReal)?;
+            let pc = if options.preset == SlepcPreset::LobpcgGamg {
+                "gamg"
+            } else {
+                "hypre"
+            };
+            eps.set_spectral_transform(Some("precond"), Some("preonly"), Some(pc), None)?;
+            eps.set_st_shift(sigma)?;
+        }
+    }
+    Ok(())
+}
