@@ -30,4 +30,4 @@ mod pipeline;
 #[cfg(feature = "slepc")]
 pub use mpi::MpiWorld;
 #[cfg(feature = "slepc")]
-pub use pipeline::{build_basis_mpi, DistributedReport, DistributedRun};
+pub use pipeline::{build_basis_mpi, DistributedReport, DistributedRun, StagePeaks};

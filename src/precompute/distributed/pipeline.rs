@@ -44,9 +44,25 @@ pub struct DistributedReport {
     pub peak_memory_bytes_per_rank: Vec<u64>,
     /// Each rank's memory estimate made before the run (bytes), in rank order.
     pub estimated_bytes_per_rank: Vec<u64>,
+    /// The largest peak resident memory of any rank at the end of each stage (bytes): where
+    /// the peak is reached.
+    pub peak_after_stage_bytes: StagePeaks,
     /// The stage times' minimum over ranks, seconds (the report's timings are the maximum):
     /// a stage whose minimum and maximum differ much is unbalanced.
     pub timings_min: Timings,
+}
+
+/// Peak resident memory (bytes, VmHWM), the largest over ranks, at the end of each stage.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct StagePeaks {
+    /// After sampling this rank's part of the points.
+    pub sampling: u64,
+    /// After placing the kernels.
+    pub centers: u64,
+    /// After assembling this rank's rows.
+    pub rows: u64,
+    /// After the eigensolve and its checks.
+    pub eigensolve: u64,
 }
 
 /// What [`build_basis_mpi`] returns on every rank.
@@ -102,9 +118,12 @@ pub fn build_basis_mpi(
     progress.finish();
     let part = super::collective::agree(&comm, "sampling", part)?;
     timings.sampling = clock.lap();
+    let peak_now = || crate::report::peak_memory_bytes().unwrap_or(0) as f64;
+    let mut stage_peaks = [peak_now(), 0.0, 0.0, 0.0];
 
     let kernels = place_kernels_parts(&part, opts, &comm, progress)?;
     timings.centers = clock.lap();
+    stage_peaks[1] = peak_now();
     let k = kernels.len();
 
     let own = assemble_own_rows(shape, &part, &kernels, opts, &comm, progress)?;
@@ -116,6 +135,7 @@ pub fn build_basis_mpi(
     drop(part);
     let rows = stream.assembled;
     let (own_rows, own_nnz) = (rows.rows(), rows.nnz());
+    stage_peaks[2] = peak_now();
 
     let request = EigenRequest {
         nev: opts.modes + 1,
@@ -131,6 +151,8 @@ pub fn build_basis_mpi(
     ));
     timings.eigensolve = clock.lap();
     timings.total = total.elapsed();
+    stage_peaks[3] = peak_now();
+    comm.max(&mut stage_peaks)?;
 
     // Report figures reduced over ranks: the maximum of the stage times, the minimum too.
     let stats = &stream.stats;
@@ -188,6 +210,12 @@ pub fn build_basis_mpi(
             .map(|b| b as u64)
             .collect(),
         timings_min: timings_of(&least),
+        peak_after_stage_bytes: StagePeaks {
+            sampling: stage_peaks[0] as u64,
+            centers: stage_peaks[1] as u64,
+            rows: stage_peaks[2] as u64,
+            eigensolve: stage_peaks[3] as u64,
+        },
     };
 
     // Every rank holds the same residuals, so all take the same decision; as `build_basis`,

@@ -53,16 +53,20 @@ pub fn assemble_own_rows(
     // The one-process order (Morton over all points, ties by index: the window keeps it).
     let mut order: Vec<usize> = (0..window.len()).collect();
     morton_order_in(&window.points, &mut order, &part.frame);
-    let sorted: Vec<Point3> = order.iter().map(|&i| window.points[i]).collect();
-    // Only the points some owned kernel covers contribute to the owned rows.
-    let cover = covering_kernels(&own, &sorted);
-    let keep: Vec<usize> = (0..sorted.len())
-        .filter(|&c| !cover.row(c).is_empty())
-        .collect();
-    drop(cover);
-    let points: Vec<Point3> = keep.iter().map(|&c| sorted[c]).collect();
-    let volumes: Vec<f64> = keep.iter().map(|&c| window.volumes[order[c]]).collect();
-    drop((sorted, order, window, keep));
+    // Only the points some owned kernel covers contribute to the owned rows. Tested a block at
+    // a time: a whole window's cover lists would take ~150 bytes per point.
+    let (mut points, mut volumes) = (Vec::new(), Vec::new());
+    for block in order.chunks(COVER_BLOCK) {
+        let candidates: Vec<Point3> = block.iter().map(|&i| window.points[i]).collect();
+        let cover = covering_kernels(&own, &candidates);
+        for (c, &i) in block.iter().enumerate() {
+            if !cover.row(c).is_empty() {
+                points.push(candidates[c]);
+                volumes.push(window.volumes[i]);
+            }
+        }
+    }
+    drop((order, window));
     let material = agree(comm, "materials", opts.material_field(shape, &points))?;
     let weights = material.hessian_weights();
     drop(material);
@@ -72,7 +76,7 @@ pub fn assemble_own_rows(
         &volumes,
         &weights,
         &opts.shape_functions,
-        CHUNK_POINTS,
+        chunk_points(points.len()),
         mine,
         progress,
     );
@@ -106,6 +110,17 @@ pub fn assemble_own_rows(
             ))
         }
     }
+}
+
+/// Window points tested for cover at once.
+const COVER_BLOCK: usize = 8192;
+
+/// Points per streamed chunk for a rank evaluating `points` points: a chunk's shape functions
+/// take ~1.9 kB per point at the default support, so the one-process chunk (2^16 points, ~120
+/// MB) would be a fixed cost on every rank; 1/32 of the rank's points keeps the chunk at a
+/// small share of its memory. The rows do not depend on the chunk size (bit for bit).
+fn chunk_points(points: usize) -> usize {
+    (points / 32).clamp(2048, CHUNK_POINTS)
 }
 
 /// Bounding box of the kernels' supports (centre +- radius).
