@@ -8,6 +8,11 @@
 //!     cargo run --release --example matrix_free
 //!     cargo run --release --features slepc --example matrix_free
 //!     mpirun -n 2 target/release/examples/matrix_free      (after the build above)
+//!     mpirun -n 2 target/release/examples/matrix_free --fail-on-rank 1
+//!
+//! With `--fail-on-rank R` the operator H fails on rank R only (after its 20th product); the
+//! run exits 0 when the SLEPc solve then fails on every rank instead of leaving the others
+//! waiting in a collective call.
 
 use freeform::eigen::lobpcg::Lobpcg;
 use freeform::eigen::q1_operator::{Q1Operator, Q1Part};
@@ -51,6 +56,10 @@ fn report(label: &str, reference: &[f64], s: &EigenSolution, rows: &mut Vec<(Str
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
+    #[cfg(feature = "slepc")]
+    if let Some(rank) = fail_on_rank()? {
+        return slepc_run::one_rank_fails(rank);
+    }
     let request = EigenRequest {
         nev: NEV,
         tol: TOL,
@@ -112,6 +121,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     Ok(())
 }
 
+/// The rank of `--fail-on-rank R`, if given.
+#[cfg(feature = "slepc")]
+fn fail_on_rank() -> Result<Option<usize>, Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().collect();
+    match args.iter().position(|a| a == "--fail-on-rank") {
+        Some(i) => Ok(Some(
+            args.get(i + 1).ok_or("--fail-on-rank needs a rank")?.parse()?,
+        )),
+        None => Ok(None),
+    }
+}
+
 #[cfg(feature = "slepc")]
 fn mpi_rank() -> usize {
     freeform::eigen::slepc::world_rank().map_or(0, |r| r.0)
@@ -137,10 +158,13 @@ mod slepc_run {
     use freeform::progress::Silent;
     use std::ops::Range;
 
-    /// One rank's rows of a Q1 operator.
+    /// One rank's rows of a Q1 operator; with `fail_after`, it reports an error from that
+    /// many products on.
     struct RankRows {
         full: Q1Operator,
         rows: Range<usize>,
+        fail_after: Option<usize>,
+        products: std::sync::atomic::AtomicUsize,
     }
 
     impl LinearOperator for RankRows {
@@ -168,6 +192,10 @@ mod slepc_run {
                     out[(i, j)] = yf[(r, j)];
                 }
             }
+            let done = self.products.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            if self.fail_after.is_some_and(|n| done >= n) {
+                return Err(OperatorError::new("injected failure (--fail-on-rank)"));
+            }
             Ok(())
         }
         fn diagonal(&self) -> Option<Vec<f64>> {
@@ -179,21 +207,48 @@ mod slepc_run {
         Ok(world_rank()?.1)
     }
 
-    pub fn solve(request: &EigenRequest) -> Result<EigenSolution, Box<dyn std::error::Error>> {
+    type Failure = Box<dyn std::error::Error>;
+
+    fn operators(fail_after: Option<usize>) -> Result<(RankRows, RankRows), Failure> {
         let (rank, size) = world_rank()?;
         let k = GRID[0] * GRID[1] * GRID[2];
         let rows = block_range(k, rank, size);
-        let h = RankRows {
-            full: Q1Operator::new(GRID, SPACING, Q1Part::Stiffness)?,
-            rows: rows.clone(),
+        let part = |p: Q1Part, fail_after: Option<usize>| -> Result<RankRows, Failure> {
+            Ok(RankRows {
+                full: Q1Operator::new(GRID, SPACING, p)?,
+                rows: rows.clone(),
+                fail_after,
+                products: Default::default(),
+            })
         };
-        let m = RankRows {
-            full: Q1Operator::new(GRID, SPACING, Q1Part::Mass)?,
-            rows,
-        };
+        Ok((part(Q1Part::Stiffness, fail_after)?, part(Q1Part::Mass, None)?))
+    }
+
+    pub fn solve(request: &EigenRequest) -> Result<EigenSolution, Box<dyn std::error::Error>> {
+        let (h, m) = operators(None)?;
         let solution = SlepcSolver::default()
             .solve_operators(&OperatorProblem::new(&h, &m), request, &Silent)?
             .into_converged()?;
         Ok(solution)
+    }
+
+    /// H fails on rank `failing` only: every rank must get an error (exit 0), none may hang.
+    pub fn one_rank_fails(failing: usize) -> Result<(), Box<dyn std::error::Error>> {
+        let rank = world_rank()?.0;
+        let (h, m) = operators((rank == failing).then_some(20))?;
+        let request = EigenRequest {
+            nev: super::NEV,
+            tol: super::TOL,
+            max_iter: 2000,
+        };
+        let result = SlepcSolver::default().solve_operators(&OperatorProblem::new(&h, &m), &request, &Silent);
+        freeform::eigen::slepc::finalize()?;
+        match result {
+            Err(e) => {
+                println!("rank {rank}: the solve failed as it should: {e}");
+                Ok(())
+            }
+            Ok(_) => Err(format!("rank {rank}: the solve did not fail").into()),
+        }
     }
 }

@@ -25,6 +25,8 @@ use std::ops::Range;
 struct Reduce<'a> {
     session: &'a petsc::Session,
     comm: petsc::Comm,
+    rank: usize,
+    size: usize,
 }
 
 impl Reduce<'_> {
@@ -169,18 +171,49 @@ fn estimate_norm_1(
     Ok(estimate.max(alt_estimate))
 }
 
-/// The shell-matrix callback for `op`: `y = A x` on this rank's rows, checked.
-fn shell_apply<'c>(op: &'c dyn LinearOperator, which: &'static str) -> petsc::ShellApply<'c> {
+/// The shell-matrix callback for `op`: `y = A x` on this rank's rows, checked; a failure on
+/// any rank fails the product on every rank ([`fail_together`]).
+fn shell_apply<'c>(
+    op: &'c dyn LinearOperator,
+    which: &'static str,
+    reduce: &'c Reduce<'c>,
+) -> petsc::ShellApply<'c> {
     Box::new(move |x: &[f64], y: &mut [f64]| {
         let n = x.len();
-        apply_checked(
+        let local = apply_checked(
             op,
             which,
             MatRef::from_column_major_slice(x, n, 1),
             MatMut::from_column_major_slice_mut(y, n, 1),
         )
-        .map_err(|e| e.to_string())
+        .map_err(|e| e.to_string());
+        fail_together(reduce, which, local)
     })
+}
+
+/// Under MPI, a product that fails on one rank only would leave the others waiting in SLEPc's
+/// next collective call: every application ends with one all-reduce of a failure flag, and
+/// the ranks whose own part succeeded fail too, naming the ranks that did not. (A callback
+/// must still make its own collective calls, e.g. its halo exchange, on every rank alike.)
+fn fail_together(
+    reduce: &Reduce<'_>,
+    which: &'static str,
+    local: Result<(), String>,
+) -> Result<(), String> {
+    if reduce.size < 2 {
+        return local;
+    }
+    let mut failed = vec![0.0; reduce.size];
+    failed[reduce.rank] = f64::from(u8::from(local.is_err()));
+    reduce.sum(&mut failed).map_err(|e| e.to_string())?;
+    let ranks: Vec<usize> = (0..reduce.size).filter(|&r| failed[r] > 0.0).collect();
+    match local {
+        Err(e) => Err(e),
+        Ok(()) if !ranks.is_empty() => Err(format!(
+            "{which} failed on MPI rank(s) {ranks:?} (their errors say why); every rank stops"
+        )),
+        Ok(()) => Ok(()),
+    }
 }
 
 /// Solve `problem` with SLEPc's LOBPCG on shell matrices (every rank calls this with its own
@@ -206,12 +239,14 @@ pub(super) fn solve(
     validate_request(k, request)?;
     let session = petsc::session().map_err(backend)?;
     let world = session.world();
+    let rank = session.rank(world).map_err(backend)?;
+    let size = session.size(world).map_err(backend)?;
     let reduce = Reduce {
         session: &session,
         comm: world,
+        rank,
+        size,
     };
-    let rank = session.rank(world).map_err(backend)?;
-    let size = session.size(world).map_err(backend)?;
     let rows = h.local_rows();
     check_tiling(&reduce, rank, size, k, rows.clone(), m.local_rows())?;
     let norm_h = estimate_norm_1(&reduce, h, "H", rows.clone(), k)?;
@@ -241,10 +276,10 @@ pub(super) fn solve(
     // SAFETY: the EPS is declared after the shells and dropped before them (reverse order of
     // declaration), and all of them before this function returns, while the operators live.
     let (hm, h_failure) =
-        unsafe { petsc::Mat::shell(&session, world, n, k, Some(norm_h), shell_apply(h, "H")) }
+        unsafe { petsc::Mat::shell(&session, world, n, k, Some(norm_h), shell_apply(h, "H", &reduce)) }
             .map_err(backend)?;
     let (mm, m_failure) =
-        unsafe { petsc::Mat::shell(&session, world, n, k, Some(norm_m), shell_apply(m, "M")) }
+        unsafe { petsc::Mat::shell(&session, world, n, k, Some(norm_m), shell_apply(m, "M", &reduce)) }
             .map_err(backend)?;
     let mut eps = petsc::Eps::new(&session, world).map_err(backend)?;
     eps.set_operators(&hm, &mm).map_err(backend)?;
@@ -261,14 +296,16 @@ pub(super) fn solve(
         .map_err(backend)?;
     let pc_failure = match (problem.preconditioner, &jacobi) {
         (Some(user), _) => {
+            let reduce = &reduce;
             let apply: petsc::ShellApply<'_> = Box::new(move |x: &[f64], y: &mut [f64]| {
                 let n = x.len();
-                apply_preconditioner_checked(
+                let local = apply_preconditioner_checked(
                     user,
                     MatRef::from_column_major_slice(x, n, 1),
                     MatMut::from_column_major_slice_mut(y, n, 1),
                 )
-                .map_err(|e| e.to_string())
+                .map_err(|e| e.to_string());
+                fail_together(reduce, "preconditioner", local)
             });
             // SAFETY: as for the shells above.
             Some(unsafe { eps.set_shell_preconditioner(apply) }.map_err(backend)?)
