@@ -255,3 +255,61 @@ fn slepc_lobpcg_false_convergence_is_reported_with_advice() {
         "{stderr}"
     );
 }
+
+#[test]
+fn distributed_runs_on_1_2_and_4_ranks_equal_the_native_basis() {
+    // The bar: eigenvalues across P = 1, 2, 4 equal to 1e-8 relative, eigenspaces to
+    // 1e-6 rad, here against the native one-process basis of the same kernels (the
+    // distributed kernels and rows are the one-process ones bit for bit; only the solvers
+    // differ). tol 1e-10 leaves the solvers' own errors (~tol x condition) far below both bars.
+    use freeform::eigen::compare::{max_eigenvalue_rel_diff, max_subspace_angle};
+    let dir = tempfile::tempdir().unwrap();
+    let common = [
+        "box:2,1,1", "--kernels", "600", "--modes", "8", "--tol", "1e-10", "--json",
+    ];
+    let native_out = dir.path().join("native.npz");
+    let native = Command::new(env!("CARGO_BIN_EXE_freeform"))
+        .arg("modes")
+        .args(common)
+        .args(["--out", native_out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    json(&native);
+    let reference = freeform::io::basis::load(&native_out).unwrap().basis;
+    // M of the same problem, for the M-inner-product angles.
+    let shape = freeform::io::read_shape("box:2,1,1", &Default::default()).unwrap();
+    let opts = freeform::precompute::BasisOptions {
+        kernels: 600,
+        modes: 8,
+        ..Default::default()
+    };
+    let problem =
+        freeform::precompute::Problem::from_shape(&shape, &opts, &freeform::progress::Silent)
+            .unwrap();
+    let mass = &problem.matrices().mass;
+    for ranks in [1, 2, 4] {
+        let out = dir.path().join(format!("p{ranks}.npz"));
+        let mut args = vec!["modes"];
+        args.extend(common);
+        args.extend(["--solver", "slepc", "--distributed", "--threads", "1"]);
+        args.extend(["--out", out.to_str().unwrap()]);
+        let r = json(&mpirun(ranks, &args));
+        assert_eq!(r["distributed"]["ranks"], ranks, "{r}");
+        let got = freeform::io::basis::load(&out).unwrap().basis;
+        assert_eq!(got.kernels.centers, reference.kernels.centers, "P = {ranks}");
+        assert_eq!(got.kernels.radii, reference.kernels.radii, "P = {ranks}");
+        // The constant mode's eigenvalue is ~0: compare the others relatively.
+        let diff = max_eigenvalue_rel_diff(&reference.eigenvalues[1..], &got.eigenvalues[1..]);
+        assert!(diff < 1e-8, "P = {ranks}: eigenvalues differ by {diff:e}");
+        let angle = max_subspace_angle(
+            mass,
+            &reference.eigenvalues,
+            &reference.coefficients,
+            &got.eigenvalues,
+            &got.coefficients,
+            1e-6,
+        )
+        .unwrap();
+        assert!(angle < 1e-6, "P = {ranks}: eigenspaces {angle:e} rad apart");
+    }
+}
