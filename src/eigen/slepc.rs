@@ -371,6 +371,7 @@ impl Eigensolver for SlepcSolver {
 #[cfg(test)]
 mod tests {
     use super::super::slepc_pencil::{lapack_failure, solve_error};
+    use super::super::slepc_status::option_names;
     use super::*;
     use crate::eigen::{EigenStatus, SlepcLobpcgStop};
 
