@@ -20,6 +20,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod benchmark;
+pub mod derivatives;
 pub mod eigen;
 pub mod elasticity;
 pub mod error;
