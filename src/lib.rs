@@ -30,6 +30,7 @@ pub mod io;
 pub mod linalg3;
 pub mod material;
 pub mod names;
+pub mod options;
 pub mod precompute;
 pub mod progress;
 pub mod random;

@@ -78,8 +78,11 @@ pub fn build_basis_mpi(
         return Err(crate::Error::param(
             "region",
             opts.boundary_regions.len(),
-            "boundary-aware bases are not built on the MPI path yet; build it in one process \
-             (SLEPc works there too: --solver slepc) or leave out the regions",
+            format!(
+                "boundary-aware bases are not built on the MPI path yet; build it in one process \
+                 (SLEPc works there too: {}) or leave out the regions",
+                crate::options::SOLVER.with("slepc")
+            ),
         ));
     }
     let (rank, size) = world_rank()?;
@@ -167,9 +170,9 @@ pub fn build_basis_mpi(
                 opts.support.factor,
                 format!(
                     "{} point(s) on other MPI ranks are not covered by enough kernels; the \
-                     distributed run does not repair coverage: raise \
-                     BasisOptions::support.factor or run without MPI",
-                    failed[0]
+                     distributed run does not repair coverage: raise {} or run without MPI",
+                    failed[0],
+                    crate::options::SUPPORT_FACTOR
                 ),
             ));
         }
