@@ -5,9 +5,9 @@
 use super::shape::{ObjectShape, ShapeSource};
 use crate::io::image::ImageValueKind;
 use crate::material::{Material, MaterialOverride};
-use crate::options;
 use crate::precompute::rkpm::{KernelType, SupportOptions};
-use crate::precompute::sampling::{CloudVolumeOptions, Resolution};
+use crate::precompute::sampling::CloudVolumeOptions;
+use crate::precompute::table::{self, OptionTable, Value};
 use crate::precompute::GapPolicy;
 use crate::precompute::{BasisOptions, BoundaryModes, SolverConfig};
 use crate::sim::contact::ContactSettings;
@@ -364,20 +364,20 @@ impl ObjectSpec {
     /// The basis options of this object.
     pub fn basis_options(&self) -> Result<BasisOptions> {
         let b = &self.basis;
-        if b.points.is_some() && b.spacing.is_some() {
-            return Err(Error::ConflictingOptions {
-                first: &options::POINTS,
-                second: &options::SPACING,
-            });
-        }
+        // The integration grid through the option table's rows (one conflict check, one
+        // mapping to a Resolution for every front end).
+        let grid = [
+            b.points.map(|n| (&table::POINTS, Value::Count(n))),
+            b.spacing.map(|h| (&table::SPACING, Value::Number(h))),
+        ];
+        let resolution = OptionTable::basis()
+            .apply(grid.into_iter().flatten().collect())?
+            .options
+            .resolution;
         let opts = BasisOptions {
             kernels: b.kernels,
             modes: b.modes,
-            resolution: match (b.points, b.spacing) {
-                (Some(n), _) => Some(Resolution::Count(n)),
-                (None, Some(h)) => Some(Resolution::Spacing(h)),
-                (None, None) => None,
-            },
+            resolution,
             kernel: b.kernel,
             support: SupportOptions {
                 factor: b.support,
