@@ -23,6 +23,7 @@ fn main() -> Result<(), freeform::Error> {
     };
     let beam = |name: &str| {
         ObjectSpec::new(name, "box:5,1,1")
+            .expect("a box")
             .kernels(500)
             .modes(12)
             .material(soft)

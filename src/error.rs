@@ -12,6 +12,7 @@
 use std::path::PathBuf;
 
 pub use crate::eigen::EigenError;
+use crate::options::OptionName;
 use crate::report::Warning;
 
 /// Result alias used across the library.
@@ -40,6 +41,27 @@ pub enum Error {
         /// What is wrong and what to do about it.
         reason: String,
     },
+    /// An option of the option table has a value it does not take (an unknown name of a
+    /// choice); the option is named as the front end that prints the message names it
+    /// ([`crate::options::Front`]).
+    #[error("invalid {option} = {value}: {reason}")]
+    InvalidOption {
+        /// The option.
+        option: &'static OptionName,
+        /// The offending value, formatted.
+        value: String,
+        /// What is wrong and what to do about it.
+        reason: String,
+    },
+    /// Two options that exclude each other were both given (integration points as a count
+    /// and as a spacing).
+    #[error("give either {first} or {second}, not both")]
+    ConflictingOptions {
+        /// The option given first in the option table.
+        first: &'static OptionName,
+        /// The one it excludes.
+        second: &'static OptionName,
+    },
     /// Input arrays contain NaN or infinite values.
     #[error("{what} has a non-finite value (NaN or Inf) at index {index}; clean the input")]
     NonFinite {
@@ -62,9 +84,9 @@ pub enum Error {
     #[error(
         "{count} point(s) are not covered by enough kernels (worst at index {index}, \
          position [{:.6e}, {:.6e}, {:.6e}], {covering} covering kernel(s), reciprocal condition \
-         number {rcond:.3e} < {min_rcond:.1e}); increase the support factor \
-         (BasisOptions::support.factor), the number of kernels, or check for isolated points",
-        position[0], position[1], position[2]
+         number {rcond:.3e} < {min_rcond:.1e}); increase the support factor ({}), the number \
+         of kernels, or check for isolated points",
+        position[0], position[1], position[2], crate::options::SUPPORT_FACTOR
     )]
     Coverage {
         /// Number of points whose moment matrix failed the check.
@@ -114,6 +136,23 @@ pub enum Error {
         /// Its name, if it has one.
         name: Option<String>,
         /// What went wrong.
+        source: Box<Error>,
+    },
+    /// A boundary condition of an object is unusable: its index (`[[object.boundary]]` order,
+    /// from 0) around the cause (a bad region or motion).
+    #[error("boundary {index}: {source}")]
+    Boundary {
+        /// Index of the boundary in its object.
+        index: usize,
+        /// What went wrong.
+        source: Box<Error>,
+    },
+    /// A named material of a scene (`[materials.NAME]`) is invalid.
+    #[error("scene: material '{name}': {source}")]
+    NamedMaterial {
+        /// The material's name.
+        name: String,
+        /// What is wrong with it.
         source: Box<Error>,
     },
     /// A basis file is malformed or from an incompatible version.
@@ -209,7 +248,10 @@ impl Error {
     /// its cause.
     pub fn kind(&self) -> ErrorKind {
         match self {
-            Error::Object { source, .. } | Error::Collider { source, .. } => source.kind(),
+            Error::Object { source, .. }
+            | Error::Collider { source, .. }
+            | Error::Boundary { source, .. }
+            | Error::NamedMaterial { source, .. } => source.kind(),
             Error::Coverage { .. } => ErrorKind::Coverage,
             Error::Io { .. } | Error::BasisFile { .. } | Error::BasisArrayTooLarge { .. } => {
                 ErrorKind::Io
@@ -317,8 +359,8 @@ pub enum GeometryError {
     /// The mesh is not closed.
     #[error(
         "{path}: mesh is not watertight ({boundary_edges} boundary edges, {nonmanifold_edges} \
-         non-manifold edges); repair it, or pass ShapeOptions::allow_open_mesh to decide inside by \
-         winding number"
+         non-manifold edges); repair it, or pass {} to decide inside by winding number",
+        crate::options::ALLOW_OPEN_MESH
     )]
     NotWatertight {
         /// File (`<in-memory mesh>` for meshes built with
@@ -333,8 +375,9 @@ pub enum GeometryError {
     /// consistent inside and outside.
     #[error(
         "{path}: mesh orientation is inconsistent ({misoriented_edges} edges are traversed in the \
-         same direction by both of their triangles); fix the face winding, or pass \
-         ShapeOptions::allow_open_mesh to use the winding number anyway"
+         same direction by both of their triangles); fix the face winding, or pass {} to use \
+         the winding number anyway",
+        crate::options::ALLOW_OPEN_MESH
     )]
     Misoriented {
         /// File (`<in-memory mesh>` for meshes built with

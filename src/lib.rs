@@ -20,6 +20,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod benchmark;
+pub mod derivatives;
 pub mod eigen;
 pub mod elasticity;
 pub mod error;
@@ -29,6 +30,7 @@ pub mod io;
 pub mod linalg3;
 pub mod material;
 pub mod names;
+pub mod options;
 pub mod precompute;
 pub mod progress;
 pub mod random;

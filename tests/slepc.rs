@@ -7,6 +7,7 @@ use freeform::eigen::dense::DenseSolver;
 use freeform::eigen::slepc::{SlepcOptions, SlepcPreset, SlepcSolver};
 use freeform::eigen::testing::{q1_fem, q1_fem_eigenvalues};
 use freeform::eigen::{EigenError, EigenRequest, EigenStatus, Eigensolver, SlepcLobpcgStop};
+use freeform::options::Front; // advice as the command line prints it (flags)
 use freeform::progress::Silent;
 
 /// Q1 Neumann problem, 9 x 8 x 7 nodes (K = 504), 8 pairs: distinct sizes keep the wanted
@@ -203,7 +204,7 @@ fn non_convergence_returns_the_partial_result() {
         ref other => panic!("expected SLEPc's LOBPCG iteration cap, got {other:?}"),
     }
     // Its error, where a converged result is required, says so and advises raising the cap.
-    let text = partial.into_converged().unwrap_err().to_string();
+    let text = Front::Flags.render(&partial.into_converged().unwrap_err());
     assert!(
         text.starts_with("SLEPc's LOBPCG stopped at its iteration cap (2 iterations)")
             && text.contains("raise --max-iter (2 now, default 1000)"),
@@ -272,7 +273,7 @@ fn lobpcg_breakdown_is_a_typed_error_with_advice() {
             // M is not positive definite, i.e. B-orthogonality was lost.
             assert!(info > 3 * 16, "{message}");
             assert_eq!((k, nev, block_size), (80, 19, Some(16)));
-            let text = e.to_string();
+            let text = Front::Flags.render(&e);
             // One block of 19 would need K >= 95 (SLEPc's limit): not advised here.
             assert!(
                 text.contains("SLEPc's LOBPCG broke down")
@@ -436,7 +437,7 @@ fn slepc_lobpcg_false_convergence_names_the_pair_and_the_ways_out() {
             partial.info.status
         )
     };
-    let text = partial.clone().into_converged().unwrap_err().to_string();
+    let text = Front::Flags.render(&partial.clone().into_converged().unwrap_err());
     let SlepcLobpcgStop::ClaimedConverged {
         pair,
         lambda,
@@ -501,7 +502,7 @@ fn slepc_lobpcg_iteration_cap_is_named_with_the_ways_out() {
             block_size,
             ..
         } => {
-            let text = partial.clone().into_converged().unwrap_err().to_string();
+            let text = Front::Flags.render(&partial.clone().into_converged().unwrap_err());
             assert_eq!((converged, block_size), (16, Some(16)), "{text}");
             assert!(iterations >= 1000, "{text}");
             assert_eq!(partial.values.len(), 16);
@@ -545,7 +546,7 @@ fn slepc_lobpcg_stop_on_its_own_breakdown_is_named_with_the_ways_out() {
             converged,
             ..
         } => {
-            let text = partial.clone().into_converged().unwrap_err().to_string();
+            let text = Front::Flags.render(&partial.clone().into_converged().unwrap_err());
             assert_eq!(converged, 28, "{text}");
             assert!(
                 text.contains("with 28/31 pairs converged (tol 1.0e-8): it reports a breakdown")

@@ -193,10 +193,7 @@ pub unsafe extern "C" fn ff_eigen_solve_operators(
         let solution = Lobpcg::default()
             .solve_operators(&problem, &request, &Silent)
             .and_then(|s| s.into_converged())
-            .map_err(|e| {
-                let e = freeform::Error::Eigen(e);
-                (crate::status_of(&e), e.to_string())
-            })?;
+            .map_err(|e| crate::lib_error(&freeform::Error::Eigen(e)))?;
         // SAFETY: the caller passes nev and k x nev doubles (documented).
         let vals = unsafe { std::slice::from_raw_parts_mut(values, nev) };
         vals.copy_from_slice(&solution.values);

@@ -13,6 +13,7 @@
 #![allow(clippy::missing_safety_doc)]
 
 use freeform::material::MaterialField;
+use freeform::options::Front;
 use freeform::precompute::rkpm::KernelType;
 use freeform::precompute::sampling::IntegrationPoints;
 use freeform::precompute::skinning::Basis;
@@ -79,6 +80,12 @@ pub(crate) fn guard(f: impl FnOnce() -> Result<(), (Status, String)>) -> c_int {
             fail(Status::Panic, &format!("internal error: {msg}"))
         }
     }
+}
+
+/// A library error of the basis and eigensolver calls as a status and a message that names
+/// options by the fields of `ff_options`.
+pub(crate) fn lib_error(e: &freeform::Error) -> (Status, String) {
+    (status_of(e), Front::C.render(e))
 }
 
 /// The status of a library error, from its kind ([`freeform::Error::kind`]).
@@ -199,17 +206,18 @@ pub unsafe extern "C" fn ff_basis_build(
         let e = unsafe { slice(youngs, n, "youngs")? }.to_vec();
         let nu = unsafe { slice(poisson, n, "poisson")? }.to_vec();
         let rho = unsafe { slice(density, n, "density")? }.to_vec();
-        let kernel = match o.kernel {
-            0 => KernelType::Cubic,
-            1 => KernelType::Quartic,
-            2 => KernelType::Gaussian,
-            k => {
-                return Err((
+        // The code is the kernel's place in `KernelType::ALL` (0 cubic, 1 quartic, 2 Gaussian).
+        let kernel = usize::try_from(o.kernel)
+            .ok()
+            .and_then(|k| KernelType::ALL.get(k).copied())
+            .ok_or_else(|| {
+                let last = KernelType::ALL.len() - 1;
+                let codes: Vec<String> = (0..last).map(|k| k.to_string()).collect();
+                (
                     Status::InvalidArgument,
-                    format!("kernel = {k}: use 0, 1 or 2"),
-                ))
-            }
-        };
+                    format!("kernel = {}: use {} or {last}", o.kernel, codes.join(", ")),
+                )
+            })?;
         let solver = match o.solver {
             0 => SolverConfig::lobpcg(),
             1 => SolverConfig::Dense,
@@ -226,8 +234,7 @@ pub unsafe extern "C" fn ff_basis_build(
         };
         opts.support.factor = o.support_factor;
         opts.support.neighbor = o.support_neighbor;
-        let material =
-            MaterialField::from_arrays(e, nu, rho).map_err(|e| (status_of(&e), e.to_string()))?;
+        let material = MaterialField::from_arrays(e, nu, rho).map_err(|e| lib_error(&e))?;
         let run = Problem::from_points(
             IntegrationPoints {
                 points: pts,
@@ -238,7 +245,7 @@ pub unsafe extern "C" fn ff_basis_build(
             &Silent,
         )
         .and_then(|problem| problem.solve(&Silent))
-        .map_err(|e| (status_of(&e), e.to_string()))?;
+        .map_err(|e| lib_error(&e))?;
         let b = Box::new(FfBasis { basis: run.basis });
         // SAFETY: checked non-NULL above.
         unsafe { *out = Box::into_raw(b) };
@@ -371,9 +378,7 @@ pub unsafe extern "C" fn ff_basis_weights(
         let pts: Vec<[f64; 3]> = q.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
         let m = b.modes();
         let w = out_slice(weights, weights_len, nq * m, "weights")?;
-        let sw = b
-            .weights(&pts)
-            .map_err(|e| (status_of(&e), e.to_string()))?;
+        let sw = b.weights(&pts).map_err(|e| lib_error(&e))?;
         w.copy_from_slice(&sw.values);
         if !gradients.is_null() {
             let g = out_slice(gradients, gradients_len, 3 * nq * m, "gradients")?;
@@ -388,6 +393,46 @@ pub unsafe extern "C" fn ff_basis_weights(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use freeform::precompute::{BasisChoices, OptionTable, Value};
+
+    /// `ff_options` has one field per row of the option table with a C name, in the table's
+    /// order (the header's struct and this crate's `FfOptions` alike), and
+    /// `ff_options_default` fills in the table's defaults.
+    #[test]
+    fn ff_options_are_the_option_tables() {
+        let header = include_str!("../../ffi/include/freeform.h");
+        let start = header.find("typedef struct ff_options {").unwrap();
+        let end = start + header[start..].find("} ff_options;").unwrap();
+        let fields: Vec<&str> = header[start..end]
+            .lines()
+            .skip(1)
+            .filter_map(|l| l.split(';').next()?.split_whitespace().last())
+            .collect();
+        let names: Vec<&str> = freeform::options::ALL.iter().filter_map(|o| o.c).collect();
+        assert_eq!(fields, names);
+        let mut o = std::mem::MaybeUninit::<FfOptions>::uninit();
+        assert_eq!(unsafe { ff_options_default(o.as_mut_ptr()) }, 0);
+        let o = unsafe { o.assume_init() };
+        let table = OptionTable::basis();
+        let d = BasisChoices::default();
+        for name in names {
+            let row = table
+                .find(freeform::options::Front::C, name)
+                .unwrap_or_else(|| panic!("no row for the C field {name}"));
+            let ours = match name {
+                "kernels" => Value::Count(o.kernels),
+                "modes" => Value::Count(o.modes),
+                "kernel" => Value::Text(KernelType::ALL[o.kernel as usize].name().to_string()),
+                "support_factor" => Value::Number(o.support_factor),
+                "support_neighbor" => Value::Count(o.support_neighbor),
+                "tol" => Value::Number(o.tol),
+                "max_iter" => Value::Count(o.max_iter),
+                "solver" => Value::Text(["lobpcg", "dense"][o.solver as usize].to_string()),
+                other => panic!("FfOptions has no field {other}"),
+            };
+            assert_eq!(Some(ours), (row.default)(&d), "{name}");
+        }
+    }
 
     #[test]
     fn errors_are_codes_with_messages() {

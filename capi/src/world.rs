@@ -8,6 +8,7 @@
 //! `FF_ERR_INVALID_ARGUMENT` with a message naming the index and the count.
 
 use crate::{guard, out_slice, slice, status_of, Status};
+use freeform::options::Front;
 use freeform::progress::Silent;
 use freeform::scene::{RunSettings, Scene, SceneObject, World};
 use freeform::sim::motion::Rigid;
@@ -110,9 +111,14 @@ pub struct FfContactReport {
 
 type CResult<T> = Result<T, (Status, String)>;
 
-/// [`guard`] with the function's name before every error message.
+/// [`guard`] with the function's name before every error message. Messages formatted inside
+/// (errors, warnings) name options by their scene keys: a world comes from a scene file.
 fn call(func: &str, f: impl FnOnce() -> CResult<()>) -> c_int {
-    guard(|| f().map_err(|(status, msg)| (status, format!("{func}: {msg}"))))
+    guard(|| {
+        Front::Scene
+            .scope(f)
+            .map_err(|(status, msg)| (status, format!("{func}: {msg}")))
+    })
 }
 
 unsafe fn world_ref<'a>(w: *const FfWorld) -> CResult<&'a FfWorld> {
@@ -151,22 +157,20 @@ fn lib_err(e: freeform::Error) -> (Status, String) {
     (status_of(&e), e.to_string())
 }
 
-/// A rigid pose from C arrays: `rotation` 9 doubles row-major (NULL: identity), `translation`
-/// 3 doubles (metres, required). Validated by the library where it is used.
+/// A rigid pose from C arrays (the library's [`Rigid::from_arrays`]): `rotation` 9 doubles
+/// row-major (NULL: identity), `translation` 3 doubles (metres, required). Validated by the
+/// library where it is used.
 unsafe fn pose(rotation: *const f64, translation: *const f64) -> CResult<Rigid> {
     if translation.is_null() {
         return Err((Status::NullPointer, "translation is NULL".into()));
     }
     let t = unsafe { slice(translation, 3, "translation")? };
-    let mut p = Rigid::IDENTITY;
-    p.translation.copy_from_slice(t);
-    if !rotation.is_null() {
-        let r = unsafe { slice(rotation, 9, "rotation")? };
-        for (row, src) in p.rotation.iter_mut().zip(r.chunks_exact(3)) {
-            row.copy_from_slice(src);
-        }
-    }
-    Ok(p)
+    let r = if rotation.is_null() {
+        None
+    } else {
+        Some(unsafe { slice(rotation, 9, "rotation")? })
+    };
+    Rigid::from_arrays(r, Some(t)).map_err(lib_err)
 }
 
 /// Open the scene file `scene_path` (TOML, docs/scenes.md) and set up every object (basis

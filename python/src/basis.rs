@@ -1,182 +1,113 @@
 //! `freeform.Basis`: skinning eigenmodes from a shape or from NumPy points.
 
 use crate::convert::{array1, array2, per_point, points_array, report};
-use crate::errors::{invalid, to_py};
+use crate::errors::{invalid, to_py, to_py_in};
 use crate::progress::PyProgress;
 use faer::Mat;
 use freeform::geometry::ShapeOptions;
 use freeform::io::basis::BasisMetadata;
 use freeform::material::{Material, MaterialField};
-use freeform::precompute::rkpm::KernelType;
-use freeform::precompute::sampling::{cloud_volumes, IntegrationPoints, Resolution};
+use freeform::options::Front;
+use freeform::precompute::sampling::{cloud_volumes, IntegrationPoints};
 use freeform::precompute::skinning::Basis;
-use freeform::precompute::{BasisOptions, BasisRun, ModesReport, Problem, SolverConfig};
+use freeform::precompute::{
+    BasisOptions, BasisRun, ModesReport, OptionTable, Problem, Value, ValueKind,
+};
 use freeform::Error;
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 use std::path::PathBuf;
 
-/// Keyword arguments of the basis builders, with the library's defaults.
-const OPTION_KEYS: &[&str] = &[
-    "kernels",
-    "modes",
-    "kernel",
-    "support_factor",
-    "support_neighbor",
-    "points",
-    "spacing",
-    "eigensolver",
-    "tol",
-    "max_iter",
-    "voxel",
-    "total_volume",
-    "youngs",
-    "poisson",
-    "density",
-    "allow_open_mesh",
-    "regions",
-    "progress",
-];
+/// The keyword of the builders that is not a basis option: show a progress bar.
+const PROGRESS: &str = "progress";
 
-fn get<'py, T: for<'a> FromPyObject<'a, 'py>>(
-    py: Python<'py>,
-    kwargs: Option<&Bound<'py, PyDict>>,
-    key: &str,
-) -> PyResult<Option<T>> {
-    let Some(v) = kwargs.map(|k| k.get_item(key)).transpose()?.flatten() else {
-        return Ok(None);
+/// The value `v` of keyword `key`, of the kind the option table asks for.
+fn value(py: Python<'_>, key: &str, v: &Bound<'_, PyAny>, kind: ValueKind) -> PyResult<Value> {
+    let expected = match kind {
+        ValueKind::Count => "a non-negative int",
+        ValueKind::Number => "a number",
+        ValueKind::Switch => "True or False",
+        ValueKind::Choice(_) | ValueKind::Text => "a str",
+        ValueKind::Texts => "a list of str",
     };
-    if v.is_none() {
-        return Ok(None);
-    }
-    v.extract::<T>().map(Some).map_err(|_| {
+    let value = match kind {
+        ValueKind::Count => v.extract::<usize>().ok().map(Value::Count),
+        ValueKind::Number => v.extract::<f64>().ok().map(Value::Number),
+        ValueKind::Switch => v.extract::<bool>().ok().map(Value::Switch),
+        ValueKind::Choice(_) | ValueKind::Text => v.extract::<String>().ok().map(Value::Text),
+        ValueKind::Texts => v.extract::<Vec<String>>().ok().map(Value::Texts),
+    };
+    value.ok_or_else(|| {
         invalid(
             py,
             format!(
-                "{key} = {}: expected {}",
-                v.repr().map(|r| r.to_string()).unwrap_or_default(),
-                match std::any::type_name::<T>().rsplit("::").next() {
-                    Some("String") => "a str",
-                    Some("f64") => "a number",
-                    Some("usize") => "a non-negative int",
-                    Some("bool") => "True or False",
-                    _ => "another type",
-                }
+                "{key} = {}: expected {expected}",
+                v.repr().map(|r| r.to_string()).unwrap_or_default()
             ),
         )
     })
 }
 
-/// `BasisOptions` (and the shape options and progress flag) from keyword arguments; keys in
-/// `skip` are the caller's own (per-point material of `from_points`).
+/// `BasisOptions` (and the shape options and progress flag) from keyword arguments: one
+/// keyword per row of the library's option table, with its defaults. Keys in `skip` are the
+/// caller's own (per-point material of `from_points`).
 pub fn options(
     py: Python<'_>,
     kwargs: Option<&Bound<'_, PyDict>>,
     skip: &[&str],
 ) -> PyResult<(BasisOptions, ShapeOptions, bool)> {
-    if let Some(k) = kwargs {
-        for key in k.keys() {
-            let key: String = key.extract()?;
-            if !OPTION_KEYS.contains(&key.as_str()) || skip.contains(&key.as_str()) {
-                let known: Vec<&str> = OPTION_KEYS
-                    .iter()
-                    .copied()
-                    .filter(|k| !skip.contains(k))
-                    .collect();
-                return Err(invalid(
-                    py,
-                    format!(
-                        "unknown option `{key}`; the options are: {}",
-                        known.join(", ")
-                    ),
-                ));
+    let table = OptionTable::basis();
+    let mut given = Vec::new();
+    let mut progress = false;
+    for (key, v) in kwargs.into_iter().flat_map(|k| k.iter()) {
+        let key: String = key.extract()?;
+        if key == PROGRESS {
+            if !v.is_none() {
+                progress = value(py, &key, &v, ValueKind::Switch)? == Value::Switch(true);
             }
+            continue;
         }
-    }
-    let mut o = BasisOptions::default();
-    if let Some(k) = get(py, kwargs, "kernels")? {
-        o.kernels = k;
-    }
-    if let Some(m) = get(py, kwargs, "modes")? {
-        o.modes = m;
-    }
-    if let Some(name) = get::<String>(py, kwargs, "kernel")? {
-        o.kernel = KernelType::from_name(&name).ok_or_else(|| {
-            invalid(
-                py,
-                format!("kernel = '{name}': use 'cubic' (default), 'quartic' or 'gaussian'"),
-            )
-        })?;
-    }
-    if let Some(f) = get(py, kwargs, "support_factor")? {
-        o.support.factor = f;
-    }
-    if let Some(n) = get(py, kwargs, "support_neighbor")? {
-        o.support.neighbor = n;
-    }
-    match (
-        get::<usize>(py, kwargs, "points")?,
-        get::<f64>(py, kwargs, "spacing")?,
-    ) {
-        (Some(_), Some(_)) => {
+        let row = table
+            .find(Front::Python, &key)
+            .filter(|_| !skip.contains(&key.as_str()));
+        let Some(row) = row else {
+            let mut known = table.names(Front::Python);
+            known.retain(|k| !skip.contains(k));
+            known.push(PROGRESS);
             return Err(invalid(
                 py,
-                "give either points (a count) or spacing (metres), not both",
-            ))
-        }
-        (Some(n), None) => o.resolution = Some(Resolution::Count(n)),
-        (None, Some(h)) => o.resolution = Some(Resolution::Spacing(h)),
-        (None, None) => {}
-    }
-    if let Some(s) = get::<String>(py, kwargs, "eigensolver")? {
-        o.solver = s.parse::<SolverConfig>().map_err(|e| to_py(py, &e))?;
-    }
-    if let Some(t) = get(py, kwargs, "tol")? {
-        o.tol = t;
-    }
-    if let Some(n) = get(py, kwargs, "max_iter")? {
-        o.max_iter = n;
-    }
-    o.cloud.voxel = get(py, kwargs, "voxel")?;
-    o.cloud.total_volume = get(py, kwargs, "total_volume")?;
-    if !skip.contains(&"youngs") {
-        let d = Material::default();
-        o.material = Material {
-            youngs: get(py, kwargs, "youngs")?.unwrap_or(d.youngs),
-            poisson: get(py, kwargs, "poisson")?.unwrap_or(d.poisson),
-            density: get(py, kwargs, "density")?.unwrap_or(d.density),
+                format!(
+                    "unknown option `{key}`; the options are: {}",
+                    known.join(", ")
+                ),
+            ));
         };
+        if !v.is_none() {
+            given.push((row, value(py, &key, &v, row.kind)?));
+        }
     }
-    if let Some(regions) = get::<Vec<String>>(py, kwargs, "regions")? {
-        o.boundary_regions = regions
-            .iter()
-            .map(|r| r.parse::<freeform::material::Region>())
-            .collect::<freeform::Result<_>>()
-            .map_err(|e| to_py(py, &e))?;
-    }
-    let shape = ShapeOptions {
-        allow_open_mesh: get(py, kwargs, "allow_open_mesh")?.unwrap_or(false),
-    };
-    let progress = get(py, kwargs, "progress")?.unwrap_or(false);
-    o.validate().map_err(|e| to_py(py, &e))?;
-    Ok((o, shape, progress))
+    let choices = table.apply(given).map_err(|e| to_py(py, &e))?;
+    choices.options.validate().map_err(|e| to_py(py, &e))?;
+    Ok((choices.options, choices.shape, progress))
 }
 
 /// Run `work` with the GIL released and a [`PyProgress`]; a Ctrl-C becomes KeyboardInterrupt.
 pub fn run_released<T: Send>(
     py: Python<'_>,
+    front: Front,
     show_progress: bool,
     work: impl FnOnce(&PyProgress) -> freeform::Result<T> + Send,
 ) -> PyResult<T> {
     let progress = PyProgress::new(show_progress);
-    let result = py.detach(|| work(&progress));
+    // Messages formatted while it runs (warnings) name options as `front` does.
+    let result = py.detach(|| front.scope(|| work(&progress)));
     match result {
         Ok(v) => Ok(v),
-        Err(e @ Error::Cancelled { .. }) => {
-            Err(progress.take_interrupt().unwrap_or_else(|| to_py(py, &e)))
-        }
-        Err(e) => Err(to_py(py, &e)),
+        Err(e @ Error::Cancelled { .. }) => Err(progress
+            .take_interrupt()
+            .unwrap_or_else(|| to_py_in(py, &e, front))),
+        Err(e) => Err(to_py_in(py, &e, front)),
     }
 }
 
@@ -213,7 +144,7 @@ impl PyBasis {
         options: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<PyBasis> {
         let (opts, shape_opts, show) = self::options(py, options, &[])?;
-        let run = run_released(py, show, |progress| {
+        let run = run_released(py, Front::Python, show, |progress| {
             let s = freeform::io::read_shape(shape, &shape_opts)?;
             Problem::from_shape(&s, &opts, progress)?.solve(progress)
         })?;
@@ -251,7 +182,7 @@ impl PyBasis {
             Some(v) if !v.is_none() => Some(per_point(py, v, n, "volumes")?),
             _ => None,
         };
-        let run = run_released(py, show, |progress| {
+        let run = run_released(py, Front::Python, show, |progress| {
             let material = MaterialField::from_arrays(youngs, poisson, density)?;
             let volumes = match volumes {
                 Some(v) => v,

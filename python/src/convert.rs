@@ -93,15 +93,8 @@ fn exactly(
     Ok(view.to_vec())
 }
 
-/// A 3 x 3 rotation matrix (or None: the identity).
-pub fn matrix3(
-    py: Python<'_>,
-    obj: Option<&Bound<'_, PyAny>>,
-    what: &str,
-) -> PyResult<[[f64; 3]; 3]> {
-    let Some(obj) = obj.filter(|o| !o.is_none()) else {
-        return Ok([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]);
-    };
+/// A 3 x 3 matrix, e.g. a rotation.
+pub fn matrix3(py: Python<'_>, obj: &Bound<'_, PyAny>, what: &str) -> PyResult<[[f64; 3]; 3]> {
     let array: PyArrayLike2<'_, f64, AllowTypeChange> = obj.extract().map_err(|_| {
         invalid(
             py,

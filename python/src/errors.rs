@@ -1,5 +1,6 @@
 //! The library's errors as Python exceptions (classes defined in `freeform/_errors.py`).
 
+use freeform::options::Front;
 use freeform::{Error, ErrorKind};
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
@@ -29,9 +30,20 @@ pub fn raise(py: Python<'_>, class: &str, message: String) -> PyErr {
     }
 }
 
-/// A library error as the matching `freeform` exception with the library's message.
+/// A library error as the matching `freeform` exception, its message naming options as
+/// `front` does.
+pub fn to_py_in(py: Python<'_>, e: &Error, front: Front) -> PyErr {
+    raise(py, class_name(e), front.render(e))
+}
+
+/// A library error of the `Basis` builders and `eigsh`: options named by their keywords.
 pub fn to_py(py: Python<'_>, e: &Error) -> PyErr {
-    raise(py, class_name(e), e.to_string())
+    to_py_in(py, e, Front::Python)
+}
+
+/// A library error of `Scene` and `World`: options named by their scene keys.
+pub fn scene_to_py(py: Python<'_>, e: &Error) -> PyErr {
+    to_py_in(py, e, Front::Scene)
 }
 
 /// An invalid-input exception (a bad argument caught in the binding itself).

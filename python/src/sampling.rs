@@ -5,6 +5,7 @@ use crate::basis::run_released;
 use crate::convert::{array1, points_array};
 use crate::errors::invalid;
 use freeform::geometry::ShapeOptions;
+use freeform::options::Front;
 use freeform::precompute::sample_shape;
 use freeform::precompute::sampling::{CloudVolumeOptions, Resolution};
 use numpy::{PyArray1, PyArray2};
@@ -37,7 +38,7 @@ pub fn sample<'py>(
         (None, Some(h)) => Resolution::Spacing(h),
         (None, None) => Resolution::Count(20_000),
     };
-    let ip = run_released(py, false, |_| {
+    let ip = run_released(py, Front::Python, false, |_| {
         let s = freeform::io::read_shape(shape, &ShapeOptions { allow_open_mesh })?;
         sample_shape(&s, resolution, &CloudVolumeOptions::default())
     })?;

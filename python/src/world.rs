@@ -2,12 +2,13 @@
 
 use crate::basis::{run_released, PyBasis};
 use crate::convert::{matrix3, per_point, points_array, report, vec3, vector};
-use crate::errors::{invalid, to_py};
+use crate::errors::{invalid, scene_to_py};
 use freeform::io::basis::BasisMetadata;
 use freeform::material::{Material, MaterialField};
+use freeform::options::Front;
 use freeform::precompute::sampling::{cloud_volumes, CloudVolumeOptions, IntegrationPoints};
 use freeform::scene::StepRow;
-use freeform::scene::{ObjectSpec, PreparedObject, RunSettings, Scene, World};
+use freeform::scene::{ObjectShape, ObjectSpec, PreparedObject, RunSettings, Scene, World};
 use freeform::sim::motion::{Motion, Rigid};
 use freeform::sim::Boundary;
 use freeform::sim::{Placement, StepReport};
@@ -47,7 +48,7 @@ impl PyScene {
     /// Read a scene file (TOML); relative paths in it resolve against its directory.
     #[staticmethod]
     fn from_file(py: Python<'_>, path: PathBuf) -> PyResult<PyScene> {
-        let scene = Scene::load(&path).map_err(|e| to_py(py, &e))?;
+        let scene = Scene::load(&path).map_err(|e| scene_to_py(py, &e))?;
         Ok(PyScene {
             scene,
             base_dir: RunSettings::for_scene_file(&path).base_dir,
@@ -60,7 +61,7 @@ impl PyScene {
     #[staticmethod]
     #[pyo3(signature = (text, base_dir = None))]
     fn from_toml(py: Python<'_>, text: &str, base_dir: Option<PathBuf>) -> PyResult<PyScene> {
-        let scene = Scene::from_toml(text).map_err(|e| to_py(py, &e))?;
+        let scene = Scene::from_toml(text).map_err(|e| scene_to_py(py, &e))?;
         Ok(PyScene {
             scene,
             base_dir: base_dir.unwrap_or_default(),
@@ -79,7 +80,7 @@ impl PyScene {
         base_dir: Option<PathBuf>,
     ) -> PyResult<PyScene> {
         let scene: Scene = from_python(py, scene, "scene")?;
-        scene.validate_settings().map_err(|e| to_py(py, &e))?;
+        scene.validate_settings().map_err(|e| scene_to_py(py, &e))?;
         Ok(PyScene {
             scene,
             base_dir: base_dir.unwrap_or_default(),
@@ -119,17 +120,17 @@ impl PyScene {
         let youngs = per_point(py, youngs, n, "youngs")?;
         let poisson = or_default(poisson, d.poisson, "poisson")?;
         let density = or_default(density, d.density, "density")?;
-        let material =
-            MaterialField::from_arrays(youngs, poisson, density).map_err(|e| to_py(py, &e))?;
+        let material = MaterialField::from_arrays(youngs, poisson, density)
+            .map_err(|e| scene_to_py(py, &e))?;
         let volumes = match volumes {
             Some(v) if !v.is_none() => per_point(py, v, n, "volumes")?,
             _ => {
                 cloud_volumes(&pts, &CloudVolumeOptions::default())
-                    .map_err(|e| to_py(py, &e))?
+                    .map_err(|e| scene_to_py(py, &e))?
                     .0
             }
         };
-        let mut spec = ObjectSpec::new(name, "numpy points")
+        let mut spec = ObjectSpec::with_shape(name, ObjectShape::arrays("numpy points"))
             .kernels(basis.basis.kernels.len())
             .modes(basis.basis.modes().saturating_sub(1));
         if let Some(b) = boundaries.filter(|b| !b.is_none()) {
@@ -145,7 +146,7 @@ impl PyScene {
         all.objects
             .extend(self.prepared.iter().map(|p| p.spec.clone()));
         all.objects.push(spec.clone());
-        all.validate().map_err(|e| to_py(py, &e))?;
+        all.validate().map_err(|e| scene_to_py(py, &e))?;
         self.prepared.push(PreparedObject {
             spec,
             basis: basis.basis.clone(),
@@ -160,7 +161,7 @@ impl PyScene {
 
     /// The scene as TOML text (reads back with ``from_toml``).
     fn to_toml(&self, py: Python<'_>) -> PyResult<String> {
-        self.scene.to_toml().map_err(|e| to_py(py, &e))
+        self.scene.to_toml().map_err(|e| scene_to_py(py, &e))
     }
 
     /// The scene as a dict (the scene file's structure, every default filled in).
@@ -216,14 +217,14 @@ pub struct PyWorld {
 /// An object given by index or name (the library checks both).
 fn object_index(py: Python<'_>, world: &World, object: &Bound<'_, PyAny>) -> PyResult<usize> {
     if let Ok(name) = object.extract::<String>() {
-        return world.object_named(&name).map_err(|e| to_py(py, &e));
+        return world.object_named(&name).map_err(|e| scene_to_py(py, &e));
     }
     let index: i64 = object
         .extract()
         .map_err(|_| invalid(py, "object: give its index (int) or its name (str)"))?;
     let index = usize::try_from(index)
         .map_err(|_| invalid(py, format!("object {index}: indices count from 0")))?;
-    world.object_at(index).map_err(|e| to_py(py, &e))?;
+    world.object_at(index).map_err(|e| scene_to_py(py, &e))?;
     Ok(index)
 }
 
@@ -238,18 +239,24 @@ fn step_dict<'py>(py: Python<'py>, name: &str, r: &StepReport) -> PyResult<Bound
     Ok(d)
 }
 
+/// A rigid pose from NumPy arrays (the library's [`Rigid::from_arrays`]): rotation 3 x 3
+/// (None: identity), translation 3 values in metres (None: zero).
 fn rigid(
     py: Python<'_>,
     rotation: Option<&Bound<'_, PyAny>>,
     translation: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<Rigid> {
-    Ok(Rigid {
-        rotation: matrix3(py, rotation, "rotation")?,
-        translation: match translation {
-            Some(t) if !t.is_none() => vec3(py, t, "translation")?,
-            _ => [0.0; 3],
-        },
-    })
+    let rotation = match rotation {
+        Some(r) if !r.is_none() => Some(matrix3(py, r, "rotation")?),
+        _ => None,
+    };
+    let translation = match translation {
+        Some(t) if !t.is_none() => Some(vec3(py, t, "translation")?),
+        _ => None,
+    };
+    let flat = rotation.map(|r| r.concat());
+    Rigid::from_arrays(flat.as_deref(), translation.as_ref().map(|t| &t[..]))
+        .map_err(|e| scene_to_py(py, &e))
 }
 
 #[pymethods]
@@ -276,7 +283,7 @@ impl PyWorld {
             strict,
         };
         let prepared = scene.prepared.clone();
-        let world = run_released(py, progress, |p| {
+        let world = run_released(py, Front::Scene, progress, |p| {
             World::with_objects(&s, &settings, prepared, p)
         })?;
         Ok(PyWorld { world })
@@ -288,7 +295,7 @@ impl PyWorld {
     #[pyo3(signature = (count = 1))]
     fn step<'py>(&mut self, py: Python<'py>, count: usize) -> PyResult<Bound<'py, PyList>> {
         let world = &mut self.world;
-        let reports = run_released(py, false, |progress| {
+        let reports = run_released(py, Front::Scene, false, |progress| {
             let mut last = Vec::new();
             for _ in 0..count {
                 freeform::error::check_cancelled(progress, "step")?;
@@ -337,7 +344,7 @@ impl PyWorld {
         self.world
             .warnings()
             .iter()
-            .map(ToString::to_string)
+            .map(|w| Front::Scene.render(w))
             .collect()
     }
 
@@ -393,7 +400,7 @@ impl PyWorld {
             .world
             .object(i)
             .render_stress()
-            .map_err(|e| to_py(py, &e))?;
+            .map_err(|e| scene_to_py(py, &e))?;
         let n = sigma.len();
         let flat: Vec<f64> = sigma.iter().flatten().flatten().copied().collect();
         Ok(crate::convert::array2(py, flat, n * 3, 3)
@@ -422,7 +429,7 @@ impl PyWorld {
             .world
             .object(i)
             .integration_positions()
-            .map_err(|e| to_py(py, &e))?;
+            .map_err(|e| scene_to_py(py, &e))?;
         Ok(points_array(py, &x))
     }
 
@@ -472,7 +479,7 @@ impl PyWorld {
         let zdot = vector(py, zdot, n, "zdot")?;
         self.world
             .set_state(i, &z, &zdot)
-            .map_err(|e| to_py(py, &e))
+            .map_err(|e| scene_to_py(py, &e))
     }
 
     /// Gravity for every object from the next step on, m/s^2 (None: off).
@@ -481,7 +488,7 @@ impl PyWorld {
             Some(g) if !g.is_none() => Some(vec3(py, g, "gravity")?),
             _ => None,
         };
-        self.world.set_gravity(g).map_err(|e| to_py(py, &e))
+        self.world.set_gravity(g).map_err(|e| scene_to_py(py, &e))
     }
 
     /// Hold boundary ``boundary`` of an object at the rigid pose x = R X + t of its placed
@@ -500,7 +507,7 @@ impl PyWorld {
         let pose = rigid(py, rotation, translation)?;
         self.world
             .set_boundary_pose(i, boundary, &pose)
-            .map_err(|e| to_py(py, &e))
+            .map_err(|e| scene_to_py(py, &e))
     }
 
     /// A new motion for a boundary, as in a scene file: ``"fixed"``,
@@ -517,7 +524,7 @@ impl PyWorld {
         let motion: Motion = from_python(py, motion, "motion")?;
         self.world
             .set_boundary_motion(i, boundary, motion)
-            .map_err(|e| to_py(py, &e))
+            .map_err(|e| scene_to_py(py, &e))
     }
 
     /// The kinematic pose of collider ``collider`` (its scene definition moved by
@@ -534,7 +541,7 @@ impl PyWorld {
         let pose = rigid(py, rotation, translation)?;
         self.world
             .set_collider_pose(collider, &pose)
-            .map_err(|e| to_py(py, &e))
+            .map_err(|e| scene_to_py(py, &e))
     }
 
     /// Put an object back into its rest shape at a placement, as in a scene file:
@@ -550,7 +557,7 @@ impl PyWorld {
         let placement: Placement = from_python(py, placement, "placement")?;
         self.world
             .set_placement(i, &placement)
-            .map_err(|e| to_py(py, &e))
+            .map_err(|e| scene_to_py(py, &e))
     }
 
     /// An object's basis (a copy).
@@ -560,7 +567,7 @@ impl PyWorld {
         Ok(PyBasis {
             basis: o.basis().clone(),
             metadata: BasisMetadata {
-                shape: Some(o.spec().shape.clone()),
+                shape: Some(o.spec().shape.text().to_string()),
                 ..BasisMetadata::default()
             },
             report: None,

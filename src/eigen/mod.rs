@@ -41,6 +41,7 @@ pub use rows::{block_range, RowPencil};
 pub use slepc_options::{SlepcOptions, SlepcPreset};
 pub use solver::Eigensolver;
 
+use crate::options;
 use crate::sparse::{self, SparseMatrix};
 use faer::Mat;
 
@@ -251,8 +252,8 @@ pub enum EigenError {
     },
     /// The matrix is too large for this solver (dense solver on big K).
     #[error(
-        "the {solver} solver refuses K = {k} (limit {limit}); use \
-         eigen::lobpcg::Lobpcg"
+        "the {solver} solver refuses K = {k} (limit {limit}); use {}",
+        options::SOLVER.with("lobpcg")
     )]
     TooLarge {
         /// Solver name.
@@ -274,7 +275,8 @@ pub enum EigenError {
     /// Made from [`EigenStatus::NotConverged`] by [`EigenSolution::into_converged`].
     #[error(
         "eigensolver did not converge in {iterations} iterations: {converged}/{nev} pairs below \
-         tol {tol:.1e} (max relative residual {max_residual:.2e}); raise --tol or the iteration cap"
+         tol {tol:.1e} (max relative residual {max_residual:.2e}); raise {} or the iteration cap",
+        options::TOL
     )]
     NotConverged {
         /// Iterations performed.
@@ -311,9 +313,11 @@ pub enum EigenError {
     #[error(
         "SLEPc's LOBPCG broke down: loss of B-orthogonality in the Rayleigh-Ritz step (LAPACK \
          {routine} info={info}; {nev} pairs, block size {}). Use the default SLEPc \
-         configuration --slepc ks-sinvert (Krylov-Schur, shift-and-invert), or freeform's native \
-         LOBPCG (--solver lobpcg, the default); to keep SLEPc's LOBPCG, {}",
+         configuration {} (Krylov-Schur, shift-and-invert), or freeform's native LOBPCG ({}, the \
+         default); to keep SLEPc's LOBPCG, {}",
         block_size.map_or_else(|| "unknown".to_string(), |b| b.to_string()),
+        options::SLEPC.with("ks-sinvert"),
+        options::SOLVER.with("lobpcg"),
         lobpcg_breakdown_advice(*k, *nev, *block_size)
     )]
     SlepcLobpcgBreakdown {
@@ -339,10 +343,11 @@ pub enum EigenError {
     /// [`EigenError::NotConverged`]. Made from [`EigenStatus::SlepcLobpcgNotConverged`] by
     /// [`EigenSolution::into_converged`].
     #[error(
-        "{}. Use the default SLEPc configuration --slepc ks-sinvert (Krylov-Schur, \
-         shift-and-invert), or freeform's native LOBPCG (--solver lobpcg, the default); to keep \
-         SLEPc's LOBPCG, {}",
+        "{}. Use the default SLEPc configuration {} (Krylov-Schur, shift-and-invert), or \
+         freeform's native LOBPCG ({}, the default); to keep SLEPc's LOBPCG, {}",
         slepc_lobpcg_stop_text(stop, *iterations, *reported, *converged, *nev, *tol),
+        options::SLEPC.with("ks-sinvert"),
+        options::SOLVER.with("lobpcg"),
         slepc_lobpcg_advice(stop, *k, *nev, *block_size, *max_iter)
     )]
     SlepcLobpcgNotConverged {
@@ -404,8 +409,8 @@ fn lobpcg_breakdown_advice(k: usize, nev: usize, block_size: Option<usize>) -> S
         "ask for fewer modes".to_string()
     } else {
         format!(
-            "solve all pairs in one block (--petsc-options \"-eps_lobpcg_blocksize {nev}\") or \
-             ask for fewer modes"
+            "solve all pairs in one block ({}) or ask for fewer modes",
+            options::PETSC_OPTIONS.with(format!("-eps_lobpcg_blocksize {nev}"))
         )
     }
 }
@@ -521,13 +526,14 @@ fn slepc_lobpcg_advice(
     let default_cap = EigenRequest::default().max_iter;
     if *stop == SlepcLobpcgStop::IterationCap && max_iter < default_cap {
         ways.push(format!(
-            "raise --max-iter ({max_iter} now, default {default_cap})"
+            "raise {} ({max_iter} now, default {default_cap})",
+            options::MAX_ITER
         ));
     }
     if k >= 5 * single && block_size.is_none_or(|b| b < single) {
         ways.push(format!(
-            "solve all pairs in one block with room for SLEPc's guard vectors \
-             (--petsc-options \"-eps_lobpcg_blocksize {single}\")"
+            "solve all pairs in one block with room for SLEPc's guard vectors ({})",
+            options::PETSC_OPTIONS.with(format!("-eps_lobpcg_blocksize {single}"))
         ));
     }
     ways.push("ask for fewer modes".to_string());

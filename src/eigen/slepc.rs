@@ -375,6 +375,18 @@ mod tests {
     use super::*;
     use crate::eigen::{EigenStatus, SlepcLobpcgStop};
 
+    /// The message as the command line prints it (options named by their flags,
+    /// `crate::options::Front::Flags`): the text these checks were written against.
+    trait CliText {
+        fn cli_text(&self) -> String;
+    }
+
+    impl CliText for EigenError {
+        fn cli_text(&self) -> String {
+            crate::options::Front::Flags.render(self)
+        }
+    }
+
     /// The failure as SLEPc 3.18 reported it for `modes box:5,1,1 --kernels 3000 --modes 32
     /// --solver slepc --slepc lobpcg-gamg` (message recorded by our error handler).
     fn sygvd_failure() -> petsc::PetscError {
@@ -421,7 +433,7 @@ mod tests {
             }
             other => panic!("expected the LOBPCG breakdown, got {other:?}"),
         }
-        let text = solve_error(sygvd_failure(), 3000, 33, Some(16)).to_string();
+        let text = solve_error(sygvd_failure(), 3000, 33, Some(16)).cli_text();
         for needle in [
             "SLEPc's LOBPCG broke down",
             "loss of B-orthogonality in the Rayleigh-Ritz step",
@@ -442,14 +454,14 @@ mod tests {
             block_size: Some(8),
             message: String::new(),
         }
-        .to_string();
+        .cli_text();
         assert!(
             single.ends_with("to keep SLEPc's LOBPCG, ask for fewer modes")
                 && !single.contains("blocksize"),
             "{single}"
         );
         // K too small for one block of 33 (SLEPc needs K >= 5 x block size): left out too.
-        let small = solve_error(sygvd_failure(), 150, 33, Some(16)).to_string();
+        let small = solve_error(sygvd_failure(), 150, 33, Some(16)).cli_text();
         assert!(
             small.ends_with("ask for fewer modes") && !small.contains("blocksize"),
             "{small}"
@@ -564,7 +576,7 @@ mod tests {
             returned(120, &[1e-9, 3e-3, 5e-2, 1e-9]),
         )
         .unwrap_err();
-        let text = err.to_string();
+        let text = err.cli_text();
         match err {
             EigenError::SlepcLobpcgNotConverged {
                 stop,
@@ -628,7 +640,7 @@ mod tests {
                 ..
             }
         ));
-        let text = capped.to_string();
+        let text = capped.cli_text();
         assert!(
             text.starts_with(
                 "SLEPc's LOBPCG stopped at its iteration cap (33 iterations) with 3/4 pairs \
@@ -644,7 +656,7 @@ mod tests {
         };
         let text = accept(19, &low_cap, &lobpcg_status(0, -1, 2), returned(19, &[]))
             .unwrap_err()
-            .to_string();
+            .cli_text();
         assert!(
             text.ends_with(
                 "to keep SLEPc's LOBPCG, raise --max-iter (2 now, default 1000), or ask for \
@@ -662,7 +674,7 @@ mod tests {
             returned(120, &[1e-9; 2]),
         )
         .unwrap_err()
-        .to_string();
+        .cli_text();
         assert!(
             text.starts_with(
                 "SLEPc's LOBPCG stopped after 33 iterations with 2/4 pairs converged (tol \
@@ -678,7 +690,7 @@ mod tests {
             returned(120, &[1e-9; 2]),
         )
         .unwrap_err()
-        .to_string();
+        .cli_text();
         assert!(other.contains("2/4 pairs converged (tol 1.0e-8): EPSConvergedReason -3. Use"));
 
         // Any other EPS type keeps the general message, word for word.
@@ -690,13 +702,13 @@ mod tests {
         let err = accept(120, &req, &ks, returned(120, &[1e-9, 1e-9, 1e-9])).unwrap_err();
         assert!(matches!(err, EigenError::NotConverged { converged: 3, .. }));
         assert_eq!(
-            err.to_string(),
+            err.cli_text(),
             "eigensolver did not converge in 33 iterations: 3/4 pairs below tol 1.0e-8 (max \
              relative residual inf); raise --tol or the iteration cap"
         );
         let err = accept(120, &req, &ks, returned(120, &[1e-9, 1e-9, 1e-9, 2e-3])).unwrap_err();
         assert_eq!(
-            err.to_string(),
+            err.cli_text(),
             "eigensolver did not converge in 33 iterations: 3/4 pairs below tol 1.0e-8 (max \
              relative residual 2.00e-3); raise --tol or the iteration cap"
         );

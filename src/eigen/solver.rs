@@ -60,7 +60,9 @@ pub trait Eigensolver {
         match (problem.h.assembled(), problem.m.assembled(), problem.preconditioner) {
             (Some(h), Some(m), None) => self.solve(h, m, request, progress),
             _ => Err(EigenError::InvalidRequest(format!(
-                "the {} solver needs assembled H and M and builds its own preconditioner;                  matrix-free operators and caller's preconditioners go to the native LOBPCG                  (eigen::lobpcg::Lobpcg)",
+                "the {} solver needs assembled H and M and builds its own preconditioner; \
+                 matrix-free operators and caller's preconditioners go to the native LOBPCG \
+                 (eigen::lobpcg::Lobpcg)",
                 self.name()
             ))),
         }

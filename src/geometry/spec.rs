@@ -104,6 +104,29 @@ impl ShapeSpec {
         })
     }
 
+    /// The file a spec names; `None` for a primitive.
+    pub fn path(&self) -> Option<&Path> {
+        match self {
+            ShapeSpec::File { path, .. } | ShapeSpec::Image { path } => Some(path),
+            ShapeSpec::Box { .. } | ShapeSpec::Sphere { .. } => None,
+        }
+    }
+
+    /// The spec with its file's path relative to `base` (an absolute path, and a primitive,
+    /// unchanged): a scene's shapes are relative to the scene file.
+    pub fn resolved(&self, base: &Path) -> ShapeSpec {
+        match self {
+            ShapeSpec::File { path, format } => ShapeSpec::File {
+                path: base.join(path),
+                format: *format,
+            },
+            ShapeSpec::Image { path } => ShapeSpec::Image {
+                path: base.join(path),
+            },
+            primitive => primitive.clone(),
+        }
+    }
+
     /// The shape of a primitive spec; `None` for a file (read it with
     /// [`crate::io::read_shape_spec`]).
     pub fn primitive(&self) -> Option<Shape> {

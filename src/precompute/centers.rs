@@ -48,8 +48,10 @@ fn check(points: &[Point3], k: usize) -> Result<()> {
             k,
             format!(
                 "only {} integration points to choose centres from; use fewer kernels or more points \
-                 (Resolution::Count / Resolution::Spacing)",
-                points.len()
+                 ({} / {})",
+                points.len(),
+                crate::options::POINTS,
+                crate::options::SPACING
             ),
         ));
     }

@@ -197,9 +197,12 @@ impl MemoryEstimate {
             return Ok(());
         }
         let advice = format!(
-            "use fewer integration points (--points; {} now), fewer kernels (--kernels; {} \
-             now), fewer modes, or a smaller support factor (H_w's non-zeros grow as its cube)",
-            self.points, self.kernels
+            "use fewer integration points ({}; {} now), fewer kernels ({}; {} now), fewer \
+             modes, or a smaller support factor (H_w's non-zeros grow as its cube)",
+            crate::options::POINTS,
+            self.points,
+            crate::options::KERNELS,
+            self.kernels
         );
         Err(Error::OutOfMemory {
             estimate_bytes: self.total_bytes,

@@ -31,6 +31,7 @@ pub mod sampling;
 pub mod skinning;
 mod solver;
 pub mod stream;
+pub mod table;
 
 pub use boundary_modes::BoundaryModes;
 pub use compare::{compare_solvers, ProblemComparison, SolverComparison, SolverResult};
@@ -44,3 +45,4 @@ pub use quality::{
 };
 pub use sampling::{sample_shape, sample_with_material};
 pub use solver::SolverConfig;
+pub use table::{BasisChoices, BasisOption, OptionTable, Value, ValueKind};

@@ -209,11 +209,12 @@ impl BasisOptions {
                 self.modes,
                 format!(
                     "a boundary-aware basis with {} regions has {} lifts and needs m >= {} to \
-                     keep at least one free mode; raise basis.modes or use basis.boundaries = \
-                     \"free\"",
+                     keep at least one free mode; raise {} or use {}",
                     self.boundary_regions.len(),
                     self.boundary_regions.len(),
-                    self.boundary_regions.len()
+                    self.boundary_regions.len(),
+                    crate::options::MODES,
+                    crate::options::BOUNDARIES.with("free")
                 ),
             ));
         }

@@ -168,8 +168,8 @@ pub fn check_quality(report: &mut ModesReport) {
         w.push(format!(
             "smallest moment-matrix reciprocal condition number {rc:.1e} is below {RCOND_WARNING:.0e}: \
              some points are covered by nearly coplanar kernels (thin features or too few kernels \
-             across them); use more kernels or more integration points there, or a larger \
-             BasisOptions::support.factor"
+             across them); use more kernels or more integration points there, or a larger {}",
+            crate::options::SUPPORT_FACTOR
         ));
     }
     if report.reproducing_error > REPRODUCING_WARNING {

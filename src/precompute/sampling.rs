@@ -388,8 +388,11 @@ pub fn sample_shape(
                 Resolution::Count(n) if n < all.len() => downsample(all, n),
                 Resolution::Count(_) => all.to_vec(),
                 Resolution::Spacing(h) => {
-                    let why = "a point cloud's points are its integration points; use \
-                               Resolution::Count N to downsample";
+                    let why = format!(
+                        "a point cloud's points are its integration points; use {} N to \
+                         downsample",
+                        crate::options::POINTS
+                    );
                     return Err(Error::param("spacing", h, why));
                 }
             };

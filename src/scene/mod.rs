@@ -17,7 +17,7 @@
 //! let scene = SceneBuilder::new(0.01, 200)
 //!     .gravity([0.0, -9.81, 0.0])
 //!     .object(
-//!         ObjectSpec::new("beam", "box:5,1,1")
+//!         ObjectSpec::new("beam", "box:5,1,1")?
 //!             .kernels(1000)
 //!             .modes(16)
 //!             .hold(Region::HalfSpace { point: [0.5, 0.0, 0.0], normal: [-1.0, 0.0, 0.0] }),
@@ -37,6 +37,7 @@ mod report;
 mod run;
 mod settings;
 mod setup;
+mod shape;
 mod spec;
 mod world;
 
@@ -46,6 +47,7 @@ pub use render_set::RenderSet;
 pub use report::{ContactStepRow, ContactSummary, ObjectSummary, RunSummary, StepRow};
 pub use run::run;
 pub use settings::RunSettings;
+pub use shape::{ObjectShape, ShapeSource};
 pub use spec::{
     BasisSettings, CacheSettings, Format, ObjectSpec, OutputSettings, Scene, Simulation,
     SolverSettings,
@@ -161,10 +163,19 @@ impl SceneBuilder {
 impl ObjectSpec {
     /// An object named `name` with shape `shape` (see [`ObjectSpec::shape`]) and defaults
     /// for everything else.
-    pub fn new(name: &str, shape: &str) -> Self {
+    ///
+    /// # Errors
+    /// A malformed shape ([`ObjectShape::parse`]).
+    pub fn new(name: &str, shape: &str) -> Result<Self> {
+        Ok(Self::with_shape(name, ObjectShape::parse(shape)?))
+    }
+
+    /// An object named `name` with an already parsed shape (or an object from arrays,
+    /// [`ObjectShape::arrays`]) and defaults for everything else.
+    pub fn with_shape(name: &str, shape: ObjectShape) -> Self {
         Self {
             name: name.to_string(),
-            shape: shape.to_string(),
+            shape,
             allow_open_mesh: false,
             material: Material::default(),
             overrides: Vec::new(),

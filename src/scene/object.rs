@@ -5,9 +5,8 @@
 use super::render_set::{self, RenderSet};
 use super::report::{ObjectSummary, StepRow};
 use super::settings::RunSettings;
-use super::setup::{
-    material_at, object_basis, object_image, resolve_shape, ObjectBasis, ResolvedShape,
-};
+use super::setup::{material_at, object_basis, object_image, ObjectBasis, ResolvedShape};
+use super::shape::ShapeSource;
 use super::spec::{ObjectSpec, Scene};
 use crate::geometry::{PointCloud, Shape, ShapeOptions};
 use crate::io::splat::{MovedSplats, Splats};
@@ -105,11 +104,16 @@ impl SceneObject {
             name: spec.name.clone(),
             source: Box::new(e),
         };
-        let (shape_spec, file) = resolve_shape(&spec.shape, &settings.base_dir);
+        let file = spec.shape.file(&settings.base_dir);
+        // The cache key names a file by its full path, a primitive by its text.
+        let shape_spec = match &file {
+            Some(path) => path.display().to_string(),
+            None => spec.shape.text().to_string(),
+        };
         // A 3DGS splat PLY is read once, whole: its centres are the point cloud (integration
         // points come from it as from any cloud; docs/splats.md).
-        let (shape, splats) = match &file {
-            Some(path) if is_splat_file(path) => {
+        let (shape, splats) = match (&file, spec.shape.source()) {
+            (Some(path), _) if is_splat_file(path) => {
                 // Non-unit quaternions are normal in 3DGS files (renderers normalize): they
                 // are used normalized and written back with their norm, without a warning.
                 let splats = crate::io::splat::read_splats(path).map_err(|e| ctx(e.into()))?;
@@ -117,7 +121,7 @@ impl SceneObject {
                     .map_err(|e| ctx(e.with_path(path).into()))?;
                 (Shape::PointCloud(cloud), Some(splats))
             }
-            _ if shape_spec.trim() == "image" => {
+            (_, ShapeSource::Image) => {
                 let image = object_image(spec, scene, None, &settings.base_dir).map_err(ctx)?;
                 match image {
                     Some(im) => (Shape::Image(im.image().clone()), None),
@@ -128,12 +132,23 @@ impl SceneObject {
                     }
                 }
             }
-            _ => {
+            (_, ShapeSource::Spec(parsed)) => {
                 let opts = ShapeOptions {
                     allow_open_mesh: spec.allow_open_mesh,
                 };
-                let shape = crate::io::read_shape(&shape_spec, &opts).map_err(|e| ctx(e.into()))?;
+                let resolved = parsed.resolved(&settings.base_dir);
+                let shape =
+                    crate::io::read_shape_spec(&resolved, &opts).map_err(|e| ctx(e.into()))?;
                 (shape, None)
+            }
+            (_, ShapeSource::Arrays) => {
+                return Err(ctx(Error::Scene {
+                    message: format!(
+                        "shape \"{}\" is made from arrays: add the object with \
+                         World::with_objects",
+                        spec.shape.text()
+                    ),
+                }))
             }
         };
         let image = object_image(spec, scene, Some(&shape), &settings.base_dir).map_err(ctx)?;
@@ -230,7 +245,7 @@ impl SceneObject {
         let render_count = rest.as_ref().map_or(points.len(), Vec::len);
         let summary = ObjectSummary {
             name: spec.name.clone(),
-            shape: spec.shape.clone(),
+            shape: spec.shape.text().to_string(),
             kernels: basis.kernels.len(),
             modes: basis.modes() - 1,
             points: points.len(),

@@ -21,11 +21,6 @@ use crate::Result;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-fn is_primitive(spec: &str) -> bool {
-    let t = spec.trim().to_ascii_lowercase();
-    t.starts_with("box:") || t.starts_with("sphere:") || t == "image"
-}
-
 /// The object's image materials: its `[object.image]` table's image (path relative to
 /// `base`) with the label map resolved, or, without a table, a modulus image shape's own
 /// moduli; `None` for other objects.
@@ -43,8 +38,8 @@ pub(super) fn object_image(
             _ => None,
         });
     };
-    let (_, file) = resolve_shape(&im.file, base);
-    let path = file.unwrap_or_else(|| base.join(&im.file));
+    // Relative to `base` (an absolute path stays as it is).
+    let path = base.join(im.file.trim());
     let opts = ImageReadOptions {
         spacing: im.spacing,
         origin: im.origin,
@@ -73,24 +68,11 @@ pub(super) fn material_at(
     Ok(field)
 }
 
-/// Resolve a relative shape path against `base`.
-pub(super) fn resolve_shape(spec: &str, base: &Path) -> (String, Option<PathBuf>) {
-    if is_primitive(spec) {
-        return (spec.to_string(), None);
-    }
-    let p = Path::new(spec.trim());
-    let full = if p.is_relative() {
-        base.join(p)
-    } else {
-        p.to_path_buf()
-    };
-    (full.display().to_string(), Some(full))
-}
-
 /// An object's shape with the specification it was read from.
 pub(super) struct ResolvedShape {
     pub shape: Shape,
-    /// The specification with relative paths resolved.
+    /// The specification with relative paths resolved: the file's full path, or the text as
+    /// written (the basis cache key is made from it).
     pub spec: String,
     /// The file, for file shapes.
     pub file: Option<PathBuf>,

@@ -2,10 +2,12 @@
 //! ([`super::SceneBuilder`]) produces. Unknown keys are errors; every default is stated
 //! here and in docs/scenes.md.
 
+use super::shape::{ObjectShape, ShapeSource};
 use crate::io::image::ImageValueKind;
 use crate::material::{Material, MaterialOverride};
 use crate::precompute::rkpm::{KernelType, SupportOptions};
-use crate::precompute::sampling::{CloudVolumeOptions, Resolution};
+use crate::precompute::sampling::CloudVolumeOptions;
+use crate::precompute::table::{self, OptionTable, Value};
 use crate::precompute::GapPolicy;
 use crate::precompute::{BasisOptions, BoundaryModes, SolverConfig};
 use crate::sim::contact::ContactSettings;
@@ -187,7 +189,8 @@ pub struct ObjectSpec {
     pub name: String,
     /// Shape: `box:LX,LY,LZ`, `sphere:R`, a mesh / point-cloud / NIfTI image file (relative to
     /// the scene file), or `image`: the filled voxels of the `[object.image]` table's image.
-    pub shape: String,
+    /// Parsed when the scene is read; written back as it was given.
+    pub shape: ObjectShape,
     /// Accept a mesh with holes.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub allow_open_mesh: bool,
@@ -361,24 +364,20 @@ impl ObjectSpec {
     /// The basis options of this object.
     pub fn basis_options(&self) -> Result<BasisOptions> {
         let b = &self.basis;
-        if b.points.is_some() && b.spacing.is_some() {
-            return Err(Error::param(
-                "basis.points",
-                format!("{:?}", b.points),
-                format!(
-                    "object '{}': give either basis.points or basis.spacing, not both",
-                    self.name
-                ),
-            ));
-        }
+        // The integration grid through the option table's rows (one conflict check, one
+        // mapping to a Resolution for every front end).
+        let grid = [
+            b.points.map(|n| (&table::POINTS, Value::Count(n))),
+            b.spacing.map(|h| (&table::SPACING, Value::Number(h))),
+        ];
+        let resolution = OptionTable::basis()
+            .apply(grid.into_iter().flatten().collect())?
+            .options
+            .resolution;
         let opts = BasisOptions {
             kernels: b.kernels,
             modes: b.modes,
-            resolution: match (b.points, b.spacing) {
-                (Some(n), _) => Some(Resolution::Count(n)),
-                (None, Some(h)) => Some(Resolution::Spacing(h)),
-                (None, None) => None,
-            },
+            resolution,
             kernel: b.kernel,
             support: SupportOptions {
                 factor: b.support,
@@ -467,7 +466,13 @@ impl Scene {
             return Err(scene_err("output.every must be at least 1".into()));
         }
         let mut names = std::collections::HashSet::new();
-        for o in &self.objects {
+        for (index, o) in self.objects.iter().enumerate() {
+            // An object's errors keep their type inside the object's (as at set-up).
+            let in_object = |source: Error| Error::Object {
+                index,
+                name: o.name.clone(),
+                source: Box::new(source),
+            };
             let ok = !o.name.is_empty()
                 && o.name
                     .chars()
@@ -484,31 +489,31 @@ impl Scene {
             }
             // Boundaries first: an aware basis's options carry their regions.
             for (i, b) in o.boundaries.iter().enumerate() {
-                b.region
-                    .validate()
-                    .map_err(|e| in_object(&o.name, scene_err(format!("boundary {i}: {e}"))))?;
-                b.motion
-                    .validate()
-                    .map_err(|e| in_object(&o.name, scene_err(format!("boundary {i}: {e}"))))?;
+                let in_boundary = |source: Error| {
+                    in_object(Error::Boundary {
+                        index: i,
+                        source: Box::new(source),
+                    })
+                };
+                b.region.validate().map_err(in_boundary)?;
+                b.motion.validate().map_err(in_boundary)?;
             }
-            let _checked = o.basis_options().map_err(|e| in_object(&o.name, e))?;
-            self.validate_image(o).map_err(|e| in_object(&o.name, e))?;
+            let _checked = o.basis_options().map_err(in_object)?;
+            self.validate_image(o).map_err(in_object)?;
             if o.cubature == Some(0) {
-                return Err(in_object(
-                    &o.name,
-                    scene_err("cubature must be at least 1".into()),
-                ));
+                return Err(in_object(scene_err("cubature must be at least 1".into())));
             }
             if o.contact_samples == Some(0) {
-                return Err(in_object(
-                    &o.name,
-                    scene_err("contact_samples must be at least 1".into()),
-                ));
+                return Err(in_object(scene_err(
+                    "contact_samples must be at least 1".into(),
+                )));
             }
         }
         for (name, m) in &self.materials {
-            m.validate()
-                .map_err(|e| scene_err(format!("material '{name}': {e}")))?;
+            m.validate().map_err(|e| Error::NamedMaterial {
+                name: name.clone(),
+                source: Box::new(e),
+            })?;
         }
         crate::sim::collider::validate_colliders(&self.colliders)?;
         if let Some(c) = &self.contact {
@@ -531,7 +536,7 @@ impl Scene {
     /// An object's image table: its numbers and its label map (the file is read later).
     fn validate_image(&self, o: &ObjectSpec) -> Result<()> {
         let Some(im) = &o.image else {
-            if o.shape.trim() == "image" {
+            if *o.shape.source() == ShapeSource::Image {
                 return Err(scene_err(
                     "shape = \"image\" needs an [object.image] table with the image file".into(),
                 ));
@@ -560,10 +565,6 @@ pub const MAX_STEPS: usize = 10_000_000;
 
 fn scene_err(message: String) -> Error {
     Error::Scene { message }
-}
-
-fn in_object(name: &str, e: Error) -> Error {
-    scene_err(format!("object '{name}': {e}"))
 }
 
 /// The frame name of collider `index` (`collider-<name>`, or `collider-<index>` without a

@@ -28,7 +28,7 @@ use std::sync::Arc;
 /// let scene = SceneBuilder::new(0.01, 10)
 ///     .gravity([0.0, -9.81, 0.0])
 ///     .object(
-///         ObjectSpec::new("beam", "box:2,0.5,0.5")
+///         ObjectSpec::new("beam", "box:2,0.5,0.5")?
 ///             .kernels(60)
 ///             .modes(4)
 ///             .hold(Region::HalfSpace { point: [0.2, 0.0, 0.0], normal: [-1.0, 0.0, 0.0] }),

@@ -96,7 +96,7 @@ mod tests {
     /// checker, along the coordinates), and the force never above mu lambda.
     #[test]
     fn derivatives_match_finite_differences() {
-        use crate::sim::check::{check_derivatives, Floors};
+        use crate::derivatives::{check_derivatives, Floors};
         let p = tangent_projector(&[0.0, 0.6, 0.8]);
         let (ml, eps) = (2.5, 1e-3);
         let coords: Vec<Vec<f64>> = (0..3)

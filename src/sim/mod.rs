@@ -2,8 +2,6 @@
 //! Eqs. 1-2): m + 1 affine handles driven by the skinning eigenmodes, backward Euler as
 //! minimisation of the incremental potential, Newton or quasi-Newton per step.
 //!
-//! - [`check`]: derivatives against central differences, the one checker every term's and
-//!   obstacle's test uses.
 //! - [`cubature`]: the subset of integration points that carries the elastic energy.
 //! - [`elastic`]: the elastic energy, gradient and Hessian in z (structured, no dense
 //!   per-point 9 x 12 (m + 1) blocks).
@@ -19,7 +17,6 @@
 //! - [`deformation`]: the deformation map's gradient F at any points.
 //! - [`gaussian`]: Gaussian splats carried by F (covariance, rotation, SH colour).
 
-pub mod check;
 pub mod collider;
 pub mod contact;
 pub mod cubature;

@@ -85,6 +85,40 @@ impl Rigid {
         translation: [0.0; 3],
     };
 
+    /// The pose given as flat arrays, as the C and Python bindings receive it: `rotation` R,
+    /// 9 values row-major (None: the identity); `translation` t, 3 values, metres (None:
+    /// zero). Not validated here: [`Rigid::validate`] runs where the pose is used.
+    ///
+    /// # Errors
+    /// [`Error::LengthMismatch`] for a rotation of other than 9 values or a translation of
+    /// other than 3.
+    pub fn from_arrays(rotation: Option<&[f64]>, translation: Option<&[f64]>) -> Result<Rigid> {
+        let mut pose = Rigid::IDENTITY;
+        if let Some(r) = rotation {
+            if r.len() != 9 {
+                return Err(Error::LengthMismatch {
+                    what: "rotation (3 x 3, row-major)",
+                    expected: 9,
+                    got: r.len(),
+                });
+            }
+            for (row, values) in pose.rotation.iter_mut().zip(r.chunks_exact(3)) {
+                row.copy_from_slice(values);
+            }
+        }
+        if let Some(t) = translation {
+            if t.len() != 3 {
+                return Err(Error::LengthMismatch {
+                    what: "translation",
+                    expected: 3,
+                    got: t.len(),
+                });
+            }
+            pose.translation.copy_from_slice(t);
+        }
+        Ok(pose)
+    }
+
     /// Apply to a point.
     pub fn apply(&self, x: &Point3) -> Point3 {
         let r = &self.rotation;
@@ -337,6 +371,22 @@ mod tests {
         for bad in [scaled, reflected, nan] {
             let msg = pose(bad).validate().unwrap_err().to_string();
             assert!(msg.contains("rotation"), "{msg}");
+        }
+    }
+
+    #[test]
+    fn a_pose_from_arrays_is_row_major_with_identity_defaults() {
+        let r = rotation_matrix(&[0.0, 0.6, 0.8], 1.234);
+        let flat: Vec<f64> = r.iter().flatten().copied().collect();
+        let pose = Rigid::from_arrays(Some(&flat), Some(&[1.0, 2.0, 3.0])).unwrap();
+        assert_eq!(pose.rotation, r);
+        assert_eq!(pose.translation, [1.0, 2.0, 3.0]);
+        assert_eq!(Rigid::from_arrays(None, None).unwrap(), Rigid::IDENTITY);
+        let moved = Rigid::from_arrays(None, Some(&[0.0, 0.0, 1.0])).unwrap();
+        assert_eq!(moved.apply(&[1.0, 0.0, 0.0]), [1.0, 0.0, 1.0]);
+        for (rotation, translation) in [(Some(&flat[..8]), None), (None, Some(&flat[..2]))] {
+            let e = Rigid::from_arrays(rotation, translation).unwrap_err();
+            assert!(matches!(e, Error::LengthMismatch { .. }), "{e}");
         }
     }
 

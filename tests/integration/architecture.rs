@@ -142,13 +142,16 @@ fn leaves_import_no_stage() {
 }
 
 /// Modules every stage may use (reports, 3 x 3 algebra, materials and the energy density, errors,
-/// progress, the random generator, sparse kernels): they import no stage, only each other.
-const LEAVES: [&str; 10] = [
+/// progress, the random generator, sparse kernels, the derivative checker, the option names):
+/// they import no stage, only each other.
+const LEAVES: [&str; 12] = [
+    "derivatives",
     "elasticity",
     "error",
     "linalg3",
     "material",
     "names",
+    "options",
     "progress",
     "random",
     "report",

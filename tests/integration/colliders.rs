@@ -287,6 +287,7 @@ fn block_scene(pusher: Collider, steps: usize, slope_g: f64) -> Scene {
         .cache(no_cache())
         .object(
             ObjectSpec::new("block", "box:0.2,0.2,0.2")
+                .unwrap()
                 .kernels(40)
                 .modes(4)
                 .points(3000)

@@ -17,6 +17,7 @@ use freeform::sim::{Collider, Placement};
 
 fn block(name: &str, size: f64, at: [f64; 3], velocity: [f64; 3]) -> ObjectSpec {
     let mut o = ObjectSpec::new(name, &format!("box:{size},{size},{size}"))
+        .unwrap()
         .kernels(30)
         .modes(3)
         .points(1500)
@@ -605,6 +606,7 @@ fn a_clip_closing_on_itself_stops_at_its_own_arm() {
     let clip = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/data/clip.obj");
     let run = |self_contact: bool| -> (f64, World) {
         let mut o = ObjectSpec::new("clip", clip)
+            .unwrap()
             .kernels(400)
             .modes(12)
             .points(8000)

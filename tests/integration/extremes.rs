@@ -9,11 +9,6 @@
 #![allow(clippy::needless_range_loop)] // index loops mirror the formulas
 
 use crate::common;
-/// The CLI's rendering of library messages: coverage errors name the support factor by its
-/// library name, and say `--support` where the CLI prints them.
-#[allow(dead_code)]
-#[path = "../../src/bin/freeform/messages.rs"]
-mod messages;
 use common::held_left;
 use freeform::eigen::compare::{max_eigenvalue_rel_diff, max_subspace_angle};
 use freeform::geometry::ShapeOptions;
@@ -30,7 +25,9 @@ use freeform::sim::newton::SolveReport;
 use freeform::sim::{Boundary, HessianStrategy, NewtonOptions, ReducedSim, SimOptions};
 use freeform::sparse::to_dense;
 use freeform::{Error, Point3};
-use messages::{error_message, Front};
+// Coverage errors name the support factor through the option table: `--support` where the
+// command line prints them (`Front::Flags`).
+use freeform::options::Front;
 use std::f64::consts::PI;
 
 fn opts(k: usize, m: usize, n: usize, material: Material, solver: SolverConfig) -> BasisOptions {
@@ -353,7 +350,7 @@ fn thin_plates_and_rods_reproduce_the_neumann_laplacian_or_say_why_not() {
                 assert!((lap / (PI * PI) - 1.0).abs() < 0.05, "{spec}: {lap}");
             }
             Err(e) => {
-                let msg = error_message(&e, Front::Flags);
+                let msg = Front::Flags.render(&e);
                 eprintln!("{spec}: {msg}");
                 assert!(matches!(e, Error::Coverage { .. }), "{spec}: {msg}");
                 assert!(
@@ -515,7 +512,7 @@ fn nearly_coplanar_points_are_an_error_that_names_the_place() {
         .collect();
     let v = vec![1e-3 / 3000.0; p.len()];
     let err = from_points(p, v, 60).unwrap_err();
-    let msg = error_message(&err, Front::Flags);
+    let msg = Front::Flags.render(&err);
     assert!(matches!(err, Error::Coverage { .. }), "{msg}");
     assert!(
         msg.contains("position") && msg.contains("--support"),

@@ -27,6 +27,7 @@ mod fem;
 mod geometry;
 mod images;
 mod matrix_free;
+mod options;
 mod pipeline;
 mod properties;
 mod render;

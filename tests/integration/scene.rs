@@ -105,7 +105,7 @@ fn example_scenes_parse() {
     // scripts/example_meshes.py writes (they read as solids), in a one-sided mesh container.
     let c = Scene::load(&dir.join("container.toml")).unwrap();
     assert_eq!(c.objects.len(), 13);
-    let mut shapes: Vec<&str> = c.objects.iter().map(|o| o.shape.as_str()).collect();
+    let mut shapes: Vec<&str> = c.objects.iter().map(|o| o.shape.text()).collect();
     shapes.sort_unstable();
     shapes.dedup();
     assert_eq!(shapes.len(), 5);
@@ -299,6 +299,7 @@ fn frames_are_written_for_paraview_and_a_ball_rests_on_the_floor() {
         })
         .object(
             ObjectSpec::new("ball", "sphere:0.2")
+                .unwrap()
                 .kernels(80)
                 .modes(6)
                 .points(4000)
@@ -395,6 +396,7 @@ fn mesh_and_point_cloud_objects_write_deformed_meshes_and_points() {
         })
         .object(
             ObjectSpec::new("ball", "ball.obj")
+                .unwrap()
                 .kernels(80)
                 .modes(4)
                 .points(4000)
@@ -402,6 +404,7 @@ fn mesh_and_point_cloud_objects_write_deformed_meshes_and_points() {
         )
         .object(
             ObjectSpec::new("cloud", "cloud.ply")
+                .unwrap()
                 .kernels(80)
                 .modes(4)
                 .hold(held(0.1)),

@@ -150,7 +150,12 @@ fn splat_scene(file: &str, rotate_sh: bool) -> Scene {
             rotate_splat_sh: rotate_sh,
             ..OutputSettings::default()
         })
-        .object(ObjectSpec::new("splats", file).kernels(80).modes(4))
+        .object(
+            ObjectSpec::new("splats", file)
+                .unwrap()
+                .kernels(80)
+                .modes(4),
+        )
         .build()
         .unwrap()
 }

@@ -28,6 +28,7 @@ const STEPS: usize = 10;
 /// The 2 cm ball, 3 cm above y = 0 and falling at 30 m/s.
 fn ball() -> ObjectSpec {
     ObjectSpec::new("ball", "sphere:0.01")
+        .unwrap()
         .kernels(20)
         .modes(3)
         .points(800)
@@ -149,6 +150,7 @@ fn a_fast_small_ball_does_not_tunnel_through_a_thin_static_plate() {
 #[test]
 fn a_fast_small_ball_does_not_tunnel_through_a_thin_deformable_plate() {
     let plate = ObjectSpec::new("plate", "box:0.2,0.01,0.2")
+        .unwrap()
         .kernels(30)
         .modes(4)
         .points(2000)

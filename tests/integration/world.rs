@@ -461,7 +461,7 @@ fn a_failing_object_is_named_by_index_and_name_with_its_own_error() {
     let scene = SceneBuilder::new(0.01, 1)
         .cache(no_cache())
         .object(small_bar("fine"))
-        .object(ObjectSpec::new("missing", "no_such_file.obj"))
+        .object(ObjectSpec::new("missing", "no_such_file.obj").unwrap())
         .build()
         .unwrap();
     let err = World::new(&scene, &RunSettings::default(), &Silent).unwrap_err();

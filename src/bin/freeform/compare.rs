@@ -80,13 +80,8 @@ pub fn run(args: CompareArgs) -> CliResult {
     let (shape, opts) = args.shape.build()?;
     let solvers = solvers(&args)?;
     let problem = Problem::from_shape(&shape, &opts, &Silent)?;
-    let mut comparison = problem.compare(&solvers, args.cluster_gap, &Silent)?;
-    // A failed solver's message names the command line's flags.
-    for entry in &mut comparison.comparison.solvers {
-        if let Some(e) = entry.error.as_mut() {
-            *e = crate::messages::localize(e, crate::messages::Front::Flags);
-        }
-    }
+    // A failed solver's message is formatted in the command's front (`--slepc ...`).
+    let comparison = problem.compare(&solvers, args.cluster_gap, &Silent)?;
     if !crate::is_root_rank_any()? {
         return Ok(());
     }

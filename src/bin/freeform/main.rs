@@ -4,7 +4,6 @@ mod beam;
 mod compare;
 mod eval;
 mod export;
-mod messages;
 mod modes;
 mod problem;
 mod render;
@@ -12,7 +11,7 @@ mod run;
 mod sweep;
 
 use clap::{Parser, Subcommand};
-use messages::{error_message, Front};
+use freeform::options::Front;
 use std::process::ExitCode;
 
 /// What every subcommand returns: errors are printed by `main` and give exit code 1.
@@ -125,17 +124,23 @@ fn dispatch(command: Command) -> CliResult {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    // Library messages name options by their library names; print ours in their place.
+    // Every message of the command (errors, warnings, JSON reports) names an option as its
+    // users set it: by its flag, or for `run` by its scene-file key.
     let front = match cli.command {
         Command::Run(_) => Front::Scene,
         _ => Front::Flags,
     };
+    front.scope(|| finish(front, cli.command))
+}
+
+/// Run `command` and end the process: exit code, messages, PETSc/MPI finalization.
+fn finish(front: Front, command: Command) -> ExitCode {
     // A panic must not skip PETSc/MPI finalization (mpirun would report an abort).
-    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| dispatch(cli.command)));
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| dispatch(command)));
     let code = match result {
         Ok(Ok(())) => ExitCode::SUCCESS,
         Ok(Err(e)) => {
-            eprintln!("error: {}", error_message(&*e, front));
+            eprintln!("error: {}", front.render(&*e));
             ExitCode::FAILURE
         }
         // The panic hook has printed the message.
@@ -148,7 +153,7 @@ fn main() -> ExitCode {
     };
     #[cfg(feature = "slepc")]
     if let Err(e) = freeform::eigen::slepc::finalize() {
-        eprintln!("error: {}", error_message(&e, front));
+        eprintln!("error: {}", front.render(&e));
         return ExitCode::FAILURE;
     }
     code

@@ -1,12 +1,13 @@
 //! `freeform modes`: compute skinning eigenmodes and write a basis file.
 
-use crate::messages::{localize_all, Front};
 use crate::problem::BasisArgs;
 use crate::{emit, set_threads, CliResult};
 use clap::{Args, ValueEnum};
 use freeform::eigen::EigenRequest;
+use freeform::eigen::SlepcPreset;
 use freeform::io::basis::BasisMetadata;
 use freeform::io::read_shape;
+use freeform::options;
 use freeform::precompute::{BasisOptions, Problem, SolverConfig};
 use freeform::progress::{Progress, Silent, TerminalProgress};
 use std::io::IsTerminal;
@@ -30,15 +31,23 @@ pub struct ModesArgs {
     /// Discretization, material and tolerance (shared with `export` and `compare`).
     #[command(flatten)]
     basis: BasisArgs,
-    /// Eigensolver.
-    #[arg(long, value_enum, default_value = "lobpcg")]
+    // The eigensolver's flags, written out here (only `modes` takes them in this form): their
+    // help lines are the option table's rows, their defaults the library's.
+    #[arg(
+        long,
+        value_enum,
+        help = options::SOLVER.help,
+        default_value = SolverConfig::default().to_string()
+    )]
     solver: SolverArg,
-    /// SLEPc configuration: ks-sinvert (default), lobpcg-gamg, lobpcg-hypre.
-    #[arg(long, default_value = "ks-sinvert")]
+    #[arg(long, help = options::SLEPC.help, default_value = SlepcPreset::default().name())]
     slepc: String,
-    /// PETSc options for --solver slepc, e.g. "-eps_type jd -st_pc_type gamg" (applied after
-    /// the --slepc preset; values starting with '-' are fine inside the quotes).
-    #[arg(long, allow_hyphen_values = true, default_value = "")]
+    #[arg(
+        long,
+        allow_hyphen_values = true,
+        help = options::PETSC_OPTIONS.help,
+        default_value = ""
+    )]
     petsc_options: String,
     /// Solve the matrices in DIR (hessian.mtx, mass.mtx from `freeform export` or any
     /// MatrixMarket pair) instead of building them from a shape; writes the eigenvectors as a
@@ -102,7 +111,7 @@ pub fn run(args: ModesArgs) -> CliResult {
         &Silent
     };
     let Computed {
-        mut report,
+        report,
         basis,
         points,
         distributed,
@@ -118,8 +127,6 @@ pub fn run(args: ModesArgs) -> CliResult {
             }
         }
     };
-    // Every printed and JSON warning names the command line's flags.
-    localize_all(&mut report.warnings, Front::Flags);
     // Under mpirun only rank 0 (which holds the basis) writes and prints.
     let Some(basis) = basis else {
         return Ok(());
@@ -291,9 +298,9 @@ fn from_matrices(dir: &std::path::Path, args: &ModesArgs) -> CliResult {
     let (h, m) = read_matrices(dir)?;
     let read_s = clock.elapsed();
     let request = EigenRequest {
-        nev: args.basis.modes.saturating_add(1),
-        tol: args.basis.tol,
-        max_iter: args.basis.max_iter,
+        nev: args.basis.choices.options.modes.saturating_add(1),
+        tol: args.basis.choices.options.tol,
+        max_iter: args.basis.choices.options.max_iter,
     };
     let clock = freeform::report::Stopwatch::start();
     let solution = solver.solve_converged(&h, &m, &request, &freeform::progress::Silent)?;
@@ -313,7 +320,7 @@ fn from_matrices(dir: &std::path::Path, args: &ModesArgs) -> CliResult {
     let report = serde_json::json!({
         "matrices": dir.display().to_string(),
         "kernels": h.nrows(),
-        "modes": args.basis.modes,
+        "modes": args.basis.choices.options.modes,
         "nnz_hessian": h.compute_nnz(),
         "nnz_mass": m.compute_nnz(),
         "solver": solver.name(),
@@ -322,7 +329,7 @@ fn from_matrices(dir: &std::path::Path, args: &ModesArgs) -> CliResult {
         "orthonormality_error": solution.info.orthonormality_error,
         "timings_s": { "read": read_s, "eigensolve": solve_s },
         "eigen": solution.info,
-        "tol": args.basis.tol,
+        "tol": args.basis.choices.options.tol,
         "eigenvectors_file": out.display().to_string(),
     });
     if args.json {

@@ -1,6 +1,5 @@
 //! `freeform run`: simulate a scene file and write frames for ParaView.
 
-use crate::messages::{localize_warnings, Front};
 use crate::{emit, set_threads, CliResult};
 use clap::Args;
 use freeform::progress::{Progress, Silent, TerminalProgress};
@@ -47,9 +46,7 @@ pub fn run(args: RunArgs) -> CliResult {
     } else {
         &Silent
     };
-    let mut summary = run_scene(&scene, &settings, progress)?;
-    // Printed and JSON warnings name the scene keys a scene file sets.
-    localize_warnings(&mut summary.warnings, Front::Scene);
+    let summary = run_scene(&scene, &settings, progress)?;
     if args.json {
         let mut v = serde_json::to_value(&summary)?;
         v["scene"] = serde_json::Value::String(args.scene.display().to_string());

@@ -4,7 +4,6 @@
 //! `error_vs_precompute.png`, `error_vs_step.png` (and `sweep.json` with `--json`) to `--out`.
 
 use crate::beam::{progress, BoundariesArg, FemArgs, HessianArg, TestArg};
-use crate::messages::{error_message, Front};
 use crate::{emit, set_threads, CliResult};
 use clap::Args;
 use freeform::benchmark::sweep::{
@@ -149,7 +148,7 @@ pub fn run(args: SweepArgs) -> CliResult {
                     String::new()
                 }
             ),
-            Err(e) => eprintln!("{what}: FAILED: {}", error_message(&e, Front::Flags)),
+            Err(e) => eprintln!("{what}: FAILED: {e}"),
         }
     };
     let bar = progress();

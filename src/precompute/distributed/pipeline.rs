@@ -98,8 +98,11 @@ pub fn build_basis_mpi(
         return Err(crate::Error::param(
             "region",
             opts.boundary_regions.len(),
-            "boundary-aware bases are not built on the MPI path yet; build it in one process \
-             (SLEPc works there too: --solver slepc) or leave out the regions",
+            format!(
+                "boundary-aware bases are not built on the MPI path yet; build it in one process \
+                 (SLEPc works there too: {}) or leave out the regions",
+                crate::options::SOLVER.with("slepc")
+            ),
         ));
     }
     let comm = MpiWorld::new()?;

@@ -103,9 +103,9 @@ pub fn assemble_own_rows(
                 opts.support.factor,
                 format!(
                     "{} point(s) on other MPI ranks are not covered by enough kernels; the \
-                     distributed run does not repair coverage: raise \
-                     BasisOptions::support.factor or run without MPI",
-                    failed[0]
+                     distributed run does not repair coverage: raise {} or run without MPI",
+                    failed[0],
+                    crate::options::SUPPORT_FACTOR
                 ),
             ))
         }

@@ -23,6 +23,10 @@ pub enum KernelType {
 }
 
 impl KernelType {
+    /// Every kernel, in the order of the C API's `kernel` codes (0 cubic, 1 quartic, 2
+    /// Gaussian) and of the command line's choices.
+    pub const ALL: [KernelType; 3] = [KernelType::Cubic, KernelType::Quartic, KernelType::Gaussian];
+
     /// Lower-case name as used on the command line and in files.
     pub fn name(self) -> &'static str {
         crate::names::variant_name(&self)
@@ -72,13 +76,11 @@ impl KernelType {
 mod tests {
     use super::*;
 
-    const ALL: [KernelType; 3] = [KernelType::Cubic, KernelType::Quartic, KernelType::Gaussian];
-
     #[test]
     fn derivative_matches_finite_difference() {
         // Central differences with step 1e-6 have truncation error ~ h^2 |w'''| ~ 1e-11 and
         // round-off ~ eps / h ~ 1e-10: 1e-7 absolute is a safe bound for w' of order 1-10.
-        for kind in ALL {
+        for kind in KernelType::ALL {
             for i in 1..100 {
                 let s = i as f64 / 100.0 + 0.003;
                 if s >= 1.0 - 1e-5 {
@@ -94,7 +96,7 @@ mod tests {
 
     #[test]
     fn compact_support_and_continuity() {
-        for kind in ALL {
+        for kind in KernelType::ALL {
             assert_eq!(kind.eval(1.0), (0.0, 0.0));
             assert_eq!(kind.eval(3.0), (0.0, 0.0));
             // Continuous at s = 1 (to within the cubic's (1 - s)^3 decay).
@@ -110,7 +112,7 @@ mod tests {
 
     #[test]
     fn names_round_trip() {
-        for kind in ALL {
+        for kind in KernelType::ALL {
             assert_eq!(KernelType::from_name(kind.name()), Some(kind));
         }
         assert_eq!(KernelType::from_name("wendland"), None);

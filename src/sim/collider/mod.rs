@@ -206,7 +206,7 @@ pub fn kinematics(colliders: &[Collider]) -> Result<Kinematics> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::check::{check_derivatives, Floors};
+    use crate::derivatives::{check_derivatives, Floors};
     use crate::sim::motion::{rotation_matrix, AxisAngle, Rigid};
     use crate::Point3;
 

@@ -5,7 +5,7 @@
 //!
 //! Leaves first: `term` (the trait and what it is given), `moments` (the quadratic forms'
 //! coefficients), then one file per term, then this file's sum. Every term's test checks its
-//! derivatives with [`check_derivatives`] (`sim/check.rs`, re-exported here).
+//! derivatives with [`check_derivatives`] (the leaf `crate::derivatives`, re-exported here).
 
 mod boundary;
 mod collider;
@@ -15,7 +15,7 @@ mod inertia;
 mod moments;
 mod term;
 
-pub use crate::sim::check::{check_derivatives, DerivativeCheck, Floors, HessianFn};
+pub use crate::derivatives::{check_derivatives, DerivativeCheck, Floors, HessianFn};
 pub use crate::sim::collider::ColliderShape;
 pub use crate::sim::friction::ColliderLag;
 pub use boundary::BoundaryTerm;

@@ -143,7 +143,7 @@ impl fmt::Display for TermKind {
 /// A new term is a type implementing this trait, registered with
 /// [`crate::sim::ReducedSim::add_term`] (or, built in, one entry of
 /// [`super::Terms::iter`]). Its energy, gradient and Hessian are checked against each other
-/// by [`crate::sim::check::check_derivatives`].
+/// by [`crate::derivatives::check_derivatives`].
 pub trait Term: Send + Sync {
     /// What the term is, for reports, in the environment `env` (the colliders' kinds are
     /// the environment's).

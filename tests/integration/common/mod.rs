@@ -53,6 +53,7 @@ pub fn held_left() -> freeform::sim::Boundary {
 /// A small, fast object: a 1 x 0.2 x 0.2 bar with few kernels.
 pub fn small_bar(name: &str) -> ObjectSpec {
     ObjectSpec::new(name, "box:1,0.2,0.2")
+        .unwrap()
         .kernels(60)
         .modes(6)
         .points(3000)

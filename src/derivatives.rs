@@ -1,4 +1,7 @@
-//! Derivatives against central differences: the one checker every term's test uses.
+//! Derivatives against central differences: the one checker of every hand-derived gradient
+//! and Hessian (the energy density's in `elasticity`, every simulation term's, the obstacles',
+//! the FEM reference's). A leaf (it imports nothing of the crate), so the leaves' own tests can
+//! use it; `sim::terms` re-exports it.
 
 use faer::Mat;
 
