@@ -27,7 +27,7 @@ mod petsc {
         "Vec(Create|CreateMPI|SetSizes|SetFromOptions|Destroy|GetArrayRead|RestoreArrayRead|GetArray|RestoreArray|GetOwnershipRange|GetSize|GetLocalSize|Duplicate|Set|AssemblyBegin|AssemblyEnd)",
         "VecScatter(CreateToAll|Begin|End|Destroy)",
         "EPS(Create|SetOperators|SetProblemType|SetDimensions|SetTolerances|SetWhichEigenpairs|SetTarget|SetType|GetType|GetST|SetFromOptions|Solve|GetConverged|GetEigenpair|GetIterationNumber|GetConvergedReason|Destroy|SetConvergenceTest|GetDimensions|GetTolerances)",
-        "EPSLOBPCG(GetBlockSize)",
+        "EPSLOBPCG(GetBlockSize|SetBlockSize)",
         "ST(SetType|GetType|GetKSP|SetShift|GetShift)",
         "KSP(Create|Destroy|SetOperators|SetTolerances|SetFromOptions|Solve|GetIterationNumber|GetConvergedReason|SetType|GetType|GetPC)",
         "PC(SetType|GetType|FactorSetMatSolverType|FactorGetMatSolverType)",

@@ -405,6 +405,12 @@ fn advised_solvers_agree_with_dense(
     }
 }
 
+/// The `lobpcg-gamg` preset with SLEPc's own default block size, min(16, nev), which the preset
+/// now replaces by one block for all pairs: the failures below (a false convergence, the
+/// iteration cap, SLEPc's breakdown stop) are SLEPc's with that block, and their reports are
+/// what these tests check.
+const OLD_BLOCK: &str = "lobpcg-gamg:-eps_lobpcg_blocksize 16";
+
 /// SLEPc's LOBPCG reports every pair converged but one is far off. Smallest case found with
 /// the `lobpcg-gamg` preset where one block with guard vectors fits (K >= 5 x 18): K = 120,
 /// m = 15 (16 pairs, SLEPc's default block of 16 already holds them all; scanned K = 80..150,
@@ -420,7 +426,7 @@ fn slepc_lobpcg_false_convergence_names_the_pair_and_the_ways_out() {
         max_iter: 1000,
     };
     let dense = DenseSolver.solve_converged(&h, &m, &req, &Silent).unwrap();
-    let lobpcg = SlepcSolver::new(SlepcOptions::parse("lobpcg-gamg").unwrap());
+    let lobpcg = SlepcSolver::new(SlepcOptions::parse(OLD_BLOCK).unwrap());
     let partial = lobpcg
         .solve(&h, &m, &req, &Silent)
         .unwrap_or_else(|e| panic!("expected SlepcLobpcgNotConverged, got {e}"));
@@ -490,7 +496,7 @@ fn slepc_lobpcg_iteration_cap_is_named_with_the_ways_out() {
         tol: 1e-8,
         max_iter: 1000,
     };
-    let lobpcg = SlepcSolver::new(SlepcOptions::parse("lobpcg-gamg").unwrap());
+    let lobpcg = SlepcSolver::new(SlepcOptions::parse(OLD_BLOCK).unwrap());
     let partial = lobpcg
         .solve(&h, &m, &req, &Silent)
         .unwrap_or_else(|e| panic!("expected the iteration cap, got {e}"));
@@ -536,7 +542,7 @@ fn slepc_lobpcg_stop_on_its_own_breakdown_is_named_with_the_ways_out() {
         tol: 1e-8,
         max_iter: 1000,
     };
-    let lobpcg = SlepcSolver::new(SlepcOptions::parse("lobpcg-gamg").unwrap());
+    let lobpcg = SlepcSolver::new(SlepcOptions::parse(OLD_BLOCK).unwrap());
     let partial = lobpcg
         .solve(&h, &m, &req, &Silent)
         .unwrap_or_else(|e| panic!("expected SLEPc's breakdown stop, got {e}"));

@@ -933,6 +933,16 @@ impl<'s> Eps<'s> {
         Ok(bs.max(0) as usize)
     }
 
+    /// Set the LOBPCG block size (as `-eps_lobpcg_blocksize`; options applied later win).
+    /// An error if the solver type is not `lobpcg`.
+    pub fn set_lobpcg_block_size(&mut self, block: usize) -> Result<()> {
+        let bs = petsc_int("EPSLOBPCGSetBlockSize", block)?;
+        // SAFETY: valid handle; PETSc checks the value.
+        check("EPSLOBPCGSetBlockSize", unsafe {
+            sys::EPSLOBPCGSetBlockSize(self.raw, bs)
+        })
+    }
+
     /// Converged eigenpairs available.
     pub fn converged(&self) -> Result<usize> {
         let mut n: sys::PetscInt = 0;

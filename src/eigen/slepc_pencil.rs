@@ -3,7 +3,8 @@
 //! failure means for the user.
 
 use super::slepc_status::{backend, option_names, SolveStatus};
-use super::{EigenError, EigenRequest, SlepcOptions, SlepcPreset};
+use super::lobpcg::LobpcgOptions;
+use super::{slepc_lobpcg_single_block, EigenError, EigenRequest, SlepcOptions, SlepcPreset};
 use freeform_ffi as petsc;
 
 /// The shift sigma of `options`, or -1e-4 tr(H)/tr(M) from the traces `[tr H, tr M]`.
@@ -185,7 +186,21 @@ pub(super) fn configure<'s>(
             };
             eps.set_spectral_transform(Some("precond"), Some("preonly"), Some(pc), None)?;
             eps.set_st_shift(sigma)?;
+            if let Some(block) = lobpcg_block(request.nev, hm.size()?.0) {
+                eps.set_lobpcg_block_size(block)?;
+            }
         }
     }
     Ok(())
+}
+
+/// The LOBPCG presets' block size for `nev` pairs of a K x K pencil: one block for all pairs
+/// with the native LOBPCG's guard vectors (at least SLEPc's own, [`slepc_lobpcg_single_block`]),
+/// so no pair is hard-locked early (SLEPc's default of min(16, nev) breaks down, docs/slepc.md),
+/// and at most K / 5, SLEPc's limit. None (SLEPc's default) when K is too small for one block
+/// to hold every pair: several blocks of SLEPc's own size then, as before.
+pub(super) fn lobpcg_block(nev: usize, k: usize) -> Option<usize> {
+    let single = slepc_lobpcg_single_block(nev);
+    let native = nev + LobpcgOptions::default().guard_for(nev.saturating_sub(1));
+    (k / 5 >= single).then(|| native.max(single).min(k / 5))
 }
