@@ -127,7 +127,9 @@ fn fail_on_rank() -> Result<Option<usize>, Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
     match args.iter().position(|a| a == "--fail-on-rank") {
         Some(i) => Ok(Some(
-            args.get(i + 1).ok_or("--fail-on-rank needs a rank")?.parse()?,
+            args.get(i + 1)
+                .ok_or("--fail-on-rank needs a rank")?
+                .parse()?,
         )),
         None => Ok(None),
     }
@@ -192,7 +194,9 @@ mod slepc_run {
                     out[(i, j)] = yf[(r, j)];
                 }
             }
-            let done = self.products.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            let done = self
+                .products
+                .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
             if self.fail_after.is_some_and(|n| done >= n) {
                 return Err(OperatorError::new("injected failure (--fail-on-rank)"));
             }
@@ -221,7 +225,10 @@ mod slepc_run {
                 products: Default::default(),
             })
         };
-        Ok((part(Q1Part::Stiffness, fail_after)?, part(Q1Part::Mass, None)?))
+        Ok((
+            part(Q1Part::Stiffness, fail_after)?,
+            part(Q1Part::Mass, None)?,
+        ))
     }
 
     pub fn solve(request: &EigenRequest) -> Result<EigenSolution, Box<dyn std::error::Error>> {
@@ -241,7 +248,11 @@ mod slepc_run {
             tol: super::TOL,
             max_iter: 2000,
         };
-        let result = SlepcSolver::default().solve_operators(&OperatorProblem::new(&h, &m), &request, &Silent);
+        let result = SlepcSolver::default().solve_operators(
+            &OperatorProblem::new(&h, &m),
+            &request,
+            &Silent,
+        );
         freeform::eigen::slepc::finalize()?;
         match result {
             Err(e) => {

@@ -159,6 +159,24 @@ fn petsc_options_override_the_preset() {
 }
 
 #[test]
+fn options_for_objects_made_at_setup_reach_them() {
+    // The multigrid levels' smoothers are created inside EPSSolve (at PCSetUp) and read the
+    // options database then: an option for them must still be there. A bogus smoother type
+    // proves it was read (it was silently dropped while options were cleared before the solve).
+    let (h, m) = q1_fem(N, H);
+    let solver = SlepcSolver::new(
+        SlepcOptions::parse("lobpcg-gamg:-st_mg_levels_ksp_type bogus_smoother").unwrap(),
+    );
+    let err = solver.solve(&h, &m, &request(1e-9), &Silent).unwrap_err();
+    assert!(err.to_string().contains("bogus_smoother"), "{err}");
+    // And they are gone after the solve: the same preset without them solves.
+    let sol = SlepcSolver::new(SlepcOptions::parse("lobpcg-gamg").unwrap())
+        .solve_converged(&h, &m, &request(1e-9), &Silent)
+        .unwrap();
+    assert!(sol.converged());
+}
+
+#[test]
 fn a_petsc_error_carries_petscs_message() {
     let (h, m) = q1_fem(N, H);
     let solver = SlepcSolver::new(SlepcOptions::parse("-eps_type no_such_solver").unwrap());

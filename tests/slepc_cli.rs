@@ -265,7 +265,14 @@ fn distributed_runs_on_1_2_and_4_ranks_equal_the_native_basis() {
     use freeform::eigen::compare::{max_eigenvalue_rel_diff, max_subspace_angle};
     let dir = tempfile::tempdir().unwrap();
     let common = [
-        "box:2,1,1", "--kernels", "600", "--modes", "8", "--tol", "1e-10", "--json",
+        "box:2,1,1",
+        "--kernels",
+        "600",
+        "--modes",
+        "8",
+        "--tol",
+        "1e-10",
+        "--json",
     ];
     let native_out = dir.path().join("native.npz");
     let native = Command::new(env!("CARGO_BIN_EXE_freeform"))
@@ -296,7 +303,10 @@ fn distributed_runs_on_1_2_and_4_ranks_equal_the_native_basis() {
         let r = json(&mpirun(ranks, &args));
         assert_eq!(r["distributed"]["ranks"], ranks, "{r}");
         let got = freeform::io::basis::load(&out).unwrap().basis;
-        assert_eq!(got.kernels.centers, reference.kernels.centers, "P = {ranks}");
+        assert_eq!(
+            got.kernels.centers, reference.kernels.centers,
+            "P = {ranks}"
+        );
         assert_eq!(got.kernels.radii, reference.kernels.radii, "P = {ranks}");
         // The constant mode's eigenvalue is ~0: compare the others relatively.
         let diff = max_eigenvalue_rel_diff(&reference.eigenvalues[1..], &got.eigenvalues[1..]);

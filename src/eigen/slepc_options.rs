@@ -27,6 +27,16 @@ impl SlepcPreset {
     pub fn from_name(name: &str) -> Option<Self> {
         crate::names::from_name(name)
     }
+
+    /// The PETSc options the preset sets through the options database (applied before
+    /// [`SlepcOptions::petsc_options`], which override them); the rest of the preset is set
+    /// by calls (`eigen::slepc`).
+    pub fn petsc_options(self) -> &'static str {
+        match self {
+            SlepcPreset::KsSinvert => "",
+            SlepcPreset::LobpcgGamg | SlepcPreset::LobpcgHypre => "",
+        }
+    }
 }
 
 /// How the SLEPc backend runs. Its string form is [`SlepcOptions::spec`], read back by

@@ -2,8 +2,8 @@
 //! the preset's configuration, the caller's PETSc options on top, `EPSSolve`, and what a
 //! failure means for the user.
 
-use super::slepc_status::{backend, option_names, SolveStatus};
 use super::lobpcg::LobpcgOptions;
+use super::slepc_status::{backend, ScopedOptions, SolveStatus};
 use super::{slepc_lobpcg_single_block, EigenError, EigenRequest, SlepcOptions, SlepcPreset};
 use freeform_ffi as petsc;
 
@@ -88,24 +88,24 @@ pub(super) fn solve_pencil<'s>(
     let world = session.world();
     let mut eps = petsc::Eps::new(session, world).map_err(backend)?;
     configure(&mut eps, hm, mm, request, options, sigma).map_err(backend)?;
-    // User options go into the global database only for this solve.
-    let names = option_names(&options.petsc_options);
-    let from_options = session
-        .options_insert(&options.petsc_options)
-        .and_then(|_| eps.set_from_options());
-    for name in &names {
-        // Clearing an option that is not set is not an error in PETSc.
-        let _ = session.options_clear(name);
-    }
-    from_options.map_err(backend)?;
+    // The preset's options, then the user's (later ones win), in the global database for this
+    // solve only (until `scoped` is dropped, after the solve).
+    let all = format!(
+        "{} {}",
+        options.preset.petsc_options(),
+        options.petsc_options
+    );
+    let scoped = ScopedOptions::insert(session, all.trim()).map_err(backend)?;
+    eps.set_from_options().map_err(backend)?;
     // Options that switch to LOBPCG (e.g. "-eps_type lobpcg" on top of ks-sinvert) would keep
     // the relative test and abort on the zero eigenvalue: use ours unless the user chose one.
     let chosen_type = eps.describe().map_err(backend)?[0].clone();
-    if chosen_type == "lobpcg" && !names.iter().any(|n| n.starts_with("-eps_conv_")) {
+    if chosen_type == "lobpcg" && !scoped.has_prefix("-eps_conv_") {
         eps.set_convergence_test(petsc::Convergence::Norm)
             .map_err(backend)?;
     }
     let solved = eps.solve();
+    drop(scoped);
     // SLEPc sets the LOBPCG block size up inside EPSSolve and reports it after a failed solve
     // too; the error and the status both name it.
     let block_size = if chosen_type == "lobpcg" {

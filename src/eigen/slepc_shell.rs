@@ -12,7 +12,7 @@
 //! are estimated collectively (Hager-Higham on the distributed vectors), and the residuals and
 //! M-orthonormality are recomputed through the operators, each rank on its rows, summed.
 
-use super::slepc_status::{backend, convergence_status, option_names, SolveStatus};
+use super::slepc_status::{backend, convergence_status, ScopedOptions, SolveStatus};
 use super::{
     apply_checked, apply_preconditioner_checked, relative_residual, validate_request, EigenError,
     EigenInfo, EigenRequest, EigenSolution, LinearOperator, OperatorProblem, SlepcOptions,
@@ -275,12 +275,28 @@ pub(super) fn solve(
     };
     // SAFETY: the EPS is declared after the shells and dropped before them (reverse order of
     // declaration), and all of them before this function returns, while the operators live.
-    let (hm, h_failure) =
-        unsafe { petsc::Mat::shell(&session, world, n, k, Some(norm_h), shell_apply(h, "H", &reduce)) }
-            .map_err(backend)?;
-    let (mm, m_failure) =
-        unsafe { petsc::Mat::shell(&session, world, n, k, Some(norm_m), shell_apply(m, "M", &reduce)) }
-            .map_err(backend)?;
+    let (hm, h_failure) = unsafe {
+        petsc::Mat::shell(
+            &session,
+            world,
+            n,
+            k,
+            Some(norm_h),
+            shell_apply(h, "H", &reduce),
+        )
+    }
+    .map_err(backend)?;
+    let (mm, m_failure) = unsafe {
+        petsc::Mat::shell(
+            &session,
+            world,
+            n,
+            k,
+            Some(norm_m),
+            shell_apply(m, "M", &reduce),
+        )
+    }
+    .map_err(backend)?;
     let mut eps = petsc::Eps::new(&session, world).map_err(backend)?;
     eps.set_operators(&hm, &mm).map_err(backend)?;
     eps.set_problem_type(petsc::ProblemType::Ghep)
@@ -322,15 +338,12 @@ pub(super) fn solve(
         }
         (None, None) => None,
     };
-    let names = option_names(&options.petsc_options);
-    let from_options = session
-        .options_insert(&options.petsc_options)
-        .and_then(|_| eps.set_from_options());
-    for name in &names {
-        let _ = session.options_clear(name);
-    }
-    from_options.map_err(backend)?;
-    if let Err(e) = eps.solve() {
+    // In the database until the solve is over (objects made at setup read it then).
+    let scoped = ScopedOptions::insert(&session, &options.petsc_options).map_err(backend)?;
+    eps.set_from_options().map_err(backend)?;
+    let solved = eps.solve();
+    drop(scoped);
+    if let Err(e) = solved {
         for (which, failure) in [
             ("H", Some(&h_failure)),
             ("M", Some(&m_failure)),

@@ -28,6 +28,47 @@ pub(super) fn backend(e: petsc::PetscError) -> EigenError {
     }
 }
 
+/// PETSc options put into the global database for one solve and cleared again when this is
+/// dropped, after the solve: objects PETSc creates while setting up (the levels of a multigrid
+/// preconditioner, say) read the database then, so clearing the options right after
+/// `EPSSetFromOptions` would silently drop every option for them.
+pub(super) struct ScopedOptions<'s> {
+    session: &'s petsc::Session,
+    names: Vec<String>,
+}
+
+impl<'s> ScopedOptions<'s> {
+    /// Insert `options` (e.g. `"-eps_type lobpcg -st_pc_type gamg"`).
+    pub(super) fn insert(
+        session: &'s petsc::Session,
+        options: &str,
+    ) -> Result<Self, petsc::PetscError> {
+        let scoped = Self {
+            session,
+            names: option_names(options)
+                .into_iter()
+                .map(String::from)
+                .collect(),
+        };
+        session.options_insert(options)?;
+        Ok(scoped)
+    }
+
+    /// Whether an option of this name (or starting with it) was given.
+    pub(super) fn has_prefix(&self, prefix: &str) -> bool {
+        self.names.iter().any(|n| n.starts_with(prefix))
+    }
+}
+
+impl Drop for ScopedOptions<'_> {
+    fn drop(&mut self) {
+        for name in &self.names {
+            // Clearing an option that is not set is not an error in PETSc.
+            let _ = self.session.options_clear(name);
+        }
+    }
+}
+
 /// Option names (`-eps_type`) in an options string: tokens starting with `-` and a letter.
 pub(super) fn option_names(options: &str) -> Vec<&str> {
     options

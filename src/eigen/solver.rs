@@ -57,7 +57,11 @@ pub trait Eigensolver {
         request: &EigenRequest,
         progress: &dyn Progress,
     ) -> Result<EigenSolution, EigenError> {
-        match (problem.h.assembled(), problem.m.assembled(), problem.preconditioner) {
+        match (
+            problem.h.assembled(),
+            problem.m.assembled(),
+            problem.preconditioner,
+        ) {
             (Some(h), Some(m), None) => self.solve(h, m, request, progress),
             _ => Err(EigenError::InvalidRequest(format!(
                 "the {} solver needs assembled H and M and builds its own preconditioner; \
