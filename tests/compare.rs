@@ -38,8 +38,8 @@ fn compare_native_against_dense_reports_every_key() {
     let r = json(&freeform(&args));
     let solvers = r["solvers"].as_array().expect("solvers array");
     // Without SLEPc (default build) the list is native + dense; with it, the default SLEPc
-    // set is shift-and-invert alone (the LOBPCG presets can run to the cap, issue 19).
-    let expected = if cfg!(feature = "slepc") { 3 } else { 2 };
+    // set is the default preset (lobpcg-gamg) and the direct one (ks-sinvert).
+    let expected = if cfg!(feature = "slepc") { 4 } else { 2 };
     assert_eq!(solvers.len(), expected, "{solvers:?}");
     assert_eq!(r["max_iter"], 1000);
     for s in solvers {

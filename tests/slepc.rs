@@ -147,12 +147,12 @@ fn petsc_options_override_the_preset() {
     );
     let exact = q1_fem_eigenvalues(N, H, 8);
     assert!(max_rel_diff(&sol.values, &exact) < 1e-7);
-    // The options were removed after the solve: the next default solve is Krylov-Schur again.
+    // The options were removed after the solve: the next default solve is the preset's again.
     let sol = SlepcSolver::default()
         .solve_converged(&h, &m, &request(1e-9), &Silent)
         .unwrap();
     assert!(
-        sol.info.notes[0].contains("eps krylovschur"),
+        sol.info.notes[0].contains("eps lobpcg") && sol.info.notes[0].contains("pc gamg"),
         "{:?}",
         sol.info.notes
     );
@@ -261,8 +261,9 @@ fn petsc_reads_our_binary_export_exactly() {
 /// smallest case found with the `lobpcg-gamg` preset: K = 80 (SLEPc needs K >= 5 x the block
 /// size 16) and 19 pairs, i.e. more pairs than one block holds (scanned K = 80..3000, m = 8..32;
 /// it breaks down here and at K = 100 with m >= 24, K = 2800 and 3000 with m = 32, but not at
-/// K = 90 or with m <= 15). The advice in the message is checked too: the default SLEPc
-/// configuration and the native LOBPCG solve the same problem and agree with the dense solver.
+/// K = 90 or with m <= 15; scanned with [`OLD_GAMG`], GAMG's own smoothers, which the preset
+/// had then). The advice in the message is checked too: the direct SLEPc configuration and the
+/// native LOBPCG solve the same problem and agree with the dense solver.
 #[test]
 fn lobpcg_breakdown_is_a_typed_error_with_advice() {
     use freeform::eigen::compare::max_eigenvalue_rel_diff;
@@ -274,7 +275,7 @@ fn lobpcg_breakdown_is_a_typed_error_with_advice() {
         tol: 1e-8,
         max_iter: 1000,
     };
-    let lobpcg = SlepcSolver::new(SlepcOptions::parse("lobpcg-gamg").unwrap());
+    let lobpcg = SlepcSolver::new(SlepcOptions::parse(OLD_GAMG).unwrap());
     match lobpcg.solve(h, m, &req, &Silent) {
         Err(
             ref e @ EigenError::SlepcLobpcgBreakdown {
@@ -306,7 +307,7 @@ fn lobpcg_breakdown_is_a_typed_error_with_advice() {
     }
     // PETSc is usable afterwards, and both advised solvers solve the same problem.
     let dense = DenseSolver.solve_converged(h, m, &req, &Silent).unwrap();
-    let ks = SlepcSolver::default()
+    let ks = SlepcSolver::new(SlepcOptions::parse("ks-sinvert").unwrap())
         .solve_converged(h, m, &req, &Silent)
         .unwrap();
     let native = Lobpcg::default()
@@ -378,7 +379,7 @@ fn plain_residual(
     r / ((nh + lambda.abs() * nm) * xn)
 }
 
-/// Every way out that a SLEPc LOBPCG failure message advises solves the problem: the default
+/// Every way out that a SLEPc LOBPCG failure message advises solves the problem: the direct
 /// SLEPc configuration, the native LOBPCG, and the SLEPc options given, all against the dense
 /// solver (`nev` pairs, or the first `fewer` with the preset alone).
 fn advised_solvers_agree_with_dense(
@@ -394,15 +395,13 @@ fn advised_solvers_agree_with_dense(
     let mut solvers: Vec<(String, Box<dyn Eigensolver>, usize)> = vec![
         (
             "ks-sinvert".into(),
-            Box::new(SlepcSolver::default()),
+            Box::new(SlepcSolver::new(SlepcOptions::parse("ks-sinvert").unwrap())),
             req.nev,
         ),
         ("native lobpcg".into(), Box::new(Lobpcg::default()), req.nev),
         (
-            format!("lobpcg-gamg, {fewer} pairs"),
-            Box::new(SlepcSolver::new(
-                SlepcOptions::parse("lobpcg-gamg").unwrap(),
-            )),
+            format!("lobpcg-gamg with GAMG's own smoothers, {fewer} pairs"),
+            Box::new(SlepcSolver::new(SlepcOptions::parse(OLD_GAMG).unwrap())),
             fewer,
         ),
     ];
@@ -423,11 +422,16 @@ fn advised_solvers_agree_with_dense(
     }
 }
 
+/// The `lobpcg-gamg` preset with GAMG's own level smoothers (Chebyshev + Jacobi), as it was
+/// before the preset chose Richardson + SOR.
+const OLD_GAMG: &str = "lobpcg-gamg:-st_mg_levels_ksp_type chebyshev -st_mg_levels_pc_type jacobi";
+
 /// The `lobpcg-gamg` preset with SLEPc's own default block size, min(16, nev), which the preset
-/// now replaces by one block for all pairs: the failures below (a false convergence, the
-/// iteration cap, SLEPc's breakdown stop) are SLEPc's with that block, and their reports are
-/// what these tests check.
-const OLD_BLOCK: &str = "lobpcg-gamg:-eps_lobpcg_blocksize 16";
+/// now replaces by one block for all pairs, and GAMG's own smoothers ([`OLD_GAMG`]): the
+/// failures below (a false convergence, the iteration cap, SLEPc's breakdown stop) are SLEPc's
+/// with that configuration, and their reports are what these tests check.
+const OLD_BLOCK: &str = "lobpcg-gamg:-eps_lobpcg_blocksize 16 -st_mg_levels_ksp_type chebyshev \
+                         -st_mg_levels_pc_type jacobi";
 
 /// SLEPc's LOBPCG reports every pair converged but one is far off. Smallest case found with
 /// the `lobpcg-gamg` preset where one block with guard vectors fits (K >= 5 x 18): K = 120,
@@ -533,7 +537,7 @@ fn slepc_lobpcg_iteration_cap_is_named_with_the_ways_out() {
             assert!(
                 text.starts_with(
                     "SLEPc's LOBPCG stopped at its iteration cap (1000 iterations) with 16/17 \
-                     pairs converged (tol 1.0e-8). Use the default SLEPc configuration --slepc \
+                     pairs converged (tol 1.0e-8). Use SLEPc's direct configuration --slepc \
                      ks-sinvert"
                 ) && text.contains("--solver lobpcg")
                     && text.contains("\"-eps_lobpcg_blocksize 19\"), or ask for fewer modes")

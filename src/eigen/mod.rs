@@ -312,9 +312,9 @@ pub enum EigenError {
     /// eigenpairs are available.
     #[error(
         "SLEPc's LOBPCG broke down: loss of B-orthogonality in the Rayleigh-Ritz step (LAPACK \
-         {routine} info={info}; {nev} pairs, block size {}). Use the default SLEPc \
-         configuration {} (Krylov-Schur, shift-and-invert), or freeform's native LOBPCG ({}, the \
-         default); to keep SLEPc's LOBPCG, {}",
+         {routine} info={info}; {nev} pairs, block size {}). Use SLEPc's direct configuration {} \
+         (Krylov-Schur, shift-and-invert), or freeform's native LOBPCG ({}, the default); to \
+         keep SLEPc's LOBPCG, {}",
         block_size.map_or_else(|| "unknown".to_string(), |b| b.to_string()),
         options::SLEPC.with("ks-sinvert"),
         options::SOLVER.with("lobpcg"),
@@ -343,7 +343,7 @@ pub enum EigenError {
     /// [`EigenError::NotConverged`]. Made from [`EigenStatus::SlepcLobpcgNotConverged`] by
     /// [`EigenSolution::into_converged`].
     #[error(
-        "{}. Use the default SLEPc configuration {} (Krylov-Schur, shift-and-invert), or \
+        "{}. Use SLEPc's direct configuration {} (Krylov-Schur, shift-and-invert), or \
          freeform's native LOBPCG ({}, the default); to keep SLEPc's LOBPCG, {}",
         slepc_lobpcg_stop_text(stop, *iterations, *reported, *converged, *nev, *tol),
         options::SLEPC.with("ks-sinvert"),

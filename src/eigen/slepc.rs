@@ -4,11 +4,13 @@
 //! The matrices go into PETSc AIJ matrices (MPIAIJ under `mpirun`, each rank holding a block of
 //! rows), the problem is a GHEP, and the solver is configured by a [`SlepcPreset`]:
 //!
-//! - `ks-sinvert` (default): Krylov-Schur, shift-and-invert at a small negative target
+//! - `ks-sinvert`: Krylov-Schur, shift-and-invert at a small negative target
 //!   sigma = -1e-4 tr(H)/tr(M) (H - sigma M is then SPD, so a Cholesky factorization applies),
 //!   KSP `preonly`, PC `cholesky` with MUMPS.
-//! - `lobpcg-gamg` / `lobpcg-hypre`: SLEPc's LOBPCG with ST `precond`, the AMG preconditioner
-//!   built on H - sigma M (same sigma: a shift that is too small stalls AMG).
+//! - `lobpcg-gamg` (default) / `lobpcg-hypre`: SLEPc's LOBPCG with ST `precond`, the AMG
+//!   preconditioner built on H - sigma M (same sigma: a shift that is too small stalls AMG);
+//!   GAMG's levels smoothed by Richardson + SOR ([`SlepcPreset::petsc_options`]), one block for
+//!   every pair with the native guard vectors where K allows it.
 //!
 //! The LOBPCG presets use SLEPc's `EPS_CONV_NORM` test, ||r|| / ((||H|| + |lambda| ||M||)
 //! ||x||), which is freeform's own tolerance definition ([`super::EigenRequest::tol`]); the
@@ -602,7 +604,7 @@ mod tests {
             text,
             "SLEPc's LOBPCG reported convergence (5 pairs after 33 iterations), but freeform's \
              own residual check finds pair 2 of 0..3 (lambda 2.0000e6) at relative residual \
-             5.00e-2 > 1.0e-7 (10 x tol 1.0e-8; 2 pair(s) above it). Use the default SLEPc \
+             5.00e-2 > 1.0e-7 (10 x tol 1.0e-8; 2 pair(s) above it). Use SLEPc's direct \
              configuration --slepc ks-sinvert (Krylov-Schur, shift-and-invert), or freeform's \
              native LOBPCG (--solver lobpcg, the default); to keep SLEPc's LOBPCG, solve all \
              pairs in one block with room for SLEPc's guard vectors (--petsc-options \
@@ -644,7 +646,7 @@ mod tests {
         assert!(
             text.starts_with(
                 "SLEPc's LOBPCG stopped at its iteration cap (33 iterations) with 3/4 pairs \
-                 converged (tol 1.0e-8). Use the default SLEPc configuration --slepc ks-sinvert"
+                 converged (tol 1.0e-8). Use SLEPc's direct configuration --slepc ks-sinvert"
             ) && !text.contains("--max-iter"),
             "{text}"
         );
@@ -721,7 +723,7 @@ mod tests {
             SlepcPreset::LobpcgGamg
         );
         let o = SlepcOptions::parse("-eps_type jd -eps_target -0.5").unwrap();
-        assert_eq!(o.preset, SlepcPreset::KsSinvert);
+        assert_eq!(o.preset, SlepcPreset::LobpcgGamg);
         assert_eq!(option_names(&o.petsc_options), ["-eps_type", "-eps_target"]);
         let o = SlepcOptions::parse("ks-sinvert:-st_pc_factor_mat_solver_type cholmod").unwrap();
         assert_eq!(o.petsc_options, "-st_pc_factor_mat_solver_type cholmod");

@@ -137,6 +137,13 @@ pub(super) fn solve_pencil<'s>(
         ),
         format!("slepc: target/shift {sigma:.6e}, {ranks} MPI rank(s), {converged} converged"),
     ];
+    let preset_options = options.preset.petsc_options();
+    if !preset_options.is_empty() {
+        notes.push(format!(
+            "slepc: preset {} sets {preset_options}",
+            options.preset.name()
+        ));
+    }
     if !options.petsc_options.is_empty() {
         notes.push(format!("slepc: options {}", options.petsc_options));
     }

@@ -230,7 +230,7 @@ pub static SLEPC: OptionName = OptionName {
     python: Some("eigensolver"),
     c: None,
     value_prefix: "slepc:",
-    help: "SLEPc configuration: ks-sinvert (default), lobpcg-gamg, lobpcg-hypre",
+    help: "SLEPc configuration: lobpcg-gamg (default), ks-sinvert, lobpcg-hypre",
 };
 
 /// PETSc options on top of a SLEPc configuration.

@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 /// |---|---|
 /// | `lobpcg` | native sparse LOBPCG at [`LobpcgOptions::default`] (the default) |
 /// | `dense` | dense reference solver |
-/// | `slepc` | SLEPc, preset `ks-sinvert` |
+/// | `slepc` | SLEPc, preset `lobpcg-gamg` |
 /// | `slepc:CONFIG` | SLEPc; CONFIG as [`SlepcOptions::parse`] reads it: `ks-sinvert`, `lobpcg-gamg`, `lobpcg-hypre`, PETSc options starting with `-`, or `preset:options` |
 ///
 /// Display gives `slepc:` followed by [`SlepcOptions::spec`] (`slepc:ks-sinvert`,
@@ -262,8 +262,8 @@ mod tests {
         }
         // Short forms name their canonical one.
         for (short, canonical) in [
-            ("slepc", "slepc:ks-sinvert"),
-            (" slepc:-eps_type jd ", "slepc:ks-sinvert:-eps_type jd"),
+            ("slepc", "slepc:lobpcg-gamg"),
+            (" slepc:-eps_type jd ", "slepc:lobpcg-gamg:-eps_type jd"),
             ("slepc:lobpcg-gamg:", "slepc:lobpcg-gamg"),
         ] {
             let c: SolverConfig = short.parse().unwrap();
@@ -277,7 +277,7 @@ mod tests {
         assert_eq!(
             SolverConfig::slepc("-a 1", "-b 2").unwrap(),
             SolverConfig::Slepc(SlepcOptions {
-                preset: SlepcPreset::KsSinvert,
+                preset: SlepcPreset::LobpcgGamg,
                 petsc_options: "-a 1 -b 2".into(),
                 shift: None,
             })

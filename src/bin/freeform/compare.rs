@@ -16,8 +16,8 @@ pub struct CompareArgs {
     shape: ShapeArgs,
     /// SLEPc configurations, comma-separated or repeated: ks-sinvert, lobpcg-gamg,
     /// lobpcg-hypre, raw PETSc options ("-eps_type jd -st_pc_type gamg"), or
-    /// preset:options [default with a `slepc` build: ks-sinvert, the one that finishes at
-    /// every size measured; the LOBPCG presets can run to the iteration cap, docs/slepc.md].
+    /// preset:options [default with a `slepc` build: lobpcg-gamg, the default of
+    /// `--solver slepc`, and ks-sinvert, the direct one; docs/slepc.md].
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     slepc: Vec<String>,
     /// Also run the dense reference solver (K up to a few thousand).
@@ -54,7 +54,7 @@ fn solvers(args: &CompareArgs) -> Result<Vec<SolverConfig>, Box<dyn std::error::
     #[cfg(feature = "slepc")]
     {
         let specs: Vec<String> = if args.slepc.is_empty() {
-            vec!["ks-sinvert".into()]
+            vec!["lobpcg-gamg".into(), "ks-sinvert".into()]
         } else {
             args.slepc.clone()
         };
