@@ -261,8 +261,8 @@ fn petsc_reads_our_binary_export_exactly() {
 /// smallest case found with the `lobpcg-gamg` preset: K = 80 (SLEPc needs K >= 5 x the block
 /// size 16) and 19 pairs, i.e. more pairs than one block holds (scanned K = 80..3000, m = 8..32;
 /// it breaks down here and at K = 100 with m >= 24, K = 2800 and 3000 with m = 32, but not at
-/// K = 90 or with m <= 15; scanned with [`OLD_GAMG`], GAMG's own smoothers, which the preset
-/// had then). The advice in the message is checked too: the direct SLEPc configuration and the
+/// K = 90 or with m <= 15; scanned with [`OLD_BLOCK`], the configuration the preset had then;
+/// the preset itself now refuses K this small, `refuse_lobpcg_too_small`). The advice in the message is checked too: the direct SLEPc configuration and the
 /// native LOBPCG solve the same problem and agree with the dense solver.
 #[test]
 fn lobpcg_breakdown_is_a_typed_error_with_advice() {
@@ -275,7 +275,7 @@ fn lobpcg_breakdown_is_a_typed_error_with_advice() {
         tol: 1e-8,
         max_iter: 1000,
     };
-    let lobpcg = SlepcSolver::new(SlepcOptions::parse(OLD_GAMG).unwrap());
+    let lobpcg = SlepcSolver::new(SlepcOptions::parse(OLD_BLOCK).unwrap());
     match lobpcg.solve(h, m, &req, &Silent) {
         Err(
             ref e @ EigenError::SlepcLobpcgBreakdown {
@@ -400,8 +400,8 @@ fn advised_solvers_agree_with_dense(
         ),
         ("native lobpcg".into(), Box::new(Lobpcg::default()), req.nev),
         (
-            format!("lobpcg-gamg with GAMG's own smoothers, {fewer} pairs"),
-            Box::new(SlepcSolver::new(SlepcOptions::parse(OLD_GAMG).unwrap())),
+            format!("{OLD_BLOCK}, {fewer} pairs"),
+            Box::new(SlepcSolver::new(SlepcOptions::parse(OLD_BLOCK).unwrap())),
             fewer,
         ),
     ];
@@ -422,12 +422,9 @@ fn advised_solvers_agree_with_dense(
     }
 }
 
-/// The `lobpcg-gamg` preset with GAMG's own level smoothers (Chebyshev + Jacobi), as it was
-/// before the preset chose Richardson + SOR.
-const OLD_GAMG: &str = "lobpcg-gamg:-st_mg_levels_ksp_type chebyshev -st_mg_levels_pc_type jacobi";
-
 /// The `lobpcg-gamg` preset with SLEPc's own default block size, min(16, nev), which the preset
-/// now replaces by one block for all pairs, and GAMG's own smoothers ([`OLD_GAMG`]): the
+/// now replaces by one block for all pairs (or refuses, on a pencil too small for one), and
+/// GAMG's own level smoothers (Chebyshev + Jacobi; the preset now uses Richardson + SOR): the
 /// failures below (a false convergence, the iteration cap, SLEPc's breakdown stop) are SLEPc's
 /// with that configuration, and their reports are what these tests check.
 const OLD_BLOCK: &str = "lobpcg-gamg:-eps_lobpcg_blocksize 16 -st_mg_levels_ksp_type chebyshev \

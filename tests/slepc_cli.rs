@@ -200,7 +200,8 @@ fn slepc_basis_metadata_names_the_solver_that_ran() {
 }
 
 /// `freeform modes box:5,1,1 --kernels K --modes M --solver slepc --slepc lobpcg-gamg` with
-/// GAMG's own level smoothers (as the preset was when these failures were found) into a
+/// SLEPc's own block size and GAMG's own level smoothers (as the preset was when these failures
+/// were found; the preset now refuses K this small) into a
 /// temporary directory, for runs that must fail: the whole stderr and its one `error:` line,
 /// after checking the exit status 1, that there is exactly one error line, no PETSc output,
 /// and no basis file written.
@@ -216,7 +217,7 @@ fn failing_slepc_lobpcg(kernels: &str, modes: &str) -> (String, String) {
             "lobpcg-gamg",
             "--petsc-options",
         ])
-        .arg("-st_mg_levels_ksp_type chebyshev -st_mg_levels_pc_type jacobi")
+        .arg("-eps_lobpcg_blocksize 16 -st_mg_levels_ksp_type chebyshev -st_mg_levels_pc_type jacobi")
         .arg("--out")
         .arg(&out)
         .output()
@@ -330,5 +331,47 @@ fn distributed_runs_on_1_2_and_4_ranks_equal_the_native_basis() {
         )
         .unwrap();
         assert!(angle < 1e-6, "P = {ranks}: eigenspaces {angle:e} rad apart");
+    }
+}
+
+/// Refusals under `mpirun` come from every rank, before any collective could hang, and write
+/// nothing: more ranks than kernels, and a memory share too small for the per-rank estimate
+/// (`FREEFORM_MEMORY_LIMIT`, checked by every rank before anything is allocated).
+#[test]
+fn distributed_refusals_come_from_every_rank_and_write_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("basis.npz");
+    let out_arg = out.to_str().unwrap();
+    let common = ["modes", "box:2,1,1", "--modes", "2", "--solver", "slepc"];
+    // (ranks, kernels, FREEFORM_MEMORY_LIMIT, what every rank says); 10 kernels is the least
+    // any run accepts.
+    let cases = [
+        (11, "10", None, "fewer kernels than the 11 MPI ranks"),
+        (3, "2000", Some("0.001"), "FREEFORM_MEMORY_LIMIT"),
+    ];
+    for (ranks, kernels, limit, expected) in cases {
+        let mut args = common.to_vec();
+        args.extend(["--kernels", kernels, "--distributed", "--threads", "1"]);
+        args.extend(["--out", out_arg]);
+        let mut cmd = Command::new("mpirun");
+        // mpirun would kill the other ranks as soon as one exits non-zero; they are let finish
+        // here so that each rank's own error can be counted.
+        cmd.args(["-n", &ranks.to_string(), "--oversubscribe"])
+            .args(["--mca", "orte_abort_on_non_zero_status", "0"])
+            .arg(env!("CARGO_BIN_EXE_freeform"))
+            .args(&args)
+            .env("OMP_NUM_THREADS", "1")
+            .env("OMPI_MCA_mpi_yield_when_idle", "1")
+            .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+            .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1");
+        if let Some(gb) = limit {
+            cmd.env(freeform::precompute::memory::MEMORY_LIMIT_ENV, gb);
+        }
+        let o = cmd.output().unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        // (mpirun's own exit status is 0 with that setting.) Each rank prints its own error (lines may interleave: the message is counted).
+        assert_eq!(stderr.matches(expected).count(), ranks, "{stderr}");
+        assert!(!stderr.contains("PETSC ERROR"), "{stderr}");
+        assert!(!out.exists(), "{expected}: a basis was written");
     }
 }

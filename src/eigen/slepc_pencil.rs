@@ -5,6 +5,7 @@
 use super::lobpcg::LobpcgOptions;
 use super::slepc_status::{backend, ScopedOptions, SolveStatus};
 use super::{slepc_lobpcg_single_block, EigenError, EigenRequest, SlepcOptions, SlepcPreset};
+use crate::options;
 use freeform_ffi as petsc;
 
 /// The shift sigma of `options`, or -1e-4 tr(H)/tr(M) from the traces `[tr H, tr M]`.
@@ -85,6 +86,7 @@ pub(super) fn solve_pencil<'s>(
     options: &SlepcOptions,
     sigma: f64,
 ) -> Result<Solved<'s>, EigenError> {
+    refuse_lobpcg_too_small(k, request.nev, options)?;
     let world = session.world();
     let mut eps = petsc::Eps::new(session, world).map_err(backend)?;
     configure(&mut eps, hm, mm, request, options, sigma).map_err(backend)?;
@@ -199,6 +201,35 @@ pub(super) fn configure<'s>(
         }
     }
     Ok(())
+}
+
+/// The LOBPCG presets on a pencil too small for one block of every pair ([`lobpcg_block`] is
+/// None: K < 5 x the block) are refused before SLEPc starts: with several blocks SLEPc's
+/// LOBPCG breaks down, stops short or reports false convergence at such sizes, and below
+/// 5 x its own block it refuses with a PETSc error (docs/slepc.md). The same on every rank (K,
+/// nev and the options are). Options that choose the block size or the solver are the caller's
+/// to keep.
+fn refuse_lobpcg_too_small(k: usize, nev: usize, options: &SlepcOptions) -> Result<(), EigenError> {
+    let lobpcg = matches!(
+        options.preset,
+        SlepcPreset::LobpcgGamg | SlepcPreset::LobpcgHypre
+    );
+    let own_choice = ["-eps_lobpcg_blocksize", "-eps_type"]
+        .iter()
+        .any(|o| options.petsc_options.contains(o));
+    if !lobpcg || own_choice || lobpcg_block(nev, k).is_some() {
+        return Ok(());
+    }
+    let single = slepc_lobpcg_single_block(nev);
+    Err(EigenError::InvalidRequest(format!(
+        "K = {k} is too small for SLEPc's LOBPCG ({}) to hold all {nev} pairs in one block \
+         (it needs K >= 5 x {single} = {}). Use SLEPc's direct configuration {} (fast at this \
+         size), freeform's native LOBPCG ({}), or fewer modes",
+        options.preset.name(),
+        5 * single,
+        options::SLEPC.with("ks-sinvert"),
+        options::SOLVER.with("lobpcg"),
+    )))
 }
 
 /// The LOBPCG presets' block size for `nev` pairs of a K x K pencil: one block for all pairs
