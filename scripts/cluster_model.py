@@ -12,13 +12,15 @@ flags). Each stage:
 - kernel placement (exact distributed FPS): local work K / P, plus one small collective per
   kernel (all-gather up to 16 ranks, maximum + broadcast past that), each alpha * log2(P):
   latency bound, it does not shrink with P;
-- rows: K / P, times (1 + halo), the halo being a rank's kernel supports that reach past its
-  Morton block, a shell of width w kernels around (K / P) kernels: 6 w (K / P)^(-1/3);
+- rows: K / P, times (1 + the point halo): the points a rank evaluates beyond its own, those
+  its kernels' supports reach past its part, a shell around a part of K / P kernels:
+  c (K / P)^(-1/3), c fitted to the 3.5 % measured at K / P = 50,000;
 - eigensolve (the SLEPc default, LOBPCG + GAMG): iterations (flat in P, measured) x [local
-  work K / P x (1 + halo) + reductions x alpha log2 P + V-cycles x levels x neighbour exchanges
-  (alpha + halo bytes / beta)];
+  work K / P + reductions x alpha log2 P + V-cycles x levels x neighbour exchanges (alpha +
+  ghost bytes / beta)], the ghost entries of a product being the kernels within w kernel
+  spacings of the part: 6 w (K / P)^(-1/3) of K / P;
 - memory: a fixed part (process, MPI, PETSc), the arrays every rank holds per kernel (centres,
-  radii, FPS choices), and the per-kernel share, with its halo.
+  radii, FPS choices), and the per-kernel share, with its point halo.
 """
 import argparse
 import math
@@ -34,7 +36,8 @@ BLOCK = 44  # vectors per LOBPCG block (m + 1 = 33 pairs + guard vectors)
 FIXED_BYTES = 0.09e9  # memory fit a + b K / P at K = 100,000 and 300,000 (a: 0.05-0.09 GB)
 BYTES_PER_KERNEL_SHARE = 21e3  # b of that fit
 BYTES_PER_KERNEL_EVERY_RANK = 120  # centres, radii, FPS choices (memory.rs)
-HALO_WIDTH = 2.0  # kernel layers a support reaches past a block (8 x cover non-zeros a row)
+POINT_HALO = 1.29  # evaluated / owned points - 1 = 0.035 at K / P = 50,000 (P = 2): 1.29 x 50,000^(-1/3)
+GHOST_WIDTH = 2.0  # kernel spacings a row's non-zeros reach (supports of radius ~2 spacings)
 
 
 def levels(kernels):
@@ -44,15 +47,15 @@ def levels(kernels):
 
 def model(k, p, alpha, beta):
     own = k / p
-    halo = min(6.0 * HALO_WIDTH * own ** (-1.0 / 3.0), 26.0)
+    halo = min(POINT_HALO * own ** (-1.0 / 3.0), 26.0)
+    ghosts = min(6.0 * GHOST_WIDTH * own ** (-1.0 / 3.0), 26.0)
     hop = alpha * max(1.0, math.log2(p)) if p > 1 else 0.0
     per_kernel_collectives = 1 if p <= 16 else 2
     fps = FPS_S_PER_KERNEL * own + k * per_kernel_collectives * hop
     rows = ROWS_S_PER_KERNEL * own * (1 + halo)
-    halo_bytes = 8.0 * BLOCK * halo * own
-    exchange = (alpha + halo_bytes / BLOCK / beta) if p > 1 else 0.0
+    exchange = (alpha + 8.0 * ghosts * own / beta) if p > 1 else 0.0
     per_iter = (
-        SOLVE_S_PER_KERNEL_ITER * own * (1 + halo)
+        SOLVE_S_PER_KERNEL_ITER * own
         + REDUCTIONS_PER_ITER * hop
         + VCYCLES_PER_ITER * levels(k) * 4 * exchange
     )
@@ -60,9 +63,9 @@ def model(k, p, alpha, beta):
     memory = (
         FIXED_BYTES
         + BYTES_PER_KERNEL_EVERY_RANK * k
-        + BYTES_PER_KERNEL_SHARE * own * (1 + halo / 3.0)
+        + BYTES_PER_KERNEL_SHARE * own * (1 + halo)
     )
-    return fps, rows, solve, memory, halo
+    return fps, rows, solve, memory, ghosts
 
 
 def main():
@@ -72,14 +75,14 @@ def main():
     ap.add_argument("--alpha", type=float, default=2e-6, help="latency per hop, s")
     ap.add_argument("--beta", type=float, default=10e9, help="bandwidth per rank, bytes/s")
     a = ap.parse_args()
-    print("| K | P | FPS s | rows s | eigensolve s | total s | memory per rank GB | halo / own |")
+    print("| K | P | FPS s | rows s | eigensolve s | total s | memory per rank GB | ghosts / own |")
     print("|---|---|---|---|---|---|---|---|")
     for k in a.kernels:
         for p in a.ranks:
-            fps, rows, solve, mem, halo = model(k, p, a.alpha, a.beta)
+            fps, rows, solve, mem, ghosts = model(k, p, a.alpha, a.beta)
             print(
                 f"| {k:,.0f} | {p} | {fps:.1f} | {rows:.1f} | {solve:.1f} | "
-                f"{fps + rows + solve:.1f} | {mem / 1e9:.2f} | {halo:.2f} |"
+                f"{fps + rows + solve:.1f} | {mem / 1e9:.2f} | {ghosts:.2f} |"
             )
 
 

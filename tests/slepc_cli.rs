@@ -199,6 +199,11 @@ fn slepc_basis_metadata_names_the_solver_that_ran() {
     );
 }
 
+/// The options that give `lobpcg-gamg` its earlier configuration: SLEPc's own block size and
+/// GAMG's own level smoothers.
+const OLD_LOBPCG_GAMG_OPTIONS: &str =
+    "-eps_lobpcg_blocksize 16 -st_mg_levels_ksp_type chebyshev -st_mg_levels_pc_type jacobi";
+
 /// `freeform modes box:5,1,1 --kernels K --modes M --solver slepc --slepc lobpcg-gamg` with
 /// SLEPc's own block size and GAMG's own level smoothers (as the preset was when these failures
 /// were found; the preset now refuses K this small) into a
@@ -217,7 +222,7 @@ fn failing_slepc_lobpcg(kernels: &str, modes: &str) -> (String, String) {
             "lobpcg-gamg",
             "--petsc-options",
         ])
-        .arg("-eps_lobpcg_blocksize 16 -st_mg_levels_ksp_type chebyshev -st_mg_levels_pc_type jacobi")
+        .arg(OLD_LOBPCG_GAMG_OPTIONS)
         .arg("--out")
         .arg(&out)
         .output()
