@@ -3,7 +3,7 @@
 //! failure means for the user.
 
 use super::lobpcg::LobpcgOptions;
-use super::slepc_status::{backend, ScopedOptions, SolveStatus};
+use super::slepc_status::{backend, option_names, ScopedOptions, SolveStatus};
 use super::{slepc_lobpcg_single_block, EigenError, EigenRequest, SlepcOptions, SlepcPreset};
 use crate::options;
 use freeform_ffi as petsc;
@@ -214,9 +214,9 @@ fn refuse_lobpcg_too_small(k: usize, nev: usize, options: &SlepcOptions) -> Resu
         options.preset,
         SlepcPreset::LobpcgGamg | SlepcPreset::LobpcgHypre
     );
-    let own_choice = ["-eps_lobpcg_blocksize", "-eps_type"]
+    let own_choice = option_names(&options.petsc_options)
         .iter()
-        .any(|o| options.petsc_options.contains(o));
+        .any(|&n| n == "-eps_lobpcg_blocksize" || n == "-eps_type");
     if !lobpcg || own_choice || lobpcg_block(nev, k).is_some() {
         return Ok(());
     }

@@ -273,30 +273,24 @@ pub(super) fn solve(
         }
         _ => None,
     };
-    // SAFETY: the EPS is declared after the shells and dropped before them (reverse order of
-    // declaration), and all of them before this function returns, while the operators live.
-    let (hm, h_failure) = unsafe {
-        petsc::Mat::shell(
-            &session,
-            world,
-            n,
-            k,
-            Some(norm_h),
-            shell_apply(h, "H", &reduce),
-        )
-    }
-    .map_err(backend)?;
-    let (mm, m_failure) = unsafe {
-        petsc::Mat::shell(
-            &session,
-            world,
-            n,
-            k,
-            Some(norm_m),
-            shell_apply(m, "M", &reduce),
-        )
-    }
-    .map_err(backend)?;
+    let shell = |op, which, norm| {
+        // SAFETY: the EPS is declared after the shells and dropped before them (reverse order
+        // of declaration), and all of them before this function returns, while the operators
+        // live.
+        unsafe {
+            petsc::Mat::shell(
+                &session,
+                world,
+                n,
+                k,
+                Some(norm),
+                shell_apply(op, which, &reduce),
+            )
+        }
+        .map_err(backend)
+    };
+    let (hm, h_failure) = shell(h, "H", norm_h)?;
+    let (mm, m_failure) = shell(m, "M", norm_m)?;
     let mut eps = petsc::Eps::new(&session, world).map_err(backend)?;
     eps.set_operators(&hm, &mm).map_err(backend)?;
     eps.set_problem_type(petsc::ProblemType::Ghep)
