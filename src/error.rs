@@ -286,9 +286,28 @@ impl Error {
     ) -> Self {
         Error::InvalidParameter {
             name,
-            value: value.to_string(),
+            value: readable_value(value.to_string()),
             reason: reason.into(),
         }
+    }
+}
+
+/// `x` as people read it: Rust's plain form in 1e-4..1e16, scientific notation beyond (Rust
+/// prints 1e300 as 301 digits).
+pub fn readable_number(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() || (1e-4..1e16).contains(&x.abs()) {
+        x.to_string()
+    } else {
+        format!("{x:e}")
+    }
+}
+
+/// A displayed value, with a number too long to read (more than 20 characters) rewritten by
+/// [`readable_number`].
+fn readable_value(text: String) -> String {
+    match text.parse::<f64>() {
+        Ok(x) if text.len() > 20 => readable_number(x),
+        _ => text,
     }
 }
 
@@ -609,6 +628,22 @@ pub enum FemError {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn huge_and_tiny_values_print_in_scientific_notation() {
+        let e = Error::param("dt", 1e300, "too large");
+        assert_eq!(
+            e.to_string(),
+            Error::param("dt", "1e300", "too large").to_string()
+        );
+        assert!(e.to_string().len() < 60, "{e}");
+        assert_eq!(readable_number(1e-300), "1e-300");
+        assert_eq!(readable_number(0.25), "0.25");
+        assert_eq!(readable_number(-3e20), "-3e20");
+        // Text that is no number, or short, stays as it is.
+        let e = Error::param("name", "x".repeat(30), "bad");
+        assert!(e.to_string().contains(&"x".repeat(30)), "{e}");
+    }
 
     /// The kinds the bindings map from: a file error is an IO error wherever it arises, an
     /// object's error is its cause's kind, and eigensolver failures split by whose fault.

@@ -323,6 +323,7 @@ impl PyBasis {
         coefficients: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let q = crate::convert::points(py, points, "points")?;
+        crate::convert::real(py, coefficients, "coefficients")?;
         let c: numpy::PyArrayLike2<'_, f64, numpy::AllowTypeChange> = coefficients
             .extract()
             .map_err(|_| invalid(py, "coefficients: expected a K x q array of numbers"))?;
@@ -332,6 +333,12 @@ impl PyBasis {
             return Err(invalid(
                 py,
                 format!("coefficients: expected {k} rows (one per kernel) and at least one column, got shape {:?}", c.shape()),
+            ));
+        }
+        if let Some(((i, j), v)) = c.indexed_iter().find(|(_, v)| !v.is_finite()) {
+            return Err(invalid(
+                py,
+                format!("coefficients: entry ({i}, {j}) is not finite ({v})"),
             ));
         }
         let field = Basis {

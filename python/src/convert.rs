@@ -10,6 +10,7 @@ use serde_json::Value;
 
 /// An N x 3 array of points (any real dtype, any layout), metres, checked finite.
 pub fn points(py: Python<'_>, obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[f64; 3]>> {
+    real(py, obj, what)?;
     let array: PyArrayLike2<'_, f64, AllowTypeChange> = obj.extract().map_err(|_| {
         invalid(
             py,
@@ -74,6 +75,7 @@ fn exactly(
     expected: &str,
     per: &str,
 ) -> PyResult<Vec<f64>> {
+    real(py, obj, what)?;
     let array: PyArrayLike1<'_, f64, AllowTypeChange> = obj.extract().map_err(|_| {
         invalid(
             py,
@@ -95,6 +97,7 @@ fn exactly(
 
 /// A 3 x 3 matrix, e.g. a rotation.
 pub fn matrix3(py: Python<'_>, obj: &Bound<'_, PyAny>, what: &str) -> PyResult<[[f64; 3]; 3]> {
+    real(py, obj, what)?;
     let array: PyArrayLike2<'_, f64, AllowTypeChange> = obj.extract().map_err(|_| {
         invalid(
             py,
@@ -120,6 +123,25 @@ pub fn matrix3(py: Python<'_>, obj: &Bound<'_, PyAny>, what: &str) -> PyResult<[
 pub fn vec3(py: Python<'_>, obj: &Bound<'_, PyAny>, what: &str) -> PyResult<[f64; 3]> {
     let v = vector(py, obj, 3, what)?;
     Ok([v[0], v[1], v[2]])
+}
+
+/// Refuse an array of complex dtype (NumPy would cast it to its real part with only a
+/// warning): "any real dtype" is the promise.
+pub fn real(py: Python<'_>, obj: &Bound<'_, PyAny>, what: &str) -> PyResult<()> {
+    let kind = obj
+        .getattr("dtype")
+        .and_then(|d| d.getattr("kind"))
+        .and_then(|k| k.extract::<String>());
+    if kind.as_deref() == Ok("c") {
+        return Err(invalid(
+            py,
+            format!(
+                "{what}: complex values are not accepted (pass the real part, x.real, if that \
+                 is what you mean)"
+            ),
+        ));
+    }
+    Ok(())
 }
 
 fn describe(obj: &Bound<'_, PyAny>) -> String {
@@ -195,4 +217,15 @@ pub fn report<'py>(py: Python<'py>, value: &impl serde::Serialize) -> PyResult<B
     let v = serde_json::to_value(value)
         .map_err(|e| invalid(py, format!("cannot convert a report: {e}")))?;
     json(py, &v)
+}
+
+/// A count or an index given as a Python int (`v`), as usize: a negative one is an
+/// `InvalidInputError` naming `what`, not pyo3's bare `OverflowError`.
+pub fn count(py: Python<'_>, v: i64, what: &str) -> PyResult<usize> {
+    usize::try_from(v).map_err(|_| {
+        crate::errors::invalid(
+            py,
+            format!("{what} = {v}: must be a non-negative integer"),
+        )
+    })
 }

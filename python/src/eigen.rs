@@ -223,13 +223,15 @@ pub fn eigsh<'py>(
     py: Python<'py>,
     h: &Bound<'py, PyAny>,
     m: &Bound<'py, PyAny>,
-    nev: usize,
+    nev: i64,
     tol: f64,
-    max_iter: usize,
+    max_iter: i64,
     preconditioner: Option<&Bound<'py, PyAny>>,
     check_symmetry: bool,
     progress: bool,
 ) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray2<f64>>)> {
+    let nev = crate::convert::count(py, nev, "nev")?;
+    let max_iter = crate::convert::count(py, max_iter, "max_iter")?;
     let h = operand(py, h, "h")?;
     let m = operand(py, m, "m")?;
     let pre = match preconditioner {

@@ -18,18 +18,83 @@ use pyo3::types::{PyDict, PyList};
 use serde::de::DeserializeOwned;
 use std::path::PathBuf;
 
-/// A Python value (dict, list, str, numbers) as a serde type, through JSON.
+/// A Python value (dict, list, tuple, str, bool, numbers, NumPy scalars and arrays) as a
+/// serde type, through TOML values: NaN and infinities reach the scene's own checks, which
+/// name the field.
 fn from_python<T: DeserializeOwned>(
     py: Python<'_>,
     value: &Bound<'_, PyAny>,
     what: &str,
 ) -> PyResult<T> {
-    let text: String = py
-        .import("json")?
-        .call_method1("dumps", (value,))
-        .map_err(|e| invalid(py, format!("{what}: not representable as JSON ({e})")))?
-        .extract()?;
-    serde_json::from_str(&text).map_err(|e| invalid(py, format!("{what}: {e}")))
+    let value = to_toml(py, value, what)?;
+    value
+        .try_into()
+        .map_err(|e| invalid(py, format!("{what}: {e}")))
+}
+
+/// `v` (at `path`, for errors) as a TOML value.
+fn to_toml(py: Python<'_>, v: &Bound<'_, PyAny>, path: &str) -> PyResult<toml::Value> {
+    use pyo3::types::{PyBool, PyFloat, PyInt, PyString, PyTuple};
+    if let Ok(b) = v.cast::<PyBool>() {
+        return Ok(toml::Value::Boolean(b.is_true()));
+    }
+    if let Ok(s) = v.cast::<PyString>() {
+        return Ok(toml::Value::String(s.to_string()));
+    }
+    if let Ok(d) = v.cast::<PyDict>() {
+        let mut table = toml::Table::new();
+        for (k, x) in d.iter() {
+            let key: String = k
+                .extract()
+                .map_err(|_| invalid(py, format!("{path}: keys must be strings, got {k}")))?;
+            let inner = format!("{path}.{key}");
+            table.insert(key, to_toml(py, &x, &inner)?);
+        }
+        return Ok(toml::Value::Table(table));
+    }
+    if v.cast::<PyList>().is_ok() || v.cast::<PyTuple>().is_ok() {
+        let items: Vec<Bound<'_, PyAny>> = v.try_iter()?.collect::<PyResult<_>>()?;
+        return items
+            .iter()
+            .enumerate()
+            .map(|(i, x)| to_toml(py, x, &format!("{path}[{i}]")))
+            .collect::<PyResult<Vec<_>>>()
+            .map(toml::Value::Array);
+    }
+    // NumPy: an array becomes nested lists; a scalar is told apart by its dtype's kind.
+    let kind = v
+        .getattr("dtype")
+        .and_then(|d| d.getattr("kind"))
+        .and_then(|k| k.extract::<String>())
+        .ok();
+    if kind.is_some() && v.getattr("ndim").and_then(|n| n.extract::<usize>()).unwrap_or(0) > 0 {
+        return to_toml(py, &v.call_method0("tolist")?, path);
+    }
+    let integral = matches!(kind.as_deref(), Some("i" | "u")) || v.cast::<PyInt>().is_ok();
+    if kind.as_deref() == Some("b") {
+        return Ok(toml::Value::Boolean(v.extract::<bool>()?));
+    }
+    if integral {
+        return v
+            .extract::<i64>()
+            .map(toml::Value::Integer)
+            .map_err(|_| invalid(py, format!("{path}: the integer {v} is out of range")));
+    }
+    if kind.as_deref() == Some("f") || v.cast::<PyFloat>().is_ok() {
+        return Ok(toml::Value::Float(v.extract::<f64>()?));
+    }
+    let ty = v
+        .get_type()
+        .name()
+        .map(|n| n.to_string())
+        .unwrap_or_else(|_| "?".into());
+    Err(invalid(
+        py,
+        format!(
+            "{path}: a {ty} has no place in a scene (use dicts, lists, strings, booleans and \
+             real numbers)"
+        ),
+    ))
 }
 
 /// A scene: objects, materials, boundaries, colliders, time stepping (docs/scenes.md).
@@ -108,8 +173,11 @@ impl PyScene {
         volumes: Option<&Bound<'_, PyAny>>,
         boundaries: Option<&Bound<'_, PyAny>>,
         placement: Option<&Bound<'_, PyAny>>,
-        cubature: Option<usize>,
+        cubature: Option<i64>,
     ) -> PyResult<()> {
+        let cubature = cubature
+            .map(|n| crate::convert::count(py, n, "cubature"))
+            .transpose()?;
         let pts = crate::convert::points(py, points, "points")?;
         let n = pts.len();
         let d = Material::default();
@@ -293,7 +361,8 @@ impl PyWorld {
     /// last step's reports, one dict per object. A step that does not converge is reported
     /// (``converged`` False, a warning), not raised, unless the world is strict.
     #[pyo3(signature = (count = 1))]
-    fn step<'py>(&mut self, py: Python<'py>, count: usize) -> PyResult<Bound<'py, PyList>> {
+    fn step<'py>(&mut self, py: Python<'py>, count: i64) -> PyResult<Bound<'py, PyList>> {
+        let count = crate::convert::count(py, count, "count")?;
         let world = &mut self.world;
         let reports = run_released(py, Front::Scene, false, |progress| {
             let mut last = Vec::new();
@@ -499,10 +568,11 @@ impl PyWorld {
         &mut self,
         py: Python<'_>,
         object: &Bound<'_, PyAny>,
-        boundary: usize,
+        boundary: i64,
         rotation: Option<&Bound<'_, PyAny>>,
         translation: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
+        let boundary = crate::convert::count(py, boundary, "boundary")?;
         let i = object_index(py, &self.world, object)?;
         let pose = rigid(py, rotation, translation)?;
         self.world
@@ -517,9 +587,10 @@ impl PyWorld {
         &mut self,
         py: Python<'_>,
         object: &Bound<'_, PyAny>,
-        boundary: usize,
+        boundary: i64,
         motion: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
+        let boundary = crate::convert::count(py, boundary, "boundary")?;
         let i = object_index(py, &self.world, object)?;
         let motion: Motion = from_python(py, motion, "motion")?;
         self.world
@@ -534,10 +605,11 @@ impl PyWorld {
     fn set_collider_pose(
         &mut self,
         py: Python<'_>,
-        collider: usize,
+        collider: i64,
         rotation: Option<&Bound<'_, PyAny>>,
         translation: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
+        let collider = crate::convert::count(py, collider, "collider")?;
         let pose = rigid(py, rotation, translation)?;
         self.world
             .set_collider_pose(collider, &pose)

@@ -131,12 +131,15 @@ def test_save_and_load_round_trip(tmp_path):
         (lambda: ff.Basis.from_points(np.zeros((50, 3)), np.ones(7)), "expected 50 values"),
         (lambda: ff.Basis.from_points(np.random.rand(500, 3), -1.0, kernels=20, modes=2), "youngs"),
         (lambda: ff.Basis.from_points("points", 1e6), "expected an N x 3 array"),
+        (lambda: ff.Basis.from_points(np.zeros((50, 3), dtype=complex), 1e6), "complex"),
         (lambda: ff.Basis.from_shape("box:2,1,1", kernals=10), "unknown option `kernals`"),
         (lambda: ff.Basis.from_shape("box:2,1,1", kernels="many"), "kernels"),
         (lambda: ff.Basis.from_shape("box:2,1,1", kernels=10, modes=20), "modes"),
         (lambda: ff.Basis.from_shape("box:2,1,1", points=100, spacing=0.1), "not both"),
         (lambda: ff.Basis.from_shape("cone:1"), "unknown shape"),
         (lambda: ff.Basis.from_shape("box:2,1,1", eigensolver="magic"), "magic"),
+        # The pip build has no SLEPc: a request for it is invalid input, not a failed solve.
+        (lambda: ff.Basis.from_shape("box:2,1,1", eigensolver="slepc", **SMALL), "without SLEPc"),
         (lambda: ff.Basis.from_shape("box:2,1,1", regions=["halfspace:0.5,0,0"]), "need 6"),
         (lambda: ff.Basis.from_shape("box:2,1,1", regions=["sphere:9,9,9,0.1"], **SMALL),
          "no integration point"),
@@ -145,6 +148,17 @@ def test_save_and_load_round_trip(tmp_path):
 def test_bad_input_raises_a_clear_error(call, match):
     with pytest.raises(ff.InvalidInputError, match=match):
         call()
+
+
+def test_evaluate_refuses_coefficients_that_are_not_finite():
+    basis = ff.Basis.from_shape("box:2,1,1", **SMALL)
+    c = np.ones((basis.kernels, 2))
+    c[3, 1] = np.nan
+    with pytest.raises(ff.InvalidInputError, match=r"entry \(3, 1\) is not finite"):
+        basis.evaluate(np.full((4, 3), 0.5), c)
+    c[3, 1] = np.inf
+    with pytest.raises(ff.InvalidInputError, match="not finite"):
+        basis.evaluate(np.full((4, 3), 0.5), c)
 
 
 def test_bad_files_and_uncovered_points(tmp_path):

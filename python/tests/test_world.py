@@ -160,6 +160,18 @@ def test_bad_calls_between_steps_raise_clear_errors():
         world.set_gravity([0.0, np.inf, 0.0])
     with pytest.raises(ff.InvalidInputError, match="collider"):
         world.set_collider_pose(3, translation=[0, 1, 0])
+    # Negative counts and indices are invalid input naming the argument (pyo3 alone raises a
+    # bare OverflowError), and so is gravity beyond the limit.
+    with pytest.raises(ff.InvalidInputError, match="count = -1"):
+        world.step(-1)
+    with pytest.raises(ff.InvalidInputError, match="boundary = -2"):
+        world.set_boundary_pose("bar", -2)
+    with pytest.raises(ff.InvalidInputError, match="collider = -1"):
+        world.set_collider_pose(-1, translation=[0, 1, 0])
+    with pytest.raises(ff.InvalidInputError, match="points = -5"):
+        ff.sample("box:1,1,1", points=-5)
+    with pytest.raises(ff.InvalidInputError, match="above the limit"):
+        world.set_gravity([0.0, -1e300, 0.0])
     # Nothing above changed the state.
     np.testing.assert_array_equal(world.state(0)[0], z)
 

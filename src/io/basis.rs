@@ -303,17 +303,23 @@ fn save_json(path: &Path, basis: &Basis, metadata: &Value) -> Result<()> {
             path: tmp.to_path_buf(),
             source,
         };
+        // A zip error that is an I/O error keeps its cause (out of space, read-only).
+        let zip_io = |e: zip::result::ZipError| match e {
+            zip::result::ZipError::Io(source) => io_tmp(source),
+            other => io_tmp(std::io::Error::other(other)),
+        };
         let file = std::fs::File::create(tmp).map_err(io_tmp)?;
-        let mut zip = zip::ZipWriter::new(std::io::BufWriter::new(file));
+        let writer = super::file::StopAfterError::new(std::io::BufWriter::new(file));
+        let mut zip = zip::ZipWriter::new(writer);
         let opts = zip::write::SimpleFileOptions::default()
             .compression_method(zip::CompressionMethod::Stored)
             .large_file(true);
         for (name, bytes) in entries {
             zip.start_file(format!("{name}.npy"), opts)
-                .map_err(|e| io_tmp(std::io::Error::other(e)))?;
+                .map_err(zip_io)?;
             zip.write_all(&bytes).map_err(io_tmp)?;
         }
-        let mut inner = zip.finish().map_err(|e| io_tmp(std::io::Error::other(e)))?;
+        let mut inner = zip.finish().map_err(zip_io)?.into_inner();
         inner.flush().map_err(io_tmp)
     })
 }

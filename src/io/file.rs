@@ -100,7 +100,74 @@ pub fn write_atomically(
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
     }
-    result
+    result.map_err(|e| named_as(e, &tmp, path))
+}
+
+/// `e` with the temporary file `tmp` it names replaced by `path`, the file the caller asked
+/// for (a read-only or full target must not be reported as `.name.1234-5678.tmp`).
+fn named_as(e: crate::Error, tmp: &Path, path: &Path) -> crate::Error {
+    use crate::geometry::GeometryError;
+    match e {
+        crate::Error::Io { path: p, source } if p == tmp => crate::Error::Io {
+            path: path.to_path_buf(),
+            source,
+        },
+        crate::Error::Geometry(GeometryError::Io { path: p, source }) if p == tmp => {
+            crate::Error::Geometry(GeometryError::Io {
+                path: path.to_path_buf(),
+                source,
+            })
+        }
+        other => other,
+    }
+}
+
+/// A writer that, after its first error, accepts and drops everything: a writer wrapped in
+/// it (a zip archive) may be dropped after a failed write without a second failure (the zip
+/// crate's `Drop` finalizes the archive and prints its error to stderr). The first error
+/// still reaches the caller, which discards the file.
+pub(crate) struct StopAfterError<W> {
+    inner: W,
+    failed: bool,
+}
+
+impl<W> StopAfterError<W> {
+    /// Wrap `inner`.
+    pub(crate) fn new(inner: W) -> Self {
+        StopAfterError {
+            inner,
+            failed: false,
+        }
+    }
+
+    /// The wrapped writer.
+    pub(crate) fn into_inner(self) -> W {
+        self.inner
+    }
+}
+
+impl<W: Write> Write for StopAfterError<W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        if self.failed {
+            return Ok(buf.len());
+        }
+        self.inner.write(buf).inspect_err(|_| self.failed = true)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        if self.failed {
+            return Ok(());
+        }
+        self.inner.flush().inspect_err(|_| self.failed = true)
+    }
+}
+
+impl<W: std::io::Seek> std::io::Seek for StopAfterError<W> {
+    fn seek(&mut self, pos: std::io::SeekFrom) -> std::io::Result<u64> {
+        if self.failed {
+            return Ok(0);
+        }
+        self.inner.seek(pos).inspect_err(|_| self.failed = true)
+    }
 }
 
 /// Check that every triangle of a mesh about to be written refers to one of `vertex_count`

@@ -168,6 +168,15 @@ impl BasisOptions {
         if self.max_iter == 0 {
             return Err(Error::param("max_iter", 0, "need at least one iteration"));
         }
+        if let Some(Resolution::Spacing(h)) = self.resolution {
+            if !(h.is_finite() && h > 0.0) {
+                return Err(Error::param(
+                    "spacing",
+                    h,
+                    "the grid spacing must be a positive length, metres",
+                ));
+            }
+        }
         if let Some(Resolution::Count(n)) = self.resolution {
             if n < self.kernels {
                 return Err(Error::param(
@@ -188,6 +197,22 @@ impl BasisOptions {
             }
         }
         self.support.validate()?;
+        if let SolverConfig::Lobpcg(options) = &self.solver {
+            options.validate()?;
+        }
+        for (name, v) in [
+            ("voxel", self.cloud.voxel),
+            ("volume", self.cloud.total_volume),
+        ] {
+            if let Some(v) = v.filter(|v| !(*v > 0.0 && v.is_finite())) {
+                return Err(Error::param(
+                    name,
+                    v,
+                    "a point cloud's voxel edge (metres) and total volume (m^3) must be \
+                     positive and finite",
+                ));
+            }
+        }
         if !(self.shape_functions.min_rcond > 0.0 && self.shape_functions.min_rcond < 1.0) {
             return Err(Error::param(
                 "min_rcond",

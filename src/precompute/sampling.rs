@@ -360,7 +360,17 @@ fn median_nn_distance(points: &[Point3]) -> Result<f64> {
         // The largest edge, not the diagonal: squaring it would underflow as well.
         let extent = crate::geometry::Aabb::from_points(points)
             .map_or(0.0, |b| b.size().into_iter().fold(0.0, f64::max));
-        let reason = if extent > 0.0 {
+        let distinct: std::collections::HashSet<[u64; 3]> =
+            points.iter().map(|p| p.map(f64::to_bits)).collect();
+        let reason = if extent > 0.0 && distinct.len() < points.len() {
+            format!(
+                "every point has an exact duplicate ({} points at {} distinct positions), so \
+                 the spacing of the cloud is unknown: remove the duplicates (for example \
+                 numpy.unique(points, axis=0)) or give the voxel size",
+                points.len(),
+                distinct.len()
+            )
+        } else if extent > 0.0 {
             format!(
                 "the points are too close together for f64 distances (largest bounding-box \
                  edge {extent:e} m): rescale the point cloud to metres"
@@ -539,6 +549,18 @@ mod tests {
         assert!((ip.total_volume() / exact - 1.0).abs() < 1e-10);
         assert!(grid_points(&b, 0.05, None, &|p| vec![false; p.len()]).is_err());
         assert!(grid_points(&b, 1e-9, None, &inside).is_err());
+    }
+
+    #[test]
+    fn a_cloud_of_duplicated_points_is_refused_naming_the_duplicates() {
+        let distinct: Vec<Point3> = (0..10).map(|i| [i as f64, 0.5 * i as f64, 0.0]).collect();
+        let pts: Vec<Point3> = (0..1000).map(|i| distinct[i % 10]).collect();
+        let e = cloud_volumes(&pts, &CloudVolumeOptions::default()).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("1000 points at 10 distinct positions"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -228,7 +228,7 @@ impl<'de> serde::de::Visitor<'de> for ConfigVisitor {
         };
         if let Some(extra) = map.next_key::<String>()? {
             return Err(A::Error::custom(format!(
-                "solver table with a second key {extra:?}: give exactly one, lobpcg or slepc"
+                "solver table with a second key {extra:?}: give exactly one, `lobpcg` or `slepc`"
             )));
         }
         Ok(config)

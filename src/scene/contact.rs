@@ -49,6 +49,7 @@ impl WorldContact {
                 })?;
         }
         let objects: &[SceneObject] = objects;
+        check_sample_memory(objects, shapes, settings)?;
         let mut samples = Vec::with_capacity(objects.len());
         for (index, (o, shape)) in objects.iter().zip(shapes).enumerate() {
             let ctx = |e: Error| Error::Object {
@@ -64,11 +65,7 @@ impl WorldContact {
                         .into(),
                 })
             })?;
-            let count = o
-                .spec()
-                .contact_samples
-                .or(settings.samples)
-                .unwrap_or_else(|| default_count(shape, settings.radius));
+            let count = sample_count(o, shape, settings);
             samples
                 .push(ContactSamples::new(shape, o.basis(), count, settings.radius).map_err(ctx)?);
         }
@@ -273,4 +270,47 @@ impl WorldContact {
         s.steps.push(row);
         reports
     }
+}
+
+/// The contact sample count of object `o` (shape `shape`): its own `contact_samples`, else
+/// `contact.samples`, else the default from its size.
+fn sample_count(o: &SceneObject, shape: &Shape, settings: &ContactSettings) -> usize {
+    o.spec()
+        .contact_samples
+        .or(settings.samples)
+        .unwrap_or_else(|| default_count(shape, settings.radius))
+}
+
+/// Refuse, before any sample is made, contact samples whose memory
+/// ([`crate::sim::contact::samples::sample_bytes`], summed over the objects) exceeds what the
+/// machine has ([`crate::precompute::memory::available_memory`]).
+fn check_sample_memory(
+    objects: &[SceneObject],
+    shapes: &[Option<Shape>],
+    settings: &ContactSettings,
+) -> Result<()> {
+    let Some((available, source)) = crate::precompute::memory::available_memory()? else {
+        return Ok(());
+    };
+    let (mut bytes, mut count) = (0u64, 0usize);
+    for (o, shape) in objects.iter().zip(shapes) {
+        let Some(shape) = shape else { continue };
+        let n = sample_count(o, shape, settings);
+        count = count.saturating_add(n);
+        let handles = o.basis().modes();
+        bytes = bytes.saturating_add(crate::sim::contact::samples::sample_bytes(n, handles));
+    }
+    if bytes > available {
+        return Err(Error::param(
+            "contact.samples",
+            count,
+            format!(
+                "the scene's {count} contact samples would need about {:.2} GB, more than the \
+                 {:.2} GB available ({source}); use fewer contact samples per object",
+                bytes as f64 / 1e9,
+                available as f64 / 1e9
+            ),
+        ));
+    }
+    Ok(())
 }

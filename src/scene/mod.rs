@@ -31,6 +31,7 @@
 mod cache;
 mod contact;
 mod frames;
+mod numbers;
 mod object;
 mod render_set;
 mod report;

@@ -434,6 +434,12 @@ impl Scene {
     /// [`Scene::validate`] without requiring an object: for a scene whose objects are added
     /// in code ([`super::World::with_objects`]).
     pub fn validate_settings(&self) -> Result<()> {
+        let serialized = toml::Value::try_from(self).map_err(|e| {
+            scene_err(format!(
+                "the scene cannot be written as TOML for its checks: {e}"
+            ))
+        })?;
+        super::numbers::check(&serialized)?;
         let s = &self.simulation;
         if !(s.dt > 0.0 && s.dt.is_finite()) {
             return Err(scene_err(format!(
@@ -452,16 +458,12 @@ impl Scene {
             )));
         }
         if let Some(g) = s.gravity {
-            if !g.iter().all(|v| v.is_finite()) {
-                return Err(scene_err(format!(
-                    "simulation.gravity = {g:?} must be finite"
-                )));
+            if let Some(why) = crate::sim::environment::gravity_problem(g) {
+                return Err(scene_err(format!("simulation.gravity = {g:?}: {why}")));
             }
         }
         self.solver.newton().validate()?;
-        if self.solver.cubature == 0 {
-            return Err(scene_err("solver.cubature must be at least 1".into()));
-        }
+        check_cubature("solver.cubature", self.solver.cubature)?;
         if self.output.every == 0 {
             return Err(scene_err("output.every must be at least 1".into()));
         }
@@ -495,18 +497,23 @@ impl Scene {
                         source: Box::new(source),
                     })
                 };
-                b.region.validate().map_err(in_boundary)?;
-                b.motion.validate().map_err(in_boundary)?;
+                b.validate().map_err(in_boundary)?;
+            }
+            let tol = o.basis.eigen_tol;
+            if !(tol > 0.0 && tol < 1.0) {
+                return Err(in_object(scene_err(format!(
+                    "basis.eigen_tol = {} must lie in (0, 1), e.g. 1e-8",
+                    crate::error::readable_number(tol)
+                ))));
             }
             let _checked = o.basis_options().map_err(in_object)?;
             self.validate_image(o).map_err(in_object)?;
-            if o.cubature == Some(0) {
-                return Err(in_object(scene_err("cubature must be at least 1".into())));
+            if let Some(n) = o.cubature {
+                check_cubature("cubature", n).map_err(in_object)?;
             }
-            if o.contact_samples == Some(0) {
-                return Err(in_object(scene_err(
-                    "contact_samples must be at least 1".into(),
-                )));
+            if let Some(count) = o.contact_samples {
+                crate::sim::contact::samples::check_count("contact_samples", count)
+                    .map_err(in_object)?;
             }
         }
         for (name, m) in &self.materials {
@@ -563,6 +570,22 @@ impl Scene {
 /// Most time steps a scene may ask for (the summary keeps one row per step).
 pub const MAX_STEPS: usize = 10_000_000;
 
+/// A cubature point count `n` (field `name`): at least 1, at most
+/// [`crate::sim::cubature::MAX_CUBATURE`].
+fn check_cubature(name: &str, n: usize) -> Result<()> {
+    use crate::sim::cubature::{DEFAULT_CUBATURE, MAX_CUBATURE};
+    if n == 0 {
+        return Err(scene_err(format!("{name} must be at least 1")));
+    }
+    if n > MAX_CUBATURE {
+        return Err(scene_err(format!(
+            "{name} = {n} is more than {MAX_CUBATURE}: every step evaluates every cubature \
+             point, and the default {DEFAULT_CUBATURE} already resolves the modes; use fewer"
+        )));
+    }
+    Ok(())
+}
+
 fn scene_err(message: String) -> Error {
     Error::Scene { message }
 }
@@ -585,6 +608,22 @@ mod tests {
             "[simulation]\ndt = 0.01\nsteps = 1\n[[object]]\nname = \"a\"\nshape = \
              \"box:1,1,1\"\nbasis = {basis}\n"
         ))
+    }
+
+    #[test]
+    fn gravity_beyond_the_limit_is_refused_naming_the_field() {
+        let scene = |g: &str| {
+            Scene::from_toml(&format!(
+                "[simulation]\ndt = 0.01\nsteps = 1\ngravity = {g}\n[[object]]\nname = \"a\"\n\
+                 shape = \"box:1,1,1\"\n"
+            ))
+        };
+        scene("[0, -9.81, 0]").unwrap();
+        let err = scene("[0, -1e300, 0]").unwrap_err().to_string();
+        assert!(
+            err.contains("simulation.gravity") && err.contains("above the limit"),
+            "{err}"
+        );
     }
 
     #[test]

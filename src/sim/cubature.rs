@@ -11,6 +11,10 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 /// Default number of cubature points (all integration points if there are fewer).
 pub const DEFAULT_CUBATURE: usize = 5000;
 
+/// Most cubature points a scene may ask for: 1,000,000 (200 times the default), a typo
+/// guard; each costs about (m + 1) x 100 bytes and is evaluated at every step.
+pub const MAX_CUBATURE: usize = 1_000_000;
+
 /// The points at which the elastic energy is evaluated during simulation.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Cubature {

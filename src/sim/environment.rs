@@ -56,12 +56,26 @@ impl Environment {
     }
 }
 
-/// Gravity, if any, is finite: the one check of it.
+/// Largest gravity magnitude accepted, m/s^2 (1e8 g, beyond any centrifuge). Far larger
+/// values overflow the incremental potential's squares and the step reports a frozen object
+/// as converged.
+pub const MAX_GRAVITY: f64 = 1e9;
+
+/// Why `g` (m/s^2) is not a usable gravity, if it is not: the one check of it.
+pub fn gravity_problem(g: [f64; 3]) -> Option<String> {
+    if !g.iter().all(|v| v.is_finite()) {
+        return Some("must be finite".into());
+    }
+    let magnitude = g.iter().map(|v| v * v).sum::<f64>().sqrt();
+    (magnitude > MAX_GRAVITY).then(|| {
+        format!("its magnitude {magnitude:.3e} m/s^2 is above the limit {MAX_GRAVITY:.0e} m/s^2")
+    })
+}
+
+/// Gravity, if any, passes [`gravity_problem`].
 pub(crate) fn check_gravity(gravity: Option<[f64; 3]>) -> Result<()> {
-    match gravity {
-        Some(g) if !g.iter().all(|v| v.is_finite()) => {
-            Err(Error::param("gravity", format!("{g:?}"), "must be finite"))
-        }
-        _ => Ok(()),
+    match gravity.and_then(|g| gravity_problem(g).map(|why| (g, why))) {
+        Some((g, why)) => Err(Error::param("gravity", format!("{g:?}"), why)),
+        None => Ok(()),
     }
 }

@@ -219,6 +219,13 @@ fn quaternion(a: &Option<AxisAngle>) -> Result<[f64; 4]> {
         None => Ok([1.0, 0.0, 0.0, 0.0]),
         Some(a) => {
             let u = unit(&a.axis, "keyframe rotation")?;
+            if !a.degrees.is_finite() {
+                return Err(Error::param(
+                    "degrees",
+                    a.degrees,
+                    "keyframe rotation: the angle must be a finite number of degrees",
+                ));
+            }
             let h = 0.5 * a.degrees.to_radians();
             Ok([h.cos(), u[0] * h.sin(), u[1] * h.sin(), u[2] * h.sin()])
         }
@@ -285,11 +292,13 @@ impl Motion {
                     quaternion(&k.rotation)?;
                     if i > 0 && k.time <= frames[i - 1].time {
                         return Err(Error::param(
-                            "frames",
+                            "keyframe time",
                             k.time,
                             format!(
-                                "keyframe times must increase (frame {i} at {} s follows {} s)",
+                                "keyframe times must increase: frames[{i}] at {} s follows \
+                                 frames[{}] at {} s",
                                 k.time,
+                                i - 1,
                                 frames[i - 1].time
                             ),
                         ));
@@ -451,5 +460,24 @@ mod tests {
             ],
         };
         assert!(bad.validate().unwrap_err().to_string().contains("increase"));
+    }
+
+    #[test]
+    fn a_keyframe_angle_that_is_not_finite_is_refused() {
+        for degrees in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            let m = Motion::Keyframes {
+                pivot: [0.0; 3],
+                frames: vec![Keyframe {
+                    time: 0.0,
+                    translation: [0.0; 3],
+                    rotation: Some(AxisAngle {
+                        axis: [0.0, 0.0, 1.0],
+                        degrees,
+                    }),
+                }],
+            };
+            let e = m.validate().unwrap_err();
+            assert!(e.to_string().contains("degrees"), "{e}");
+        }
     }
 }

@@ -120,6 +120,12 @@ impl Default for NewtonOptions {
     }
 }
 
+/// Most Newton iterations a step may be given: 100,000 (a typo guard).
+pub const MAX_NEWTON_ITERATIONS: usize = 100_000;
+
+/// Most L-BFGS pairs: 10,000 (a typo guard; an object has 12 (m + 1) unknowns).
+pub const MAX_LBFGS_HISTORY: usize = 10_000;
+
 impl NewtonOptions {
     /// Check ranges.
     pub fn validate(&self) -> crate::Result<()> {
@@ -135,6 +141,26 @@ impl NewtonOptions {
                 "max_iter",
                 0,
                 "need at least one Newton iteration per step (default 100)",
+            ));
+        }
+        if self.max_iter > MAX_NEWTON_ITERATIONS {
+            return Err(crate::Error::param(
+                "max_iter",
+                self.max_iter,
+                format!(
+                    "at most {MAX_NEWTON_ITERATIONS} Newton iterations per step (default 100; \
+                     a step that needs more will not converge with more)"
+                ),
+            ));
+        }
+        if self.lbfgs_history > MAX_LBFGS_HISTORY {
+            return Err(crate::Error::param(
+                "lbfgs_history",
+                self.lbfgs_history,
+                format!(
+                    "at most {MAX_LBFGS_HISTORY} L-BFGS pairs (default 8; more pairs than \
+                     unknowns add nothing)"
+                ),
             ));
         }
         if self.refresh_stride == 0 {
@@ -625,6 +651,11 @@ pub fn minimize(
     }
     rep.energy = e;
     rep.info = info;
+    if !e.is_finite() {
+        // A state whose energy is NaN or infinite is no minimum, whatever the residual says
+        // (a NaN boundary target leaves the gradient finite and the state frozen).
+        rep.converged = false;
+    }
     rep
 }
 
@@ -710,6 +741,37 @@ mod tests {
         for i in 0..2 {
             assert!((z[i] - B[i] / A[i]).abs() < 1e-12, "z = {z:?}");
         }
+    }
+
+    /// E = NaN everywhere with the quadratic's finite gradient: what a NaN boundary target
+    /// once gave a step (finite residual, energy NaN, no line-search step accepted).
+    struct NanEnergy;
+
+    impl Potential for NanEnergy {
+        fn energy_gradient(&self, z: &[f64], grad: &mut [f64]) -> (f64, EvalInfo) {
+            let (_, info) = Quadratic.energy_gradient(z, grad);
+            (f64::NAN, info)
+        }
+        fn hessian(&self, z: &[f64]) -> Mat<f64> {
+            Quadratic.hessian(z)
+        }
+    }
+
+    #[test]
+    fn a_state_whose_energy_is_not_finite_is_never_converged() {
+        let rest = Mat::<f64>::identity(2, 2).llt(Side::Lower).unwrap();
+        let measure = |d: &[f64]| d.iter().map(|v| v.abs()).fold(0.0, f64::max);
+        // Start at the quadratic's minimiser, where the residual is 0 (at most rounding).
+        let options = NewtonOptions::default();
+        let ctx = SolverContext {
+            rest: &rest,
+            measure: &measure,
+            options: &options,
+        };
+        let mut z: Vec<f64> = (0..2).map(|i| B[i] / A[i]).collect();
+        let rep = minimize(&NanEnergy, &mut z, &ctx, &mut QuasiNewtonState::default());
+        assert!(rep.residual <= options.tol, "{rep:?}");
+        assert!(!rep.converged, "{rep:?}");
     }
 
     /// E = z^4 / 4 - z^2 + z / 2 in one unknown: E'' = 3 z^2 - 2 is negative near 0; the

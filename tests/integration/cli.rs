@@ -212,10 +212,31 @@ fn run_writes_frames_and_a_json_summary_and_rejects_bad_scenes() {
         assert!(!steps[0][key].is_null(), "missing step key {key}");
     }
     assert!(out.join("bar.pvd").exists() && out.join("bar/bar_000004.vtp").exists());
-    // The cache sits next to the scene; a second run uses it.
-    let o = freeform(&["run", scene.to_str().unwrap(), "--json"]);
+    // The cache sits next to the scene; a second run uses it. --steps and --dt override the
+    // scene's (the cache key holds neither: the basis is the same).
+    let o = freeform(&[
+        "run",
+        scene.to_str().unwrap(),
+        "--json",
+        "--steps",
+        "2",
+        "--dt",
+        "0.02",
+    ]);
     let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(r["objects"][0]["basis_cached"], true);
+    assert_eq!(r["steps"], 2);
+    assert_eq!(r["objects"][0]["steps"].as_array().unwrap().len(), 2);
+    for (flag, value, needle) in [
+        ("--dt", "nan", "simulation.dt = NaN"),
+        ("--dt", "-0.01", "simulation.dt = -0.01"),
+        ("--steps", "0", "simulation.steps must be at least 1"),
+    ] {
+        let o = freeform(&["run", scene.to_str().unwrap(), flag, value]);
+        assert_eq!(o.status.code(), Some(1), "{flag} {value}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(needle), "{flag} {value}: {err}");
+    }
 
     // A bad scene: exit 1, the line number, no frames.
     let bad = dir.path().join("bad.toml");

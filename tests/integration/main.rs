@@ -33,6 +33,7 @@ mod properties;
 mod render;
 mod rkpm;
 mod scene;
+mod scene_numbers;
 mod sim;
 mod splat_render;
 mod splats;

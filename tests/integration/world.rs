@@ -181,6 +181,10 @@ fn gravity_switched_on_between_steps_starts_a_free_fall() {
         assert!((x[0] - x0[0]).abs() < 1e-10 && (x[2] - x0[2]).abs() < 1e-10);
     }
     assert!(world.set_gravity(Some([0.0, f64::NAN, 0.0])).is_err());
+    // Beyond MAX_GRAVITY the step's squares overflow and a frozen object reported
+    // "converged": refused, naming the limit.
+    let err = world.set_gravity(Some([0.0, -1e300, 0.0])).unwrap_err();
+    assert!(err.to_string().contains("above the limit"), "{err}");
 }
 
 #[test]

@@ -27,6 +27,13 @@ pub struct RunArgs {
     /// search, a Newton Hessian fallback) into an error: stop at the first one, exit code 1.
     #[arg(long)]
     strict: bool,
+    /// Number of time steps, overriding the scene's `simulation.steps` (shorten an example
+    /// without copying its file).
+    #[arg(long)]
+    steps: Option<usize>,
+    /// Time step, seconds, overriding the scene's `simulation.dt`.
+    #[arg(long)]
+    dt: Option<f64>,
 }
 
 pub fn run(args: RunArgs) -> CliResult {
@@ -34,6 +41,16 @@ pub fn run(args: RunArgs) -> CliResult {
     let mut scene = Scene::load(&args.scene)?;
     if args.no_cache {
         scene.cache.enabled = false;
+    }
+    if let Some(steps) = args.steps {
+        scene.simulation.steps = steps;
+    }
+    if let Some(dt) = args.dt {
+        scene.simulation.dt = dt;
+    }
+    if args.steps.is_some() || args.dt.is_some() {
+        // The scene was checked as read; check the overridden one (the flags name the fields).
+        scene.validate()?;
     }
     let settings = RunSettings {
         out: args.out.clone(),

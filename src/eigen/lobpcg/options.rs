@@ -92,6 +92,63 @@ pub struct LobpcgOptions {
     pub seed: u64,
 }
 
+/// Most guard vectors [`LobpcgOptions::validate`] accepts: 10,000 (a typo guard; the default
+/// is 8 to 16).
+pub const MAX_GUARD: usize = 10_000;
+
+impl LobpcgOptions {
+    /// Check the ranges: `guard` at most [`MAX_GUARD`]; `shift_factor` and `max_fill_ratio`
+    /// positive; `restart_tol`, `ortho_drop` and `svqb_drop` in (0, 1); `recompute_every` at
+    /// least 1. `max_factor_entries` = 0 (never the exact factor) and `escalate_after` = 0
+    /// (never switch) are valid.
+    ///
+    /// # Errors
+    /// [`crate::Error::InvalidParameter`] naming the first field out of range.
+    pub fn validate(&self) -> crate::Result<()> {
+        use crate::Error;
+        if let Some(g) = self.guard.filter(|&g| g > MAX_GUARD) {
+            return Err(Error::param(
+                "guard",
+                g,
+                format!("at most {MAX_GUARD} guard vectors (default max(8, (nev - 1) / 4))"),
+            ));
+        }
+        for (name, v, default) in [
+            ("shift_factor", self.shift_factor, "1e-4"),
+            ("max_fill_ratio", self.max_fill_ratio, "8"),
+        ] {
+            if !(v > 0.0 && v.is_finite()) {
+                return Err(Error::param(
+                    name,
+                    v,
+                    format!("must be positive and finite (default {default})"),
+                ));
+            }
+        }
+        for (name, v, default) in [
+            ("restart_tol", self.restart_tol, "1e-10"),
+            ("ortho_drop", self.ortho_drop, "1e-10"),
+            ("svqb_drop", self.svqb_drop, "1e-14"),
+        ] {
+            if !(v > 0.0 && v < 1.0) {
+                return Err(Error::param(
+                    name,
+                    v,
+                    format!("must lie in (0, 1) (default {default})"),
+                ));
+            }
+        }
+        if self.recompute_every == 0 {
+            return Err(Error::param(
+                "recompute_every",
+                0,
+                "must be at least 1 (default 10)",
+            ));
+        }
+        Ok(())
+    }
+}
+
 impl Default for LobpcgOptions {
     fn default() -> Self {
         Self {

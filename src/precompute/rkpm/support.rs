@@ -11,6 +11,9 @@ use std::num::NonZero;
 /// point, and the coverage error would wrongly advise a larger factor.
 pub const MAX_SUPPORT_FACTOR: f64 = 50.0;
 
+/// Largest [`SupportOptions::neighbor`]: 1,000 (the default is 4).
+pub const MAX_SUPPORT_NEIGHBOR: usize = 1000;
+
 /// How support radii are chosen.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SupportOptions {
@@ -55,11 +58,15 @@ impl SupportOptions {
                 ),
             ));
         }
-        if self.neighbor == 0 {
+        if self.neighbor == 0 || self.neighbor > MAX_SUPPORT_NEIGHBOR {
             return Err(Error::param(
                 "support neighbor",
-                0,
-                "must be at least 1 (default 4)",
+                self.neighbor,
+                format!(
+                    "must be between 1 and {MAX_SUPPORT_NEIGHBOR} (default 4): the support \
+                     radius reaches the n-th nearest kernel, so far more neighbours make every \
+                     support cover the object and the matrices dense"
+                ),
             ));
         }
         Ok(())

@@ -164,12 +164,8 @@ impl ContactSettings {
             "the contact penalty stiffness (Pa/m^2)",
         )?;
         positive("contact.radius", self.radius, "the contact radius (metres)")?;
-        if self.samples == Some(0) {
-            return Err(Error::param(
-                "contact.samples",
-                0,
-                "each object needs at least one contact sample",
-            ));
+        if let Some(count) = self.samples {
+            samples::check_count("contact.samples", count)?;
         }
         let mus = std::iter::once(("contact.friction", self.friction)).chain(
             self.pairs

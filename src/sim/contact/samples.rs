@@ -18,6 +18,45 @@ pub const DEFAULT_SPACING_FRACTION: f64 = 1.0 / 25.0;
 /// Fewest and most samples an object gets by default (from its size).
 pub const DEFAULT_SAMPLES_RANGE: (usize, usize) = (64, 20_000);
 
+/// Most contact samples one object may have: 1,000,000, 50 times the default's largest
+/// count, a typo guard (or a unit mistake). Whether the samples of a scene fit is decided by
+/// [`sample_bytes`] against the memory available.
+pub const MAX_CONTACT_SAMPLES: usize = 1_000_000;
+
+/// `count` as the contact sample count named `name` (`contact.samples` or
+/// `contact_samples`): at least 1 and at most [`MAX_CONTACT_SAMPLES`].
+///
+/// # Errors
+/// [`Error::InvalidParameter`] naming `name` otherwise.
+pub fn check_count(name: &'static str, count: usize) -> Result<()> {
+    if count == 0 {
+        return Err(Error::param(
+            name,
+            count,
+            "an object in contact needs at least one contact sample",
+        ));
+    }
+    if count > MAX_CONTACT_SAMPLES {
+        return Err(Error::param(
+            name,
+            count,
+            format!(
+                "more than {MAX_CONTACT_SAMPLES} contact samples per object is a typo guard's \
+                 limit (the default is {}..{} from the object's size); use fewer",
+                DEFAULT_SAMPLES_RANGE.0, DEFAULT_SAMPLES_RANGE.1
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Bytes that `count` contact samples with `handles` = m + 1 weights each hold during a run:
+/// the weights, the rest and deformed centres, the area, and the broad phase's tree and
+/// candidate lists (about 64 bytes a sample).
+pub fn sample_bytes(count: usize, handles: usize) -> u64 {
+    count as u64 * (8 * handles as u64 + 24 + 24 + 8 + 64)
+}
+
 /// The contact samples of one object.
 #[derive(Debug, Clone)]
 pub struct ContactSamples {
@@ -96,13 +135,7 @@ impl ContactSamples {
         count: usize,
         thickness: Option<f64>,
     ) -> Result<ContactSamples> {
-        if count == 0 {
-            return Err(Error::param(
-                "contact_samples",
-                count,
-                "an object in contact needs at least one contact sample",
-            ));
-        }
+        check_count("contact_samples", count)?;
         let area = surface_area(shape).ok_or_else(|| {
             Error::param(
                 "shape",
@@ -272,7 +305,26 @@ fn mesh_samples(
         v.to_vec(),
         tris.to_vec(),
         Sided::Solid,
-    )?;
+    )
+    .map_err(|e| match e {
+        crate::geometry::GeometryError::ColliderNotClosed {
+            boundary_edges,
+            nonmanifold_edges,
+            misoriented_edges,
+            ..
+        } => Error::param(
+            "shape",
+            "an open mesh",
+            format!(
+                "object-object contact needs a closed, consistently oriented surface to tell \
+                 inside from outside, and this mesh has {boundary_edges} boundary, \
+                 {nonmanifold_edges} non-manifold and {misoriented_edges} misoriented edges \
+                 (allow_open_mesh lets it be simulated, not touch other objects); repair the \
+                 mesh, or leave the object out of the [contact] scene"
+            ),
+        ),
+        other => other.into(),
+    })?;
     let areas: Vec<f64> = tris.iter().map(|t| triangle_area(v, t)).collect();
     let total: f64 = areas.iter().sum();
     let step = total / count as f64;

@@ -39,6 +39,25 @@ fn fixed() -> Motion {
     Motion::Fixed
 }
 
+impl Boundary {
+    /// Check the region, the motion and the stiffness (positive and finite when given).
+    ///
+    /// # Errors
+    /// The region's and the motion's errors; [`Error::InvalidParameter`] for the stiffness.
+    pub fn validate(&self) -> Result<()> {
+        self.region.validate()?;
+        self.motion.validate()?;
+        match self.stiffness {
+            Some(k) if !(k > 0.0 && k.is_finite()) => Err(Error::param(
+                "stiffness",
+                k,
+                "a boundary penalty stiffness (Pa/m^2) must be positive and finite",
+            )),
+            _ => Ok(()),
+        }
+    }
+}
+
 /// Initial placement and velocity of an object (applied to its rest shape).
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
