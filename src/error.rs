@@ -420,10 +420,12 @@ pub enum GeometryError {
         /// Centre of voxel [0, 0, 0], metres, as found.
         origin: [f64; 3],
     },
-    /// A voxel of a modulus image holds NaN, an infinity or a negative value.
+    /// A voxel of a modulus image holds NaN, an infinity, a negative value or one above
+    /// 1e100 Pa (where the matrices overflow).
     #[error(
-        "voxel {voxel:?} has Young's modulus {value} Pa: moduli must be finite and >= 0 \
-         (0 marks empty voxels); fix the image"
+        "voxel {voxel:?} has Young's modulus {} Pa: moduli must be finite, >= 0 and at most \
+         1e100 Pa (0 marks empty voxels); fix the image (are its units Pa?)",
+        readable_number(*.value)
     )]
     ImageVoxel {
         /// The voxel's [i, j, k] (0-based).

@@ -300,9 +300,7 @@ impl PyBasis {
         gradients: bool,
     ) -> PyResult<Bound<'py, PyAny>> {
         let q = crate::convert::points(py, points, "points")?;
-        let w = py
-            .detach(|| self.basis.weights(&q))
-            .map_err(|e| to_py(py, &e))?;
+        let w = interruptible_weights(py, &self.basis, &q)?;
         let (n, m) = (q.len(), w.modes);
         let values = array2(py, w.values, n, m);
         if !gradients {
@@ -346,7 +344,7 @@ impl PyBasis {
             coefficients: Mat::from_fn(k, c.ncols(), |i, j| c[(i, j)]),
             eigenvalues: vec![0.0; c.ncols()],
         };
-        let w = py.detach(|| field.weights(&q)).map_err(|e| to_py(py, &e))?;
+        let w = interruptible_weights(py, &field, &q)?;
         Ok(array2(py, w.values, q.len(), w.modes))
     }
 
@@ -359,4 +357,34 @@ impl PyBasis {
             self.metadata.shape.as_deref().unwrap_or("?")
         )
     }
+}
+
+/// Points per chunk of [`interruptible_weights`]: about 0.1 s of work each.
+const WEIGHTS_CHUNK: usize = 100_000;
+
+/// `basis.weights(q)` in chunks of [`WEIGHTS_CHUNK`] points with the GIL released, checking
+/// for Ctrl-C (a pending Python signal) between chunks: 20M points take minutes. Each point's
+/// weights are independent of the others, so the result is the same as in one call.
+fn interruptible_weights(
+    py: Python<'_>,
+    basis: &Basis,
+    q: &[freeform::Point3],
+) -> PyResult<freeform::precompute::skinning::SkinningWeights> {
+    if q.is_empty() {
+        return basis.weights(q).map_err(|e| to_py(py, &e));
+    }
+    let mut all = freeform::precompute::skinning::SkinningWeights {
+        modes: basis.modes(),
+        values: Vec::with_capacity(q.len() * basis.modes()),
+        gradients: Vec::with_capacity(q.len() * basis.modes()),
+    };
+    for chunk in q.chunks(WEIGHTS_CHUNK) {
+        let w = py
+            .detach(|| basis.weights(chunk))
+            .map_err(|e| to_py(py, &e))?;
+        all.values.extend(w.values);
+        all.gradients.extend(w.gradients);
+        py.check_signals()?;
+    }
+    Ok(all)
 }

@@ -419,34 +419,48 @@ impl PyWorld {
 
     /// Deformed render points of an object (index or name): mesh vertices, point-cloud
     /// points, or integration points of a primitive; (N, 3), metres. With ``out`` (a
-    /// writable float64 (N, 3) C-contiguous array) they are written there and ``out`` is
-    /// returned: no new NumPy array per call in a stepping loop.
+    /// writable (N, 3) float array; float64 is written in place without a copy, float32 is
+    /// rounded on assignment) they are written there and ``out`` is returned: no new NumPy
+    /// array per call in a stepping loop.
     #[pyo3(signature = (object, out = None))]
     fn positions<'py>(
         &self,
         py: Python<'py>,
         object: &Bound<'py, PyAny>,
-        out: Option<&Bound<'py, PyArray2<f64>>>,
-    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        out: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
         let i = object_index(py, &self.world, object)?;
         let x = self.world.object(i).render_positions();
         let Some(out) = out else {
-            return Ok(points_array(py, &x));
+            return Ok(points_array(py, &x).into_any());
         };
-        let mut rw: PyReadwriteArray2<'_, f64> = out
+        let shape: Option<Vec<usize>> = out.getattr("shape").and_then(|s| s.extract()).ok();
+        if shape.as_deref() != Some(&[x.len(), 3][..]) {
+            return Err(invalid(
+                py,
+                format!("out: expected an array of shape ({}, 3), got {shape:?}", x.len()),
+            ));
+        }
+        let Ok(out64) = out.cast::<PyArray2<f64>>() else {
+            // Another dtype: a real float one takes the values by NumPy's assignment.
+            let kind = out
+                .getattr("dtype")
+                .and_then(|d| d.getattr("kind"))
+                .and_then(|k| k.extract::<String>())
+                .unwrap_or_default();
+            if kind != "f" {
+                return Err(invalid(
+                    py,
+                    format!("out: expected a float array (float64 or float32), got dtype kind {kind:?}"),
+                ));
+            }
+            out.set_item(py.Ellipsis(), points_array(py, &x))?;
+            return Ok(out.clone());
+        };
+        let mut rw: PyReadwriteArray2<'_, f64> = out64
             .try_readwrite()
             .map_err(|e| invalid(py, format!("out: not writable ({e})")))?;
         let mut view = rw.as_array_mut();
-        if view.shape() != [x.len(), 3] {
-            return Err(invalid(
-                py,
-                format!(
-                    "out: expected shape ({}, 3), got {:?}",
-                    x.len(),
-                    view.shape()
-                ),
-            ));
-        }
         for (mut row, p) in view.rows_mut().into_iter().zip(&x) {
             row[0] = p[0];
             row[1] = p[1];

@@ -133,8 +133,23 @@ def test_positions_into_a_preallocated_array():
     out = np.empty((len(world.rest_positions(0)), 3))
     assert world.positions(0, out=out) is not None
     np.testing.assert_array_equal(out, world.positions(0))
-    with pytest.raises(ff.InvalidInputError, match="expected shape"):
+    with pytest.raises(ff.InvalidInputError, match="expected an array of shape"):
         world.positions(0, out=np.empty((3, 3)))
+    # float32 (what renderers upload) takes the values rounded; integers are refused.
+    out32 = np.empty(out.shape, dtype=np.float32)
+    assert world.positions(0, out=out32) is out32
+    np.testing.assert_array_equal(out32, world.positions(0).astype(np.float32))
+    with pytest.raises(ff.InvalidInputError, match="float array"):
+        world.positions(0, out=np.empty(out.shape, dtype=np.int32))
+
+
+def test_scene_dicts_take_numpy_values_and_name_non_finite_fields():
+    settings = {"simulation": {"dt": np.float32(0.01), "steps": np.int64(2),
+                               "gravity": np.array([0.0, -9.81, 0.0])}}
+    ff.Scene.from_dict(settings)
+    bad = {"simulation": {"dt": 0.01, "steps": 2, "gravity": [0.0, np.nan, 0.0]}}
+    with pytest.raises(ff.InvalidInputError, match=r"simulation.gravity\[1\] = NaN"):
+        ff.Scene.from_dict(bad)
 
 
 def test_bad_calls_between_steps_raise_clear_errors():

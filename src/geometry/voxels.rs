@@ -110,7 +110,10 @@ impl VoxelImage {
             ]
         };
         if let VoxelValues::Moduli(e) = &values {
-            if let Some(n) = e.iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
+            if let Some(n) = e
+                .iter()
+                .position(|v| !(v.is_finite() && (0.0..=1e100).contains(v)))
+            {
                 return Err(GeometryError::ImageVoxel {
                     voxel: ijk(n),
                     value: e[n],
@@ -317,6 +320,19 @@ mod tests {
         )
         .unwrap_err();
         assert!(e.to_string().contains("voxel [1, 1, 0]"), "{e}");
+        // A modulus of 1e300 (H would overflow): named, in scientific notation.
+        let e = VoxelImage::new(
+            [2, 2, 1],
+            [1.0; 3],
+            [0.0; 3],
+            VoxelValues::Moduli(vec![1.0, 1e300, 1.0, 1.0]),
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("voxel [1, 0, 0] has Young's modulus 1e300 Pa"),
+            "{e}"
+        );
         let e = VoxelImage::new([usize::MAX, 2, 1], [1.0; 3], [0.0; 3], ok(1)).unwrap_err();
         assert!(e.to_string().contains("crop or downsample"), "{e}");
     }

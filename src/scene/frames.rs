@@ -20,9 +20,10 @@ pub trait FrameObserver {
 
 /// Writes each object's render points (or deformed mesh) per frame into `<out>/<object>/`:
 /// `<object>_<frame:06>.vtp` (VTK PolyData with the displacement, and the stress if asked)
-/// and/or `.ply`, likewise `<object>_<input>_<frame:06>.*` for each render input, and at the
-/// end `<out>/<object>.pvd` (and `<out>/<object>_<input>.pvd`) collections of the VTK frames
-/// with their times.
+/// and/or `.ply`, likewise `<object>_<input>_<frame:06>.*` for each render input, and
+/// `<out>/<object>.pvd` (and `<out>/<object>_<input>.pvd`) collections of the VTK frames with
+/// their times: rewritten (atomically) as frames land, at most once every
+/// [`PVD_INTERVAL`] and at the end, so an interrupted run opens with the frames it wrote.
 #[derive(Debug)]
 pub struct FrameWriter {
     out: PathBuf,
@@ -34,7 +35,13 @@ pub struct FrameWriter {
     frames: usize,
     rotate_splat_sh: bool,
     stress: bool,
+    /// When the `.pvd` collections were last written (None: not yet).
+    pvd_written: Option<std::time::Instant>,
 }
+
+/// Least time between two rewrites of the `.pvd` collections during a run: each rewrite
+/// holds every frame so far, so rewriting at every frame would cost O(frames^2).
+pub const PVD_INTERVAL: std::time::Duration = std::time::Duration::from_secs(1);
 
 impl FrameWriter {
     /// A writer into directory `out` (created, with parents) in `formats`.
@@ -51,6 +58,7 @@ impl FrameWriter {
             frames: 0,
             rotate_splat_sh: true,
             stress: false,
+            pvd_written: None,
         })
     }
 
@@ -284,24 +292,40 @@ impl FrameObserver for FrameWriter {
         }
         self.write_colliders(world, frame)?;
         self.frames += 1;
+        if self.pvd_written.is_none_or(|t| t.elapsed() >= PVD_INTERVAL) {
+            self.write_collections(world)?;
+        }
         Ok(())
     }
 
     fn finish(&mut self, world: &World) -> Result<()> {
-        if self.formats.contains(&Format::Vtk) {
-            // Every object and render input gets its collection, even with no frames yet.
-            for object in world.objects() {
-                self.collection(object.name());
-                for set in object.render_sets() {
-                    self.collection(&format!("{}_{}", object.name(), set.name()));
-                }
-            }
-            for (stem, entries) in &self.pvd {
-                let path = self.out.join(format!("{stem}.pvd"));
-                vtk::write_pvd(&path, entries)?;
-                self.files.push(path.display().to_string());
-            }
+        for path in self.write_collections(world)? {
+            self.files.push(path.display().to_string());
         }
         Ok(())
+    }
+}
+
+impl FrameWriter {
+    /// Write every `.pvd` collection as it stands (with VTK output); their paths.
+    fn write_collections(&mut self, world: &World) -> Result<Vec<PathBuf>> {
+        if !self.formats.contains(&Format::Vtk) {
+            return Ok(Vec::new());
+        }
+        // Every object and render input gets its collection, even with no frames yet.
+        for object in world.objects() {
+            self.collection(object.name());
+            for set in object.render_sets() {
+                self.collection(&format!("{}_{}", object.name(), set.name()));
+            }
+        }
+        let mut paths = Vec::new();
+        for (stem, entries) in &self.pvd {
+            let path = self.out.join(format!("{stem}.pvd"));
+            vtk::write_pvd(&path, entries)?;
+            paths.push(path);
+        }
+        self.pvd_written = Some(std::time::Instant::now());
+        Ok(paths)
     }
 }

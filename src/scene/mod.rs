@@ -51,7 +51,7 @@ pub use settings::RunSettings;
 pub use shape::{ObjectShape, ShapeSource};
 pub use spec::{
     BasisSettings, CacheSettings, Format, ObjectSpec, OutputSettings, Scene, Simulation,
-    SolverSettings,
+    SolverSettings, MAX_OBJECT_STEPS, MAX_STEPS,
 };
 pub use world::World;
 

@@ -225,6 +225,14 @@ impl SceneObject {
         let ip_weights = basis.weights(&points.points).map_err(ctx)?;
         let sim = ReducedSim::with_weights(&basis, &points, &material, &ip_weights, &opts)
             .map_err(ctx)?;
+        crate::sim::object::check_start_outside_colliders(
+            sim.environment(),
+            &scene.colliders,
+            &points.points,
+            &spec.placement.transform().map_err(ctx)?,
+            sim.diagonal(),
+        )
+        .map_err(ctx)?;
         let (rest, triangles) = match shape {
             Some(Shape::Mesh(m)) => (Some(m.vertices().to_vec()), Some(m.triangles().to_vec())),
             Some(other) => (other.render_points().map(<[Point3]>::to_vec), None),

@@ -30,15 +30,26 @@ pub fn run(scene: &Scene, settings: &RunSettings, progress: &dyn Progress) -> Re
     }
     let steps = scene.simulation.steps;
     progress.begin("simulate", Some(steps as u64));
-    for step in 1..=steps {
-        crate::error::check_cancelled(progress, "simulate")?;
-        world.step()?;
-        if let Some(w) = writer.as_mut() {
-            if step % scene.output.every == 0 || step == steps {
-                w.frame(&world, step)?;
+    let mut stepped = || -> Result<()> {
+        for step in 1..=steps {
+            crate::error::check_cancelled(progress, "simulate")?;
+            world.step()?;
+            if let Some(w) = writer.as_mut() {
+                if step % scene.output.every == 0 || step == steps {
+                    w.frame(&world, step)?;
+                }
             }
+            progress.set_position(step as u64);
         }
-        progress.set_position(step as u64);
+        Ok(())
+    };
+    if let Err(e) = stepped() {
+        if let Some(w) = writer.as_mut() {
+            // A stopped, cancelled or failed run keeps its frames, and its collections list
+            // exactly them. The run's own error is the one to report.
+            let _ = w.finish(&world);
+        }
+        return Err(e);
     }
     progress.finish();
     let (frames, files) = match writer.as_mut() {

@@ -516,6 +516,16 @@ impl Scene {
                     .map_err(in_object)?;
             }
         }
+        let object_steps = self.simulation.steps.saturating_mul(self.objects.len());
+        if object_steps > MAX_OBJECT_STEPS {
+            return Err(scene_err(format!(
+                "simulation.steps x objects = {} x {} = {object_steps} is more than \
+                 {MAX_OBJECT_STEPS}: the summary keeps a row per object and step (about 150 \
+                 bytes each); split the run or use fewer steps",
+                self.simulation.steps,
+                self.objects.len()
+            )));
+        }
         for (name, m) in &self.materials {
             m.validate().map_err(|e| Error::NamedMaterial {
                 name: name.clone(),
@@ -570,6 +580,10 @@ impl Scene {
 /// Most time steps a scene may ask for (the summary keeps one row per step).
 pub const MAX_STEPS: usize = 10_000_000;
 
+/// Most object-steps (steps x objects) a scene may ask for: the summary keeps a row of about
+/// 150 bytes per object and step, so 20,000,000 rows are about 3 GB.
+pub const MAX_OBJECT_STEPS: usize = 20_000_000;
+
 /// A cubature point count `n` (field `name`): at least 1, at most
 /// [`crate::sim::cubature::MAX_CUBATURE`].
 fn check_cubature(name: &str, n: usize) -> Result<()> {
@@ -611,6 +625,20 @@ mod tests {
     }
 
     #[test]
+    fn steps_times_objects_beyond_the_limit_is_refused() {
+        let object = |name: &str| format!("[[object]]\nname = \"{name}\"\nshape = \"box:1,1,1\"\n");
+        let scene = |steps: usize, n: usize| {
+            let objects: String = (0..n).map(|i| object(&format!("o{i}"))).collect();
+            Scene::from_toml(&format!(
+                "[simulation]\ndt = 0.01\nsteps = {steps}\n{objects}"
+            ))
+        };
+        scene(MAX_STEPS, 2).unwrap();
+        let err = scene(MAX_STEPS, 3).unwrap_err().to_string();
+        assert!(err.contains("simulation.steps x objects"), "{err}");
+    }
+
+    #[test]
     fn gravity_beyond_the_limit_is_refused_naming_the_field() {
         let scene = |g: &str| {
             Scene::from_toml(&format!(
@@ -619,7 +647,7 @@ mod tests {
             ))
         };
         scene("[0, -9.81, 0]").unwrap();
-        let err = scene("[0, -1e300, 0]").unwrap_err().to_string();
+        let err = scene("[0, -1e12, 0]").unwrap_err().to_string();
         assert!(
             err.contains("simulation.gravity") && err.contains("above the limit"),
             "{err}"

@@ -229,10 +229,14 @@ fn run_writes_frames_and_a_json_summary_and_rejects_bad_scenes() {
     assert_eq!(r["objects"][0]["steps"].as_array().unwrap().len(), 2);
     for (flag, value, needle) in [
         ("--dt", "nan", "simulation.dt = NaN"),
-        ("--dt", "-0.01", "simulation.dt = -0.01"),
+        ("--dt=-0.01", "", "simulation.dt = -0.01"),
         ("--steps", "0", "simulation.steps must be at least 1"),
     ] {
-        let o = freeform(&["run", scene.to_str().unwrap(), flag, value]);
+        let mut args = vec!["run", scene.to_str().unwrap(), flag];
+        if !value.is_empty() {
+            args.push(value);
+        }
+        let o = freeform(&args);
         assert_eq!(o.status.code(), Some(1), "{flag} {value}");
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(err.contains(needle), "{flag} {value}: {err}");

@@ -632,7 +632,7 @@ fn bad_collider_numbers_are_scene_errors_naming_the_collider() {
         ("name = \"ball\"\nshape = { sphere = { center = [0, 0, 0], radius = 0.0 } }", "collider 0 'ball'"),
         ("shape = { sphere = { center = [0, 0, 0], radius = 0.0 } }", "radius"),
         ("shape = { capsule = { a = [0, 0, 0], b = [1, 0, 0], radius = -1 } }", "radius"),
-        ("shape = { capsule = { a = [0, nan, 0], b = [1, 0, 0], radius = 1 } }", "finite"),
+        ("shape = { capsule = { a = [0, nan, 0], b = [1, 0, 0], radius = 1 } }", "collider[0].shape.capsule.a[1] = NaN"),
         ("shape = { box = { min = [0, 0, 0], max = [1, 1, 1], rotation = { axis = [0, 0, 0], degrees = 3 } } }", "non-zero axis"),
         ("shape = { mesh = { file = \"m.obj\", scale = 0 } }", "scale"),
         ("shape = { mesh = { file = \"m.obj\", sided = \"inside\" } }", "unknown variant `inside`"),
@@ -713,4 +713,30 @@ fn the_robot_push_example_parses_and_its_arm_is_a_chain() {
         .collect();
     assert!((2..=3).contains(&capsules.len()));
     assert!(capsules[1..].iter().all(|c| c.parent.is_some()));
+}
+
+#[test]
+fn an_object_that_starts_inside_a_solid_collider_is_refused() {
+    // The bar (box:1,0.2,0.2 from the origin) with its far half inside a solid box.
+    let wall = Collider::new(ColliderShape::Box {
+        min: [0.5, -1.0, -1.0],
+        max: [2.0, 1.0, 1.0],
+        rotation: None,
+    })
+    .named("wall");
+    let e = collider_error(&one_object(wall), Path::new("."));
+    let msg = e.to_string();
+    assert!(
+        msg.contains("collider 0 'wall'")
+            && msg.contains("starts inside this box collider")
+            && msg.contains("placement.translation"),
+        "{msg}"
+    );
+    // Resting on a floor at its bottom face is no start inside (the depth is 0).
+    let floor = Collider::new(ColliderShape::Plane {
+        point: [0.0, 0.0, 0.0],
+        normal: [0.0, 1.0, 0.0],
+    });
+    let settings = RunSettings::default();
+    World::new(&one_object(floor), &settings, &Silent).unwrap();
 }

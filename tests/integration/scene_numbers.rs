@@ -198,6 +198,14 @@ const ACCEPTED: &[(&str, &[&str], &str)] = &[
         "no guard vectors (slower for clustered eigenvalues)",
     ),
     (
+        "lobpcg.max_fill_ratio",
+        &["0"],
+        "never the exact factor by fill",
+    ),
+    ("lobpcg.restart_tol", &["0"], "never restart"),
+    ("lobpcg.ortho_drop", &["0"], "drop no direction"),
+    ("lobpcg.svqb_drop", &["0"], "drop no Gram eigenvalue"),
+    (
         "lobpcg.escalate_after",
         &["0", "max"],
         "never switch to the exact factor",

@@ -44,6 +44,14 @@ fn live_frames(scene: &Scene, settings: &RunSettings, out: &Path) -> World {
     let mut world = World::new(scene, settings, &Silent).unwrap();
     let mut writer = FrameWriter::new(out, &scene.output.formats).unwrap();
     writer.frame(&world, 0).unwrap();
+    if scene.output.formats.contains(&freeform::scene::Format::Vtk) {
+        // The collections are written as frames land: a run stopped here opens in ParaView.
+        for object in world.objects() {
+            let pvd = std::fs::read_to_string(out.join(format!("{}.pvd", object.name())))
+                .expect("the .pvd is written with the first frame");
+            assert_eq!(pvd.matches("<DataSet").count(), 1, "{pvd}");
+        }
+    }
     let steps = scene.simulation.steps;
     for step in 1..=steps {
         let reports = world.step().unwrap();

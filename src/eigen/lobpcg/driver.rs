@@ -26,8 +26,7 @@ pub(super) fn solve(
     request: &EigenRequest,
     progress: &dyn Progress,
 ) -> Result<EigenSolution, EigenError> {
-    opts.validate()
-        .map_err(|e| EigenError::InvalidRequest(e.to_string()))?;
+    opts.validate()?;
     let (h, m) = (problem.h, problem.m);
     let assembled = h.assembled().zip(m.assembled());
     let k = h.dim();

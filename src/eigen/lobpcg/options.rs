@@ -97,52 +97,65 @@ pub struct LobpcgOptions {
 pub const MAX_GUARD: usize = 10_000;
 
 impl LobpcgOptions {
-    /// Check the ranges: `guard` at most [`MAX_GUARD`]; `shift_factor` and `max_fill_ratio`
-    /// positive; `restart_tol`, `ortho_drop` and `svqb_drop` in (0, 1); `recompute_every` at
-    /// least 1. `max_factor_entries` = 0 (never the exact factor) and `escalate_after` = 0
-    /// (never switch) are valid.
+    /// Check the ranges: `guard` at most [`MAX_GUARD`]; `shift_factor` positive and finite;
+    /// `max_fill_ratio` and `restart_tol` finite and >= 0 (0: never the exact factor by fill,
+    /// never restart; `restart_tol` >= 1 restarts at every step); `ortho_drop` and `svqb_drop`
+    /// in [0, 1); `recompute_every` at least 1. `max_factor_entries` = 0 (never the exact
+    /// factor) and `escalate_after` = 0 (never switch) are valid.
     ///
     /// # Errors
     /// [`crate::Error::InvalidParameter`] naming the first field out of range.
-    pub fn validate(&self) -> crate::Result<()> {
-        use crate::Error;
+    pub fn validate(&self) -> Result<(), crate::eigen::EigenError> {
+        let param = |name: &str, value: &dyn std::fmt::Display, reason: String| {
+            crate::eigen::EigenError::InvalidRequest(format!(
+                "invalid lobpcg {name} = {value}: {reason}"
+            ))
+        };
         if let Some(g) = self.guard.filter(|&g| g > MAX_GUARD) {
-            return Err(Error::param(
+            return Err(param(
                 "guard",
-                g,
+                &g,
                 format!("at most {MAX_GUARD} guard vectors (default max(8, (nev - 1) / 4))"),
             ));
         }
+        if !(self.shift_factor > 0.0 && self.shift_factor.is_finite()) {
+            return Err(param(
+                "shift_factor",
+                &self.shift_factor,
+                "must be positive and finite (default 1e-4): sigma = 0 leaves H + sigma M \
+                 singular"
+                    .into(),
+            ));
+        }
         for (name, v, default) in [
-            ("shift_factor", self.shift_factor, "1e-4"),
             ("max_fill_ratio", self.max_fill_ratio, "8"),
+            ("restart_tol", self.restart_tol, "1e-10"),
         ] {
-            if !(v > 0.0 && v.is_finite()) {
-                return Err(Error::param(
+            if !(v >= 0.0 && v.is_finite()) {
+                return Err(param(
                     name,
-                    v,
-                    format!("must be positive and finite (default {default})"),
+                    &v,
+                    format!("must be finite and >= 0 (default {default})"),
                 ));
             }
         }
         for (name, v, default) in [
-            ("restart_tol", self.restart_tol, "1e-10"),
             ("ortho_drop", self.ortho_drop, "1e-10"),
             ("svqb_drop", self.svqb_drop, "1e-14"),
         ] {
-            if !(v > 0.0 && v < 1.0) {
-                return Err(Error::param(
+            if !(v >= 0.0 && v < 1.0) {
+                return Err(param(
                     name,
-                    v,
-                    format!("must lie in (0, 1) (default {default})"),
+                    &v,
+                    format!("must lie in [0, 1) (default {default})"),
                 ));
             }
         }
         if self.recompute_every == 0 {
-            return Err(Error::param(
+            return Err(param(
                 "recompute_every",
-                0,
-                "must be at least 1 (default 10)",
+                &0,
+                "must be at least 1 (default 10)".into(),
             ));
         }
         Ok(())

@@ -295,6 +295,8 @@ impl ContactWorld {
         let snapshots: Vec<_> = sims.iter().map(|s| s.snapshot()).collect();
         let mut raises = 0;
         let mut start: Option<Vec<f64>> = None;
+        // Wall time of the solves undone for a stiffer one: each member's report counts it.
+        let mut undone_s = vec![0.0; m];
         loop {
             let contact = PairContact::new(bodies.clone(), stiffness.clone());
             let (reports, mut stats) = step_island(
@@ -321,10 +323,17 @@ impl ContactWorld {
                 for (s, snap) in sims.iter_mut().zip(&snapshots) {
                     s.restore(snap);
                 }
+                for (spent, r) in undone_s.iter_mut().zip(&reports) {
+                    *spent += r.wall_s;
+                }
                 raises += 1;
                 continue;
             }
             stats.deepest_pair = stats.deepest_pair.map(|(a, b)| (group[a], group[b]));
+            let reports = reports.into_iter().zip(&undone_s).map(|(mut r, spent)| {
+                r.wall_s += spent;
+                r
+            });
             return Solved {
                 reports: group.iter().copied().zip(reports).collect(),
                 stats: Some(stats),
@@ -347,6 +356,8 @@ impl ContactWorld {
         let n = sims.len();
         let mut solved: Vec<Option<Solved>> = solved.into_iter().map(Some).collect();
         let mut regrouped = 0;
+        // Wall time of the solves undone by a regrouping, per object: counted in its report.
+        let mut undone_s = vec![0.0; n];
         loop {
             self.positions = sims
                 .par_iter()
@@ -376,7 +387,11 @@ impl ContactWorld {
                 .filter(|&a| !self.self_near[a] && self.self_within(a, 0.0))
                 .collect();
             if !merged && self_redo.is_empty() {
-                return (solved.into_iter().flatten().collect(), regrouped);
+                let mut solved: Vec<Solved> = solved.into_iter().flatten().collect();
+                for (i, r) in solved.iter_mut().flat_map(|s| s.reports.iter_mut()) {
+                    r.wall_s += undone_s[*i];
+                }
+                return (solved, regrouped);
             }
             for &a in &self_redo {
                 self.self_near[a] = true;
@@ -397,6 +412,10 @@ impl ContactWorld {
                     sims[i].restore(&snapshots[i]);
                     regrouped += 1;
                 }
+            }
+            // The solves of the groups not kept are undone: keep their time.
+            for (i, r) in solved.iter().flatten().flat_map(|s| s.reports.iter()) {
+                undone_s[*i] += r.wall_s;
             }
             let fresh = self.solve_groups(&redo, sims);
             current = keep.iter().map(|(g, _)| g.clone()).collect();

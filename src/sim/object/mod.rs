@@ -12,6 +12,7 @@ mod options;
 mod placement;
 mod potential;
 mod setup;
+mod start;
 
 use crate::material::MaterialField;
 use crate::precompute::sampling::IntegrationPoints;
@@ -34,6 +35,7 @@ use options::placement_transform;
 pub use options::{Boundary, Placement, SimOptions, StepReport, PENALTY_FACTOR, SWEEP_DEPTH};
 pub(crate) use potential::{StepPotential, StepStart};
 use setup::positive;
+pub use start::{check_start_outside_colliders, START_DEPTH_FRACTION};
 use std::sync::Arc;
 
 /// A simulated object.

@@ -126,6 +126,16 @@ pub struct StepReport {
     pub boundary_rms_deviation: Option<f64>,
 }
 
+impl Placement {
+    /// The rigid transform x -> R x + t of the placement (rest to world), its values checked.
+    ///
+    /// # Errors
+    /// A translation or rotation that is not finite, or a zero rotation axis.
+    pub fn transform(&self) -> Result<Rigid> {
+        placement_transform(self)
+    }
+}
+
 /// The rigid transform x -> R x + t of a placement, its values checked.
 pub(super) fn placement_transform(p: &Placement) -> Result<Rigid> {
     if !p.translation.iter().all(|v| v.is_finite()) {
