@@ -637,8 +637,8 @@ fn bad_collider_numbers_are_scene_errors_naming_the_collider() {
         ("shape = { mesh = { file = \"m.obj\", scale = 0 } }", "scale"),
         ("shape = { mesh = { file = \"m.obj\", sided = \"inside\" } }", "unknown variant `inside`"),
         ("shape = { sphere = { center = [0, 0, 0], radius = 1 } }\nparent = \"nobody\"", "no collider listed before"),
-        ("shape = { sphere = { center = [0, 0, 0], radius = 1 } }\nmotion = { translate = { velocity = [nan, 0, 0] } }", "velocity must be finite"),
-        ("shape = { sphere = { center = [0, 0, 0], radius = 1 } }\nmotion = { pose = { rotation = [[1, 0, 0], [0, 1, 0], [0, 0, 1]], translation = [0, nan, 0] } }", "finite"),
+        ("shape = { sphere = { center = [0, 0, 0], radius = 1 } }\nmotion = { translate = { velocity = [nan, 0, 0] } }", "collider[0].motion.translate.velocity[0] = NaN"),
+        ("shape = { sphere = { center = [0, 0, 0], radius = 1 } }\nmotion = { pose = { rotation = [[1, 0, 0], [0, 1, 0], [0, 0, 1]], translation = [0, nan, 0] } }", "collider[0].motion.pose.translation[1] = NaN"),
         ("shape = { sphere = { center = [0, 0, 0], radius = 1 } }\nstiffness = -5", "stiffness"),
         ("shape = { cone = { radius = 1 } }", "unknown variant `cone`"),
     ] {

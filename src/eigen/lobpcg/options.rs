@@ -143,7 +143,7 @@ impl LobpcgOptions {
             ("ortho_drop", self.ortho_drop, "1e-10"),
             ("svqb_drop", self.svqb_drop, "1e-14"),
         ] {
-            if !(v >= 0.0 && v < 1.0) {
+            if !(0.0..1.0).contains(&v) {
                 return Err(param(
                     name,
                     &v,
