@@ -131,8 +131,9 @@ pub fn real(py: Python<'_>, obj: &Bound<'_, PyAny>, what: &str) -> PyResult<()> 
     let kind = obj
         .getattr("dtype")
         .and_then(|d| d.getattr("kind"))
-        .and_then(|k| k.extract::<String>());
-    if kind.as_deref() == Ok("c") {
+        .and_then(|k| k.extract::<String>())
+        .ok();
+    if kind.as_deref() == Some("c") {
         return Err(invalid(
             py,
             format!(
@@ -223,9 +224,6 @@ pub fn report<'py>(py: Python<'py>, value: &impl serde::Serialize) -> PyResult<B
 /// `InvalidInputError` naming `what`, not pyo3's bare `OverflowError`.
 pub fn count(py: Python<'_>, v: i64, what: &str) -> PyResult<usize> {
     usize::try_from(v).map_err(|_| {
-        crate::errors::invalid(
-            py,
-            format!("{what} = {v}: must be a non-negative integer"),
-        )
+        crate::errors::invalid(py, format!("{what} = {v}: must be a non-negative integer"))
     })
 }

@@ -27,7 +27,9 @@ pub fn sample<'py>(
     spacing: Option<f64>,
     allow_open_mesh: bool,
 ) -> PyResult<PointsAndVolumes<'py>> {
-    let points = points.map(|n| crate::convert::count(py, n, "points")).transpose()?;
+    let points = points
+        .map(|n| crate::convert::count(py, n, "points"))
+        .transpose()?;
     let resolution = match (points, spacing) {
         (Some(_), Some(_)) => {
             return Err(invalid(

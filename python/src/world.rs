@@ -44,6 +44,9 @@ fn to_toml(py: Python<'_>, v: &Bound<'_, PyAny>, path: &str) -> PyResult<toml::V
     if let Ok(d) = v.cast::<PyDict>() {
         let mut table = toml::Table::new();
         for (k, x) in d.iter() {
+            if x.is_none() {
+                continue; // None is an absent key (what `to_dict` writes for an unset option)
+            }
             let key: String = k
                 .extract()
                 .map_err(|_| invalid(py, format!("{path}: keys must be strings, got {k}")))?;
@@ -67,7 +70,12 @@ fn to_toml(py: Python<'_>, v: &Bound<'_, PyAny>, path: &str) -> PyResult<toml::V
         .and_then(|d| d.getattr("kind"))
         .and_then(|k| k.extract::<String>())
         .ok();
-    if kind.is_some() && v.getattr("ndim").and_then(|n| n.extract::<usize>()).unwrap_or(0) > 0 {
+    if kind.is_some()
+        && v.getattr("ndim")
+            .and_then(|n| n.extract::<usize>())
+            .unwrap_or(0)
+            > 0
+    {
         return to_toml(py, &v.call_method0("tolist")?, path);
     }
     let integral = matches!(kind.as_deref(), Some("i" | "u")) || v.cast::<PyInt>().is_ok();
@@ -438,7 +446,10 @@ impl PyWorld {
         if shape.as_deref() != Some(&[x.len(), 3][..]) {
             return Err(invalid(
                 py,
-                format!("out: expected an array of shape ({}, 3), got {shape:?}", x.len()),
+                format!(
+                    "out: expected an array of shape ({}, 3), got {shape:?}",
+                    x.len()
+                ),
             ));
         }
         let Ok(out64) = out.cast::<PyArray2<f64>>() else {
@@ -451,7 +462,9 @@ impl PyWorld {
             if kind != "f" {
                 return Err(invalid(
                     py,
-                    format!("out: expected a float array (float64 or float32), got dtype kind {kind:?}"),
+                    format!(
+                        "out: expected a float array (float64 or float32), got dtype kind {kind:?}"
+                    ),
                 ));
             }
             out.set_item(py.Ellipsis(), points_array(py, &x))?;

@@ -102,6 +102,54 @@ fn assert_fails(args: &[&str], needle: &str, out: &Path) {
 }
 
 #[test]
+fn write_failures_name_the_target_and_keep_their_cause() {
+    let dir = tempfile::tempdir().unwrap();
+    // A missing directory: the error names the file asked for, not the temporary one.
+    let target = dir.path().join("no/such/dir/b.npz");
+    let o = freeform(&[
+        "modes",
+        "box:1,1,1",
+        "--kernels",
+        "50",
+        "--modes",
+        "4",
+        "--points",
+        "2000",
+        "--out",
+        target.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains(target.to_str().unwrap()) && !err.contains(".tmp"),
+        "{err}"
+    );
+    // A full disk: the cause stays ("No space left on device"), and nothing else is printed
+    // (the zip writer's own drop used to add "ZipWriter drop failed: ..." to stderr).
+    if Path::new("/dev/full").exists() {
+        let o = freeform(&[
+            "modes",
+            "box:1,1,1",
+            "--kernels",
+            "50",
+            "--modes",
+            "4",
+            "--points",
+            "2000",
+            "--out",
+            "/dev/full",
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(err.contains("No space left on device"), "{err}");
+        assert!(
+            !err.contains("ZipWriter") && !err.contains("panicked"),
+            "{err}"
+        );
+    }
+}
+
+#[test]
 fn bad_input_gives_a_clear_error() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("b.npz");
