@@ -292,6 +292,22 @@ impl Error {
     }
 }
 
+/// Largest magnitude of an input quantity (a scene's numbers, materials, coordinates,
+/// volumes, poses): 1e100. The library multiplies up to three inputs (a stiffness times a
+/// squared length, a density times a volume times an acceleration), so inputs within
+/// [`MIN_MAGNITUDE`]..=1e100 keep every such product inside f64's range (1e-308..1e308);
+/// anything beyond is a typo or a unit mistake.
+pub const MAX_MAGNITUDE: f64 = 1e100;
+
+/// Smallest magnitude of a non-zero input quantity: 1e-100 (see [`MAX_MAGNITUDE`]).
+pub const MIN_MAGNITUDE: f64 = 1e-100;
+
+/// Whether `x` is finite and either 0 or of magnitude within
+/// [`MIN_MAGNITUDE`]..=[`MAX_MAGNITUDE`].
+pub fn in_range(x: f64) -> bool {
+    x == 0.0 || (MIN_MAGNITUDE..=MAX_MAGNITUDE).contains(&x.abs())
+}
+
 /// `x` as people read it: Rust's plain form in 1e-4..1e16, scientific notation beyond (Rust
 /// prints 1e300 as 301 digits).
 pub fn readable_number(x: f64) -> String {

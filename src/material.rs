@@ -38,11 +38,12 @@ impl Default for Material {
 impl Material {
     /// Check E > 0, -1 < nu < 0.5, rho > 0, all finite.
     pub fn validate(&self) -> Result<()> {
-        if !(self.youngs.is_finite() && self.youngs > 0.0) {
+        if !(self.youngs > 0.0 && crate::error::in_range(self.youngs)) {
             return Err(Error::param(
                 "youngs",
                 self.youngs,
-                "Young's modulus must be a positive number of pascals",
+                "Young's modulus must be a positive number of pascals, at most 1e100 \
+                 (are the units Pa?)",
             ));
         }
         if !(self.poisson > -1.0 && self.poisson < 0.5) {
@@ -52,11 +53,12 @@ impl Material {
                 "Poisson ratio must lie in (-1, 0.5); 0.5 (exactly incompressible) is not representable",
             ));
         }
-        if !(self.density.is_finite() && self.density > 0.0) {
+        if !(self.density > 0.0 && crate::error::in_range(self.density)) {
             return Err(Error::param(
                 "density",
                 self.density,
-                "density must be a positive number of kg/m^3",
+                "density must be a positive number of kg/m^3, between 1e-100 and 1e100 \
+                 (are the units kg/m^3?)",
             ));
         }
         Ok(())

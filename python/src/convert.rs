@@ -220,10 +220,19 @@ pub fn report<'py>(py: Python<'py>, value: &impl serde::Serialize) -> PyResult<B
     json(py, &v)
 }
 
-/// A count or an index given as a Python int (`v`), as usize: a negative one is an
+/// A count or an index given as a Python int (`v`, taken as i128 so that values past i64
+/// still reach here), as usize: a negative one, or one above `max`, is an
 /// `InvalidInputError` naming `what`, not pyo3's bare `OverflowError`.
-pub fn count(py: Python<'_>, v: i64, what: &str) -> PyResult<usize> {
-    usize::try_from(v).map_err(|_| {
-        crate::errors::invalid(py, format!("{what} = {v}: must be a non-negative integer"))
-    })
+pub fn count(py: Python<'_>, v: i128, what: &str, max: usize) -> PyResult<usize> {
+    match usize::try_from(v) {
+        Ok(n) if n <= max => Ok(n),
+        Ok(_) => Err(crate::errors::invalid(
+            py,
+            format!("{what} = {v}: at most {max}"),
+        )),
+        Err(_) => Err(crate::errors::invalid(
+            py,
+            format!("{what} = {v}: must be a non-negative integer"),
+        )),
+    }
 }

@@ -223,15 +223,15 @@ pub fn eigsh<'py>(
     py: Python<'py>,
     h: &Bound<'py, PyAny>,
     m: &Bound<'py, PyAny>,
-    nev: i64,
+    nev: i128,
     tol: f64,
-    max_iter: i64,
+    max_iter: i128,
     preconditioner: Option<&Bound<'py, PyAny>>,
     check_symmetry: bool,
     progress: bool,
 ) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray2<f64>>)> {
-    let nev = crate::convert::count(py, nev, "nev")?;
-    let max_iter = crate::convert::count(py, max_iter, "max_iter")?;
+    let nev = crate::convert::count(py, nev, "nev", usize::MAX)?;
+    let max_iter = crate::convert::count(py, max_iter, "max_iter", usize::MAX)?;
     let h = operand(py, h, "h")?;
     let m = operand(py, m, "m")?;
     let pre = match preconditioner {

@@ -23,12 +23,12 @@ type PointsAndVolumes<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64
 pub fn sample<'py>(
     py: Python<'py>,
     shape: &str,
-    points: Option<i64>,
+    points: Option<i128>,
     spacing: Option<f64>,
     allow_open_mesh: bool,
 ) -> PyResult<PointsAndVolumes<'py>> {
     let points = points
-        .map(|n| crate::convert::count(py, n, "points"))
+        .map(|n| crate::convert::count(py, n, "points", freeform::precompute::MAX_POINTS))
         .transpose()?;
     let resolution = match (points, spacing) {
         (Some(_), Some(_)) => {

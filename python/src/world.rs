@@ -181,10 +181,12 @@ impl PyScene {
         volumes: Option<&Bound<'_, PyAny>>,
         boundaries: Option<&Bound<'_, PyAny>>,
         placement: Option<&Bound<'_, PyAny>>,
-        cubature: Option<i64>,
+        cubature: Option<i128>,
     ) -> PyResult<()> {
         let cubature = cubature
-            .map(|n| crate::convert::count(py, n, "cubature"))
+            .map(|n| {
+                crate::convert::count(py, n, "cubature", freeform::sim::cubature::MAX_CUBATURE)
+            })
             .transpose()?;
         let pts = crate::convert::points(py, points, "points")?;
         let n = pts.len();
@@ -369,8 +371,8 @@ impl PyWorld {
     /// last step's reports, one dict per object. A step that does not converge is reported
     /// (``converged`` False, a warning), not raised, unless the world is strict.
     #[pyo3(signature = (count = 1))]
-    fn step<'py>(&mut self, py: Python<'py>, count: i64) -> PyResult<Bound<'py, PyList>> {
-        let count = crate::convert::count(py, count, "count")?;
+    fn step<'py>(&mut self, py: Python<'py>, count: i128) -> PyResult<Bound<'py, PyList>> {
+        let count = crate::convert::count(py, count, "count", freeform::scene::MAX_STEPS)?;
         let world = &mut self.world;
         let reports = run_released(py, Front::Scene, false, |progress| {
             let mut last = Vec::new();
@@ -595,11 +597,11 @@ impl PyWorld {
         &mut self,
         py: Python<'_>,
         object: &Bound<'_, PyAny>,
-        boundary: i64,
+        boundary: i128,
         rotation: Option<&Bound<'_, PyAny>>,
         translation: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
-        let boundary = crate::convert::count(py, boundary, "boundary")?;
+        let boundary = crate::convert::count(py, boundary, "boundary", usize::MAX)?;
         let i = object_index(py, &self.world, object)?;
         let pose = rigid(py, rotation, translation)?;
         self.world
@@ -614,10 +616,10 @@ impl PyWorld {
         &mut self,
         py: Python<'_>,
         object: &Bound<'_, PyAny>,
-        boundary: i64,
+        boundary: i128,
         motion: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
-        let boundary = crate::convert::count(py, boundary, "boundary")?;
+        let boundary = crate::convert::count(py, boundary, "boundary", usize::MAX)?;
         let i = object_index(py, &self.world, object)?;
         let motion: Motion = from_python(py, motion, "motion")?;
         self.world
@@ -632,11 +634,11 @@ impl PyWorld {
     fn set_collider_pose(
         &mut self,
         py: Python<'_>,
-        collider: i64,
+        collider: i128,
         rotation: Option<&Bound<'_, PyAny>>,
         translation: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
-        let collider = crate::convert::count(py, collider, "collider")?;
+        let collider = crate::convert::count(py, collider, "collider", usize::MAX)?;
         let pose = rigid(py, rotation, translation)?;
         self.world
             .set_collider_pose(collider, &pose)

@@ -713,11 +713,17 @@ pub fn validate_request(k: usize, request: &EigenRequest) -> Result<(), EigenErr
             request.nev
         )));
     }
-    if !(request.tol.is_finite() && request.tol > 0.0) {
+    if !(request.tol > 0.0 && request.tol < 1.0) {
         return Err(EigenError::InvalidRequest(format!(
-            "tol = {} must be finite and > 0",
-            request.tol
+            "tol = {} must lie in (0, 1): a relative residual of 1 or more holds for any \
+             vector (e.g. 1e-8)",
+            crate::error::readable_number(request.tol)
         )));
+    }
+    if request.max_iter == 0 {
+        return Err(EigenError::InvalidRequest(
+            "max_iter = 0: need at least one iteration (e.g. 1000)".into(),
+        ));
     }
     Ok(())
 }

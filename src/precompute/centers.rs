@@ -101,7 +101,7 @@ impl CellGrid {
             size = 1.0;
         }
         let dims_for = |size: f64| -> [usize; 3] {
-            [0, 1, 2].map(|d| ((ext[d] / size) as usize + 1).min(1 << 20))
+            [0, 1, 2].map(|d| ((ext[d] / size) as usize).saturating_add(1).min(1 << 20))
         };
         let mut dims = dims_for(size);
         while dims.iter().product::<usize>() > 4 * points.len() + 8 {

@@ -204,12 +204,12 @@ impl BasisOptions {
             ("voxel", self.cloud.voxel),
             ("volume", self.cloud.total_volume),
         ] {
-            if let Some(v) = v.filter(|v| !(*v > 0.0 && v.is_finite())) {
+            if let Some(v) = v.filter(|v| !(*v > 0.0 && crate::error::in_range(*v))) {
                 return Err(Error::param(
                     name,
                     v,
                     "a point cloud's voxel edge (metres) and total volume (m^3) must be \
-                     positive and finite",
+                     positive, between 1e-100 and 1e100",
                 ));
             }
         }

@@ -60,14 +60,29 @@ impl IntegrationPoints {
         }
         crate::error::check_finite_points("integration points", &self.points)?;
         if let Some(i) = self
+            .points
+            .iter()
+            .position(|p| !p.iter().all(|c| crate::error::in_range(*c)))
+        {
+            return Err(Error::param(
+                "points",
+                format!("{:?} at point {i}", self.points[i]),
+                "coordinates must be 0 or between 1e-100 and 1e100 m in magnitude: rescale the \
+                 points to metres",
+            ));
+        }
+        if let Some(i) = self
             .volumes
             .iter()
-            .position(|v| !(v.is_finite() && *v > 0.0))
+            .position(|v| !(*v > 0.0 && crate::error::in_range(*v)))
         {
             return Err(Error::param(
                 "volumes",
-                format!("{} at point {i}", self.volumes[i]),
-                "every integration volume must be positive and finite",
+                format!(
+                    "{} at point {i}",
+                    crate::error::readable_number(self.volumes[i])
+                ),
+                "every integration volume must be positive, between 1e-100 and 1e100 m^3",
             ));
         }
         Ok(())

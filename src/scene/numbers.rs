@@ -6,15 +6,6 @@
 use crate::{Error, Result};
 use toml::Value;
 
-/// Largest magnitude of a number in a scene: 1e100. The simulator multiplies up to three
-/// input quantities (a stiffness times a squared length, a density times a volume times an
-/// acceleration), so inputs within [`MIN_MAGNITUDE`]..1e100 keep every such product inside
-/// f64's range (1e-308..1e308); anything beyond is a typo or a unit mistake.
-pub const MAX_MAGNITUDE: f64 = 1e100;
-
-/// Smallest magnitude of a non-zero number in a scene: 1e-100 (see [`MAX_MAGNITUDE`]).
-pub const MIN_MAGNITUDE: f64 = 1e-100;
-
 /// Fields where an infinite value means something: the bounds of a box region (a half-open
 /// slab, docs/scenes.md).
 fn infinity_allowed(path: &str) -> bool {
@@ -27,7 +18,7 @@ fn infinity_allowed(path: &str) -> bool {
 
 /// Check every float of `scene` (a scene serialized to TOML values): not NaN; infinite only
 /// where [`infinity_allowed`]; otherwise 0 or of magnitude within
-/// [`MIN_MAGNITUDE`]..=[`MAX_MAGNITUDE`].
+/// [`crate::error::MIN_MAGNITUDE`]..=[`crate::error::MAX_MAGNITUDE`] ([`crate::error::in_range`]).
 ///
 /// # Errors
 /// [`Error::Scene`] naming the first offending number by its path in the scene
@@ -72,7 +63,7 @@ fn check_float(x: f64, path: &str) -> Result<()> {
             return Ok(());
         }
         "must be finite (only a box region's bounds may be infinite)"
-    } else if x != 0.0 && !(MIN_MAGNITUDE..=MAX_MAGNITUDE).contains(&x.abs()) {
+    } else if !crate::error::in_range(x) {
         "is out of range: a scene's numbers are 0 or between 1e-100 and 1e100 in magnitude \
          (a typo or a unit mistake?)"
     } else {

@@ -147,6 +147,13 @@ impl Rigid {
         {
             return bad("the rotation and translation must be finite");
         }
+        if !self
+            .translation
+            .iter()
+            .all(|t| t.abs() <= crate::error::MAX_MAGNITUDE)
+        {
+            return bad("the translation must be at most 1e100 m in magnitude");
+        }
         let mut off = 0.0f64;
         for i in 0..3 {
             for j in 0..3 {
