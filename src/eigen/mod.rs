@@ -715,9 +715,9 @@ pub fn validate_request(k: usize, request: &EigenRequest) -> Result<(), EigenErr
     }
     if !(request.tol > 0.0 && request.tol < 1.0) {
         return Err(EigenError::InvalidRequest(format!(
-            "tol = {} must lie in (0, 1): a relative residual of 1 or more holds for any \
+            "tol = {:e} must lie in (0, 1): a relative residual of 1 or more holds for any \
              vector (e.g. 1e-8)",
-            crate::error::readable_number(request.tol)
+            request.tol
         )));
     }
     if request.max_iter == 0 {

@@ -129,7 +129,7 @@ const MODES_FLAGS: &[Case] = &[
     (&["box:1,1,1", "--kernels", "50", "--support-neighbor", "1000"], "need more than 1000 kernels"),
     (&["box:1,1,1", "--youngs", "nan"], "youngs"),
     (&["box:1,1,1", "--youngs", "inf"], "youngs"),
-    (&["box:1,1,1", "--kernels", "50", "--points", "2000", "--youngs", "1e308"], "non-finite value"),
+    (&["box:1,1,1", "--kernels", "50", "--points", "2000", "--youngs", "1e308"], "invalid youngs = 1e308: Young's modulus must be a positive number of pascals, at most 1e100"),
     (&["box:1,1,1", "--density", "-1"], "density"),
     (&["box:1,1,1", "--poisson", "nan"], "poisson"),
     (&["box:1,1,1", "--tol", "nan"], "tol"),
