@@ -97,8 +97,10 @@ pub fn write_png_rgb(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result
         let mut enc = png::Encoder::new(file, width, height);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
-        // Best compression: the pictures go into the repository and the docs.
-        enc.set_compression(png::Compression::High);
+        // Balanced: High made the files no smaller (the 51 frames of examples/drop.toml:
+        // 4.52 MB either way; they go into the repository and the docs) at over twice the
+        // render time (docs/pictures.md, "Cost").
+        enc.set_compression(png::Compression::Balanced);
         let mut w = enc.write_header().map_err(png_err)?;
         w.write_image_data(rgb).map_err(png_err)?;
         w.finish().map_err(png_err)

@@ -6,8 +6,9 @@
 //! shading ([`draw`]), points as shaded discs with depth, 3D Gaussians as projected ellipses
 //! alpha-blended back to front ([`Gaussians`], EWA splatting), scalars through a [`ColorMap`]
 //! with a colour bar ([`draw_colorbar`]), text in the embedded DejaVu Sans
-//! ([`draw_text`]) and atomic PNG output ([`Image::write_png`]). Everything is sequential
-//! and deterministic: the same input gives the same pixels.
+//! ([`draw_text`]) and atomic PNG output ([`Image::write_png`]). One picture is drawn
+//! sequentially and deterministically: the same input gives the same pixels (`freeform
+//! render` draws several frames at once, each on its own thread).
 
 mod camera;
 mod colormap;

@@ -359,10 +359,16 @@ fn draw_points(
     };
     let colour_of = vertex_colour(scalars, map, colour);
     let (right, up, fwd) = (t.camera.right, t.camera.up, t.camera.forward);
-    for (i, &p) in positions.iter().enumerate() {
-        let Some((cx, cy, depth)) = t.camera.project(p, w, h) else {
-            continue;
-        };
+    // Nearest first: a farther disc's pixels then fail the depth test before they are shaded
+    // (drawn in input order, most pixels were shaded several times). Ties keep input order,
+    // so the picture does not depend on the sort.
+    let mut order: Vec<(usize, f64, f64, f64)> = positions
+        .iter()
+        .enumerate()
+        .filter_map(|(i, &p)| t.camera.project(p, w, h).map(|(cx, cy, d)| (i, cx, cy, d)))
+        .collect();
+    order.sort_by(|a, b| a.3.total_cmp(&b.3).then(a.0.cmp(&b.0)));
+    for (i, cx, cy, depth) in order {
         // At least a pixel-wide dot, so sparse or far points stay visible.
         let rp = (radius * t.camera.pixels_per_metre(depth, short)).max(0.75);
         if cx + rp < 0.0 || cy + rp < 0.0 || cx - rp > w || cy - rp > h {

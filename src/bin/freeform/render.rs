@@ -377,86 +377,28 @@ pub fn run(args: RenderArgs) -> CliResult {
         ground,
         ..Default::default()
     };
-    // Pass 2: draw.
+    // Pass 2: draw, frames in parallel (each is independent); batches of a few frames per
+    // thread let the progress bar move.
     progress.begin("rendering", Some(selected.len() as u64));
-    for (done, &i) in selected.iter().enumerate() {
-        let mut frames = Vec::new();
-        let mut time = None;
-        for (k, t) in tracks.iter().enumerate() {
-            let Some((at, path)) = t.frames.get(i) else {
-                continue;
-            };
-            let data = read_vtp(path)?;
-            let s = scalars_of(&data, &colours[k], path)?;
-            let gaussians = if t.splat {
-                let ply = splat_frame(path);
-                let splats = read_splats(&ply)?;
-                if s.as_ref().is_some_and(|s| s.len() != splats.len()) {
-                    return Err(format!(
-                        "{}: {} splats, but {} has {} points to colour them by",
-                        ply.display(),
-                        splats.len(),
-                        path.display(),
-                        data.points.len()
-                    )
-                    .into());
-                }
-                Some(Gaussians::from_splats(&splats))
-            } else {
-                None
-            };
-            time.get_or_insert(*at);
-            frames.push((k, data, s, gaussians));
-        }
-        let items: Vec<Item> = frames
-            .iter()
-            .map(
-                |(k, data, s, gaussians)| match (&data.triangles, gaussians) {
-                    (_, Some(g)) => Item::Splats {
-                        gaussians: g,
-                        scalars: s.as_deref(),
-                    },
-                    (Some(tris), None) => Item::Triangles {
-                        positions: &data.points,
-                        triangles: tris,
-                        scalars: s.as_deref(),
-                        colour: OBJECT_COLOURS[k % OBJECT_COLOURS.len()],
-                    },
-                    (None, None) => Item::Points {
-                        positions: &data.points,
-                        radius: radii[*k].unwrap_or(0.01),
-                        scalars: s.as_deref(),
-                        colour: OBJECT_COLOURS[k % OBJECT_COLOURS.len()],
-                    },
-                },
-            )
-            .collect();
-        let mut image = Image::new(w, h, WHITE);
-        draw(&mut image, view, &camera, &items, &options)?;
-        if let Some((s, name)) = &scalars {
-            let label = if name == "displacement" {
-                "|displacement| (m)".to_string()
-            } else {
-                name.clone()
-            };
-            let bar_rect = Rect {
-                x: view.width + 6,
-                y: h / 6,
-                width: BAR_WIDTH - 6,
-                height: h * 2 / 3,
-            };
-            draw_colorbar(&mut image, bar_rect, s.map, s.range, &label)?;
-        }
-        draw_text(
-            &mut image,
-            10,
-            8,
-            16.0,
-            [0, 0, 0],
-            &format!("t = {:.3} s", time.unwrap_or(0.0)),
-        )?;
-        image.write_png(&out.join(format!("frame_{i:06}.png")))?;
-        progress.set_position(done as u64 + 1);
+    let frame = FrameJob {
+        tracks: &tracks,
+        colours: &colours,
+        radii: &radii,
+        camera: &camera,
+        view,
+        options: &options,
+        scalars: scalars.as_ref(),
+        size: (w, h),
+        out: &out,
+    };
+    let batch = 4 * rayon::current_num_threads();
+    for (done, chunk) in selected.chunks(batch).enumerate() {
+        use rayon::prelude::*;
+        chunk
+            .par_iter()
+            .try_for_each(|&i| frame.render(i))
+            .map_err(|e| -> Box<dyn std::error::Error> { e })?;
+        progress.set_position(((done + 1) * batch).min(selected.len()) as u64);
     }
     progress.finish();
     let secs = clock.elapsed().as_secs_f64();
@@ -602,4 +544,111 @@ pub fn modes_png(
     )?;
     image.write_png(path)?;
     Ok(())
+}
+
+/// What drawing one frame needs: shared by the threads that draw frames in parallel.
+struct FrameJob<'a> {
+    tracks: &'a [Track],
+    colours: &'a [Colour],
+    radii: &'a [Option<f64>],
+    camera: &'a Camera,
+    view: Rect,
+    options: &'a DrawOptions,
+    scalars: Option<&'a (Scalars, String)>,
+    size: (u32, u32),
+    out: &'a Path,
+}
+
+impl FrameJob<'_> {
+    /// Read, draw and write frame `i` (`frame_<i>.png`).
+    fn render(&self, i: usize) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        let FrameJob {
+            tracks,
+            colours,
+            radii,
+            camera,
+            view,
+            options,
+            scalars,
+            size: (w, h),
+            out,
+        } = *self;
+        let mut frames = Vec::new();
+        let mut time = None;
+        for (k, t) in tracks.iter().enumerate() {
+            let Some((at, path)) = t.frames.get(i) else {
+                continue;
+            };
+            let data = read_vtp(path)?;
+            let s = scalars_of(&data, &colours[k], path)?;
+            let gaussians = if t.splat {
+                let ply = splat_frame(path);
+                let splats = read_splats(&ply)?;
+                if s.as_ref().is_some_and(|s| s.len() != splats.len()) {
+                    return Err(format!(
+                        "{}: {} splats, but {} has {} points to colour them by",
+                        ply.display(),
+                        splats.len(),
+                        path.display(),
+                        data.points.len()
+                    )
+                    .into());
+                }
+                Some(Gaussians::from_splats(&splats))
+            } else {
+                None
+            };
+            time.get_or_insert(*at);
+            frames.push((k, data, s, gaussians));
+        }
+        let items: Vec<Item> = frames
+            .iter()
+            .map(
+                |(k, data, s, gaussians)| match (&data.triangles, gaussians) {
+                    (_, Some(g)) => Item::Splats {
+                        gaussians: g,
+                        scalars: s.as_deref(),
+                    },
+                    (Some(tris), None) => Item::Triangles {
+                        positions: &data.points,
+                        triangles: tris,
+                        scalars: s.as_deref(),
+                        colour: OBJECT_COLOURS[k % OBJECT_COLOURS.len()],
+                    },
+                    (None, None) => Item::Points {
+                        positions: &data.points,
+                        radius: radii[*k].unwrap_or(0.01),
+                        scalars: s.as_deref(),
+                        colour: OBJECT_COLOURS[k % OBJECT_COLOURS.len()],
+                    },
+                },
+            )
+            .collect();
+        let mut image = Image::new(w, h, WHITE);
+        draw(&mut image, view, camera, &items, options)?;
+        if let Some((s, name)) = &scalars {
+            let label = if name == "displacement" {
+                "|displacement| (m)".to_string()
+            } else {
+                name.clone()
+            };
+            let bar_rect = Rect {
+                x: view.width + 6,
+                y: h / 6,
+                width: BAR_WIDTH - 6,
+                height: h * 2 / 3,
+            };
+            draw_colorbar(&mut image, bar_rect, s.map, s.range, &label)?;
+        }
+        draw_text(
+            &mut image,
+            10,
+            8,
+            16.0,
+            [0, 0, 0],
+            &format!("t = {:.3} s", time.unwrap_or(0.0)),
+        )?;
+        image.write_png(&out.join(format!("frame_{i:06}.png")))?;
+        Ok(())
+    }
 }
