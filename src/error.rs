@@ -424,11 +424,13 @@ pub enum GeometryError {
     /// The shape encloses no volume or has no points.
     #[error("{0}")]
     Degenerate(String),
-    /// A voxel image's spacing is zero, negative or not finite, or its origin is not finite.
+    /// A voxel image's spacing is zero, negative, not finite or out of range (1e-100..1e100
+    /// m), or its origin is not finite or out of range.
     #[error(
-        "voxel spacing {spacing:?} m and origin {origin:?} m: the spacing must be finite and > 0 \
-         on every axis and the origin finite (check the file's pixdim / sform, or give spacing \
-         and origin in the scene's [object.image] table)"
+        "voxel spacing {spacing:?} m and origin {origin:?} m: the spacing must be > 0 and \
+         between 1e-100 and 1e100 m on every axis and the origin finite, at most 1e100 m \
+         (check the file's pixdim / sform and its units, or give spacing and origin in the \
+         scene's [object.image] table)"
     )]
     ImageSpacing {
         /// Voxel edge per axis, metres, as found.

@@ -77,8 +77,10 @@ impl VoxelImage {
         origin: Point3,
         values: VoxelValues,
     ) -> Result<Self, GeometryError> {
-        if !spacing.iter().all(|s| s.is_finite() && *s > 0.0)
-            || !origin.iter().all(|o| o.is_finite())
+        if !spacing
+            .iter()
+            .all(|s| *s > 0.0 && crate::error::in_range(*s))
+            || !origin.iter().all(|o| crate::error::in_range(*o))
         {
             return Err(GeometryError::ImageSpacing { spacing, origin });
         }
@@ -331,6 +333,12 @@ mod tests {
         assert!(
             e.to_string()
                 .contains("voxel [1, 0, 0] has Young's modulus 1e300 Pa"),
+            "{e}"
+        );
+        // A spacing of 1e-300 m (a unit mistake in a header): named as the image's spacing.
+        let e = VoxelImage::new([2, 2, 1], [1e-300, 1.0, 1.0], [0.0; 3], ok(4)).unwrap_err();
+        assert!(
+            e.to_string().contains("voxel spacing [1e-300, 1.0, 1.0] m"),
             "{e}"
         );
         let e = VoxelImage::new([usize::MAX, 2, 1], [1.0; 3], [0.0; 3], ok(1)).unwrap_err();
