@@ -375,6 +375,13 @@ fn draw_points(
             continue;
         }
         let base = colour_of(scalars.map_or(0.0, |s| s[i]));
+        // The disc's nearest point: a pixel already nearer than it is skipped before its
+        // depth is computed (with discs nearest first, most pixels of later discs are).
+        let front = if depth - radius > 0.0 || !t.camera.is_perspective() {
+            t.key(depth - radius)
+        } else {
+            f64::INFINITY // the disc reaches the eye plane: test every pixel exactly
+        };
         let x0 = (cx - rp).floor().max(0.0) as u32;
         let x1 = ((cx + rp).ceil().max(0.0) as u32).min(t.view.width);
         let y0 = (cy - rp).floor().max(0.0) as u32;
@@ -384,7 +391,7 @@ fn draw_points(
                 let u = (px as f64 + 0.5 - cx) / rp;
                 let v = -(py as f64 + 0.5 - cy) / rp;
                 let q = u * u + v * v;
-                if q > 1.0 {
+                if q > 1.0 || !t.may_show(px, py, front) {
                     continue;
                 }
                 // The visible hemisphere of a ball of this radius: its depth and normal.

@@ -64,6 +64,12 @@ impl Target<'_> {
         self.ambient + (1.0 - self.ambient) * lambert
     }
 
+    /// Whether something at nearness `key` could still show at viewport pixel (x, y): a
+    /// cheap test before a pixel's exact depth is computed.
+    pub(super) fn may_show(&self, x: u32, y: u32, key: f64) -> bool {
+        key > self.near[y as usize * self.view.width as usize + x as usize]
+    }
+
     /// Write `colour` at viewport pixel (x, y) if `key` is nearer than what is there.
     pub(super) fn plot(&mut self, x: u32, y: u32, key: f64, colour: impl FnOnce(&Self) -> [u8; 3]) {
         let i = y as usize * self.view.width as usize + x as usize;
