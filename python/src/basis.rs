@@ -379,9 +379,11 @@ fn interruptible_weights(
         gradients: Vec::with_capacity(q.len() * basis.modes()),
     };
     for chunk in q.chunks(WEIGHTS_CHUNK) {
-        let w = py
-            .detach(|| basis.weights(chunk))
-            .map_err(|e| to_py(py, &e))?;
+        let Ok(w) = py.detach(|| basis.weights(chunk)) else {
+            // The error of the whole array (a coverage error's index, count and worst point
+            // are over all points, not the chunk's).
+            return basis.weights(q).map_err(|e| to_py(py, &e));
+        };
         all.values.extend(w.values);
         all.gradients.extend(w.gradients);
         py.check_signals()?;

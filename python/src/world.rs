@@ -47,9 +47,17 @@ fn to_toml(py: Python<'_>, v: &Bound<'_, PyAny>, path: &str) -> PyResult<toml::V
             if x.is_none() {
                 continue; // None is an absent key (what `to_dict` writes for an unset option)
             }
-            let key: String = k
-                .extract()
-                .map_err(|_| invalid(py, format!("{path}: keys must be strings, got {k}")))?;
+            // Int keys are names too (image labels: {1: "bone"}), as the JSON route had them.
+            let key: String = match k.extract::<String>() {
+                Ok(s) => s,
+                Err(_) if k.cast::<PyInt>().is_ok() => k.str()?.to_string(),
+                Err(_) => {
+                    return Err(invalid(
+                        py,
+                        format!("{path}: keys must be strings (or ints), got {k}"),
+                    ))
+                }
+            };
             let inner = format!("{path}.{key}");
             table.insert(key, to_toml(py, &x, &inner)?);
         }

@@ -161,6 +161,16 @@ def test_evaluate_refuses_coefficients_that_are_not_finite():
         basis.evaluate(np.full((4, 3), 0.5), c)
 
 
+def test_an_uncovered_point_past_the_first_chunk_is_named_by_its_index():
+    # weights() works in chunks of 100,000 points (for Ctrl-C); the error is the whole
+    # array's: the index counts from its start.
+    basis = ff.Basis.from_shape("box:2,1,1", **SMALL)
+    x = np.full((100_005, 3), 0.5)
+    x[100_003] = [50.0, 50.0, 50.0]
+    with pytest.raises(ff.CoverageError, match=r"1 point\(s\).*worst at index 100003"):
+        basis.weights(x)
+
+
 def test_bad_files_and_uncovered_points(tmp_path):
     with pytest.raises(ff.FreeformIOError, match="missing.npz"):
         ff.Basis.load(tmp_path / "missing.npz")

@@ -143,6 +143,17 @@ def test_positions_into_a_preallocated_array():
         world.positions(0, out=np.empty(out.shape, dtype=np.int32))
 
 
+def test_scene_dicts_take_int_label_keys_as_names():
+    # {1: "soft"} is what a Python user writes for TOML's labels = { 1 = "soft" }.
+    ff.Scene.from_dict({
+        "simulation": {"dt": 0.01, "steps": 1},
+        "materials": {"soft": {"youngs": 1e5}},
+        "object": [{"name": "a", "shape": "image",
+                    "image": {"file": "ct.npy", "spacing": [0.01, 0.01, 0.01],
+                              "labels": {1: "soft"}}}],
+    })
+
+
 def test_scene_dicts_take_numpy_values_and_name_non_finite_fields():
     settings = {"simulation": {"dt": np.float32(0.01), "steps": np.int64(2),
                                "gravity": np.array([0.0, -9.81, 0.0])}}

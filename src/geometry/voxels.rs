@@ -80,7 +80,9 @@ impl VoxelImage {
         if !spacing
             .iter()
             .all(|s| *s > 0.0 && crate::error::in_range(*s))
-            || !origin.iter().all(|o| crate::error::in_range(*o))
+            || !origin
+                .iter()
+                .all(|o| o.abs() <= crate::error::MAX_MAGNITUDE)
         {
             return Err(GeometryError::ImageSpacing { spacing, origin });
         }

@@ -151,13 +151,17 @@ impl<W: Write> Write for StopAfterError<W> {
         if self.failed {
             return Ok(buf.len());
         }
-        self.inner.write(buf).inspect_err(|_| self.failed = true)
+        self.inner
+            .write(buf)
+            .inspect_err(|e| self.failed = e.kind() != std::io::ErrorKind::Interrupted)
     }
     fn flush(&mut self) -> std::io::Result<()> {
         if self.failed {
             return Ok(());
         }
-        self.inner.flush().inspect_err(|_| self.failed = true)
+        self.inner
+            .flush()
+            .inspect_err(|e| self.failed = e.kind() != std::io::ErrorKind::Interrupted)
     }
 }
 
@@ -166,7 +170,9 @@ impl<W: std::io::Seek> std::io::Seek for StopAfterError<W> {
         if self.failed {
             return Ok(0);
         }
-        self.inner.seek(pos).inspect_err(|_| self.failed = true)
+        self.inner
+            .seek(pos)
+            .inspect_err(|e| self.failed = e.kind() != std::io::ErrorKind::Interrupted)
     }
 }
 

@@ -262,13 +262,13 @@ impl Motion {
     /// Check the parameters (finite values, non-zero axes, increasing keyframe times).
     pub fn validate(&self) -> Result<()> {
         let finite = |v: &[f64], what: &str| -> Result<()> {
-            if v.iter().all(|x| x.is_finite()) {
+            if v.iter().all(|x| x.abs() <= crate::error::MAX_MAGNITUDE) {
                 Ok(())
             } else {
                 Err(Error::param(
                     "motion",
                     format!("{v:?}"),
-                    format!("{what} must be finite"),
+                    format!("{what} must be finite, at most 1e100 in magnitude"),
                 ))
             }
         };
