@@ -193,6 +193,20 @@ fn gravity_switched_on_between_steps_starts_a_free_fall() {
     // "converged": refused, naming the limit.
     let err = world.set_gravity(Some([0.0, -1e300, 0.0])).unwrap_err();
     assert!(err.to_string().contains("above the limit"), "{err}");
+    // Placements from code follow the scenes' magnitude rule (at most 1e100).
+    for placement in [
+        Placement {
+            velocity: [1e300, 0.0, 0.0],
+            ..Default::default()
+        },
+        Placement {
+            translation: [0.0, 1e300, 0.0],
+            ..Default::default()
+        },
+    ] {
+        let err = world.set_placement(0, &placement).unwrap_err();
+        assert!(err.to_string().contains("1e100"), "{err}");
+    }
 }
 
 #[test]

@@ -138,11 +138,15 @@ impl Placement {
 
 /// The rigid transform x -> R x + t of a placement, its values checked.
 pub(super) fn placement_transform(p: &Placement) -> Result<Rigid> {
-    if !p.translation.iter().all(|v| v.is_finite()) {
+    if !p
+        .translation
+        .iter()
+        .all(|v| v.abs() <= crate::error::MAX_MAGNITUDE)
+    {
         return Err(Error::param(
             "translation",
             format!("{:?}", p.translation),
-            "must be finite",
+            "must be finite, at most 1e100 m in magnitude",
         ));
     }
     let rotation = match &p.rotation {

@@ -77,8 +77,12 @@ pub(super) fn place(
         return Ok(());
     }
     for v in p.velocity.iter().chain(&p.angular_velocity) {
-        if !v.is_finite() {
-            return Err(Error::param("velocity", v, "must be finite"));
+        if v.is_nan() || v.abs() > crate::error::MAX_MAGNITUDE {
+            return Err(Error::param(
+                "velocity",
+                v,
+                "must be finite, at most 1e100 in magnitude (m/s, rad/s)",
+            ));
         }
     }
     let alpha = unity(layout, mass)?;
