@@ -49,7 +49,14 @@ impl WorldContact {
                 })?;
         }
         let objects: &[SceneObject] = objects;
-        check_sample_memory(objects, shapes, settings)?;
+        // Each object's sample count (None without a shape, refused below), checked for
+        // memory all together before any sample is made.
+        let counts: Vec<Option<usize>> = objects
+            .iter()
+            .zip(shapes)
+            .map(|(o, shape)| shape.as_ref().map(|s| sample_count(o, s, settings)))
+            .collect();
+        check_sample_memory(objects, &counts)?;
         let mut samples = Vec::with_capacity(objects.len());
         for (index, (o, shape)) in objects.iter().zip(shapes).enumerate() {
             let ctx = |e: Error| Error::Object {
@@ -65,7 +72,7 @@ impl WorldContact {
                         .into(),
                 })
             })?;
-            let count = sample_count(o, shape, settings);
+            let count = counts[index].unwrap_or_default();
             samples
                 .push(ContactSamples::new(shape, o.basis(), count, settings.radius).map_err(ctx)?);
         }
@@ -281,21 +288,16 @@ fn sample_count(o: &SceneObject, shape: &Shape, settings: &ContactSettings) -> u
         .unwrap_or_else(|| default_count(shape, settings.radius))
 }
 
-/// Refuse, before any sample is made, contact samples whose memory
+/// Refuse contact samples (`counts`, one per object; None: none) whose memory
 /// ([`crate::sim::contact::samples::sample_bytes`], summed over the objects) exceeds what the
 /// machine has ([`crate::precompute::memory::available_memory`]).
-fn check_sample_memory(
-    objects: &[SceneObject],
-    shapes: &[Option<Shape>],
-    settings: &ContactSettings,
-) -> Result<()> {
+fn check_sample_memory(objects: &[SceneObject], counts: &[Option<usize>]) -> Result<()> {
     let Some((available, source)) = crate::precompute::memory::available_memory()? else {
         return Ok(());
     };
     let (mut bytes, mut count) = (0u64, 0usize);
-    for (o, shape) in objects.iter().zip(shapes) {
-        let Some(shape) = shape else { continue };
-        let n = sample_count(o, shape, settings);
+    for (o, n) in objects.iter().zip(counts) {
+        let Some(n) = *n else { continue };
         count = count.saturating_add(n);
         let handles = o.basis().modes();
         bytes = bytes.saturating_add(crate::sim::contact::samples::sample_bytes(n, handles));

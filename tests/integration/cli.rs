@@ -103,31 +103,8 @@ fn assert_fails(args: &[&str], needle: &str, out: &Path) {
 
 #[test]
 fn write_failures_name_the_target_and_keep_their_cause() {
-    let dir = tempfile::tempdir().unwrap();
-    // A missing directory: the error names the file asked for, not the temporary one.
-    let target = dir.path().join("no/such/dir/b.npz");
-    let o = freeform(&[
-        "modes",
-        "box:1,1,1",
-        "--kernels",
-        "50",
-        "--modes",
-        "4",
-        "--points",
-        "2000",
-        "--out",
-        target.to_str().unwrap(),
-    ]);
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(1), "{err}");
-    // (temporary files are named `.b.npz.<pid>-<nanos>.tmp`)
-    assert!(
-        err.contains(target.to_str().unwrap()) && !err.contains(".b.npz."),
-        "{err}"
-    );
-    // A full disk: the cause stays ("No space left on device"), and nothing else is printed
-    // (the zip writer's own drop used to add "ZipWriter drop failed: ..." to stderr).
-    if Path::new("/dev/full").exists() {
+    // A small basis written to `out`: exit code 1 and stderr expected.
+    let modes_to = |out: &str| {
         let o = freeform(&[
             "modes",
             "box:1,1,1",
@@ -138,10 +115,25 @@ fn write_failures_name_the_target_and_keep_their_cause() {
             "--points",
             "2000",
             "--out",
-            "/dev/full",
+            out,
         ]);
-        let err = String::from_utf8_lossy(&o.stderr);
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
         assert_eq!(o.status.code(), Some(1), "{err}");
+        err
+    };
+    let dir = tempfile::tempdir().unwrap();
+    // A missing directory: the error names the file asked for, not the temporary one
+    // (temporary files are named `.b.npz.<pid>-<nanos>.tmp`).
+    let target = dir.path().join("no/such/dir/b.npz");
+    let err = modes_to(target.to_str().unwrap());
+    assert!(
+        err.contains(target.to_str().unwrap()) && !err.contains(".b.npz."),
+        "{err}"
+    );
+    // A full disk: the cause stays ("No space left on device"), and nothing else is printed
+    // (the zip writer's own drop used to add "ZipWriter drop failed: ..." to stderr).
+    if Path::new("/dev/full").exists() {
+        let err = modes_to("/dev/full");
         assert!(err.contains("No space left on device"), "{err}");
         assert!(
             !err.contains("ZipWriter") && !err.contains("panicked"),

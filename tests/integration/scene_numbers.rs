@@ -292,40 +292,19 @@ fn at<'a>(v: &'a mut Value, path: &[Step]) -> &'a mut Value {
     })
 }
 
-/// Every table's path and every number's path.
-fn walk(
-    v: &Value,
-    path: &mut Vec<Step>,
-    tables: &mut Vec<Vec<Step>>,
-    numbers: &mut Vec<Vec<Step>>,
-) {
-    match v {
-        Value::Table(t) => {
-            tables.push(path.clone());
-            for (k, x) in t {
-                path.push(Step::Key(k.clone()));
-                walk(x, path, tables, numbers);
-                path.pop();
-            }
-        }
-        Value::Array(a) => {
-            for (i, x) in a.iter().enumerate() {
-                path.push(Step::Index(i));
-                walk(x, path, tables, numbers);
-                path.pop();
-            }
-        }
-        Value::Integer(_) | Value::Float(_) => numbers.push(path.clone()),
-        _ => {}
-    }
+/// The paths of a document's tables, numbers and strings (with each string's value).
+#[derive(Default)]
+struct Paths {
+    tables: Vec<Vec<Step>>,
+    numbers: Vec<Vec<Step>>,
+    strings: Vec<(Vec<Step>, String)>,
 }
 
-/// Every string value with its path pattern.
-fn strings(doc: &Value) -> Vec<(String, String)> {
-    fn go(v: &Value, path: &mut Vec<Step>, out: &mut Vec<(String, String)>) {
+fn paths(doc: &Value) -> Paths {
+    fn go(v: &Value, path: &mut Vec<Step>, out: &mut Paths) {
         match v {
-            Value::String(s) => out.push((pattern(path), s.clone())),
             Value::Table(t) => {
+                out.tables.push(path.clone());
                 for (k, x) in t {
                     path.push(Step::Key(k.clone()));
                     go(x, path, out);
@@ -339,10 +318,12 @@ fn strings(doc: &Value) -> Vec<(String, String)> {
                     path.pop();
                 }
             }
+            Value::Integer(_) | Value::Float(_) => out.numbers.push(path.clone()),
+            Value::String(s) => out.strings.push((path.clone(), s.clone())),
             _ => {}
         }
     }
-    let mut out = Vec::new();
+    let mut out = Paths::default();
     go(doc, &mut Vec::new(), &mut out);
     out
 }
@@ -386,17 +367,16 @@ fn the_full_scenes_hold_every_field_and_variant() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("cube.obj"), CUBE_OBJ).unwrap();
     let docs = full_scenes(dir.path().to_str().unwrap());
-    // Keys present at each table pattern, over both scenes.
+    // Keys present at each table pattern, over the full scenes.
     let mut present: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
     let mut expected: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
     for doc in &docs {
-        let (mut tables, mut numbers) = (vec![], vec![]);
-        walk(doc, &mut vec![], &mut tables, &mut numbers);
+        let found = paths(doc);
         // A unit variant is a string (`motion = "fixed"`): present at its own path.
-        for (p, s) in strings(doc) {
-            present.entry(p).or_default().insert(s);
+        for (p, s) in &found.strings {
+            present.entry(pattern(p)).or_default().insert(s.clone());
         }
-        for t in &tables {
+        for t in &found.tables {
             let p = pattern(t);
             let mut d = doc.clone();
             let table = at(&mut d, t).as_table_mut().unwrap();
@@ -452,9 +432,7 @@ fn every_number_of_a_scene_is_refused_by_name_or_accepted_for_a_reason() {
     let (mut fields, mut cases, mut accepted) = (BTreeSet::new(), 0, 0);
     let mut problems = Vec::new();
     for doc in full_scenes(dir.path().to_str().unwrap()) {
-        let (mut tables, mut numbers) = (vec![], vec![]);
-        walk(&doc, &mut vec![], &mut tables, &mut numbers);
-        for path in &numbers {
+        for path in &paths(&doc).numbers {
             let p = pattern(path);
             fields.insert(p.clone());
             let leaf = path

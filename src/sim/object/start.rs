@@ -27,15 +27,18 @@ pub fn check_start_outside_colliders(
     diagonal: f64,
 ) -> Result<()> {
     let kin = env.kinematics();
+    if kin.is_empty() {
+        return Ok(());
+    }
     let poses = kin.poses(0.0);
+    let placed: Vec<Point3> = points.iter().map(|p| placement.apply(p)).collect();
     for (i, (obstacle, pose)) in kin.obstacles().iter().zip(&poses).enumerate() {
         if matches!(obstacle, Obstacle::Mesh(m) if m.sided() == Sided::Outside) {
             continue;
         }
-        let deepest = points
+        let deepest = placed
             .iter()
-            .map(|p| placement.apply(p))
-            .filter_map(|x| obstacle.penetration(pose, &x).map(|pen| (pen.depth, x)))
+            .filter_map(|x| obstacle.penetration(pose, x).map(|pen| (pen.depth, *x)))
             .max_by(|a, b| a.0.total_cmp(&b.0));
         let limit = START_DEPTH_FRACTION * diagonal;
         if let Some((depth, x)) = deepest.filter(|(d, _)| *d > limit) {
