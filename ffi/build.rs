@@ -23,7 +23,7 @@ mod petsc {
         "PetscViewer(BinaryOpen|Destroy)",
         "MatShell(SetOperation|GetContext|SetContextDestroy)",
         "PCShell(SetApply|SetContext|GetContext|SetDestroy|SetName)",
-        "Mat(CreateShell|Create|CreateVecs|SetSizes|SetType|SeqAIJSetPreallocation|MPIAIJSetPreallocation|SeqAIJSetPreallocationCSR|MPIAIJSetPreallocationCSR|SetValues|AssemblyBegin|AssemblyEnd|Destroy|GetOwnershipRange|GetSize|SetOption|View|Load|Mult|Norm|SetFromOptions)",
+        "Mat(CreateShell|Create|CreateVecs|SetSizes|SetType|SeqAIJSetPreallocation|MPIAIJSetPreallocation|SeqAIJSetPreallocationCSR|MPIAIJSetPreallocationCSR|SetValues|AssemblyBegin|AssemblyEnd|Destroy|GetOwnershipRange|GetSize|SetOption|View|Load|Mult|Norm|SetFromOptions|AXPY)",
         "Vec(Create|CreateMPI|SetSizes|SetFromOptions|Destroy|GetArrayRead|RestoreArrayRead|GetArray|RestoreArray|GetOwnershipRange|GetSize|GetLocalSize|Duplicate|Set|AssemblyBegin|AssemblyEnd)",
         "VecScatter(CreateToAll|Begin|End|Destroy)",
         "EPS(Create|SetOperators|SetProblemType|SetDimensions|SetTolerances|SetWhichEigenpairs|SetTarget|SetType|GetType|GetST|SetFromOptions|Solve|GetConverged|GetEigenpair|GetIterationNumber|GetConvergedReason|Destroy|SetConvergenceTest|GetDimensions|GetTolerances)",

@@ -545,6 +545,21 @@ impl<'s> Mat<'s> {
         Ok(v)
     }
 
+    /// `self += alpha x` in place. `same_pattern`: both matrices have the same nonzero
+    /// pattern (then no memory is allocated); otherwise PETSc merges the patterns into a new
+    /// one. Collective.
+    pub fn axpy(&mut self, alpha: f64, x: &Mat<'s>, same_pattern: bool) -> Result<()> {
+        let structure = if same_pattern {
+            sys::SAME_NONZERO_PATTERN
+        } else {
+            sys::DIFFERENT_NONZERO_PATTERN
+        };
+        // SAFETY: valid handles of the same session.
+        check("MatAXPY", unsafe {
+            sys::MatAXPY(self.raw, alpha, x.raw, structure)
+        })
+    }
+
     /// Read a matrix from a PETSc binary file (as written by `MatView` with a binary viewer).
     /// Collective on `comm`.
     ///

@@ -272,19 +272,34 @@ pub fn solve_rows(
     let mut traces = [h.diagonal_sum(), m.diagonal_sum()];
     session.allreduce_sum(world, &mut traces).map_err(backend)?;
     let sigma = shift(options, traces)?;
-    let hm = petsc::Mat::aij_from_rows(&session, world, k, h.first, &h.ptr, &h.cols, &h.vals, true)
-        .map_err(backend)?;
+    let mut hm =
+        petsc::Mat::aij_from_rows(&session, world, k, h.first, &h.ptr, &h.cols, &h.vals, true)
+            .map_err(backend)?;
     let mm = petsc::Mat::aij_from_rows(&session, world, k, m.first, &m.ptr, &m.cols, &m.vals, true)
         .map_err(backend)?;
-    let solved = solve_pencil(&session, &hm, &mm, k, request, options, sigma)?;
-    let (eps, status, notes) = (solved.eps, solved.status, solved.notes);
-    let converged = status.converged;
-    let mut x = hm.create_vector().map_err(backend)?;
+    // The same pattern on every rank or PETSc's pattern merge on every rank: MatAXPY is
+    // collective, so the ranks agree on the flag.
+    let mut same = [f64::from(u8::from(h.ptr == m.ptr && h.cols == m.cols))];
+    session.allreduce_sum(world, &mut same).map_err(backend)?;
+    let ranks = session.size(world).map_err(backend)?;
+    let same_pattern = same[0] as usize == ranks;
+    let solved = solve_pencil(
+        &session,
+        &mut hm,
+        &mm,
+        same_pattern,
+        request,
+        options,
+        sigma,
+    )?;
+    let converged = solved.status.converged;
+    let mut x = mm.create_vector().map_err(backend)?;
     let mut pairs: Vec<(f64, Vec<f64>)> = Vec::new();
     for i in 0..converged.min(request.nev) {
-        let lambda = eps.eigenpair(i, &mut x).map_err(backend)?;
+        let lambda = solved.eigenpair(i, &mut x).map_err(backend)?;
         pairs.push((lambda, x.gather_all().map_err(backend)?));
     }
+    let (status, notes) = solved.finish()?;
     pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
     let mut vectors = Mat::<f64>::zeros(k, pairs.len());
     for (j, (_, v)) in pairs.iter().enumerate() {

@@ -67,17 +67,82 @@ pub(super) fn solve_error(
     backend(e)
 }
 
-/// A finished `EPSSolve` on (H, M): the solver (to read pairs from), how it ended, and notes
-/// on the configuration used.
-pub(super) struct Solved<'s> {
-    pub(super) eps: petsc::Eps<'s>,
+/// A finished `EPSSolve` on (H - sigma M, M): the solver (to read pairs from with
+/// [`Solved::eigenpair`]), how it ended, and notes on the configuration used. It holds the
+/// shifted H until [`Solved::finish`] (SLEPc may still apply its spectral transformation while
+/// it forms the eigenvectors, so H is shifted back only after the last pair is read).
+pub(super) struct Solved<'a, 's> {
+    eps: petsc::Eps<'s>,
+    sigma: f64,
+    hm: &'a mut petsc::Mat<'s>,
+    mm: &'a petsc::Mat<'s>,
+    same_pattern: bool,
     pub(super) status: SolveStatus,
-    pub(super) notes: Vec<String>,
+    notes: Vec<String>,
+}
+
+impl<'s> Solved<'_, 's> {
+    /// Pair `i` of H x = lambda M x: its eigenvalue (SLEPc's one of the shifted pencil plus
+    /// sigma) and its vector in `x`. Collective.
+    pub(super) fn eigenpair(&self, i: usize, x: &mut petsc::Vector<'s>) -> petsc::Result<f64> {
+        Ok(self.eps.eigenpair(i, x)? + self.sigma)
+    }
+
+    /// How the run ended and the notes, after freeing SLEPc's solver (its blocks and the
+    /// preconditioner's hierarchy) and shifting H back (up to rounding of |sigma| ||M|| times
+    /// the machine epsilon). Collective.
+    ///
+    /// # Errors
+    /// PETSc's error from the shift back.
+    pub(super) fn finish(self) -> Result<(SolveStatus, Vec<String>), EigenError> {
+        drop(self.eps);
+        self.hm
+            .axpy(self.sigma, self.mm, self.same_pattern)
+            .map_err(backend)?;
+        Ok((self.status, self.notes))
+    }
 }
 
 /// Configure an EPS on the assembled pencil (`hm`, `mm`: K x K) with the preset of
-/// `options`, then its PETSc options, and solve. The shift sigma is the preset's target.
-pub(super) fn solve_pencil<'s>(
+/// `options`, then its PETSc options, and solve.
+///
+/// SLEPc is given the shifted pencil (H - sigma M, M), shifted in place in `hm`
+/// (`same_pattern`: H and M share their nonzero pattern, so no memory is allocated), with its
+/// own target and shift at 0: the presets' spectral transformations then use H - sigma M as
+/// it is instead of building it as a third matrix (the memory of one matrix, docs/slepc.md
+/// "Memory per rank"). [`Solved::eigenpair`] adds sigma back; [`Solved::finish`] shifts `hm`
+/// back to H (on an error here, `hm` is H again too).
+pub(super) fn solve_pencil<'a, 's>(
+    session: &'s petsc::Session,
+    hm: &'a mut petsc::Mat<'s>,
+    mm: &'a petsc::Mat<'s>,
+    same_pattern: bool,
+    request: &EigenRequest,
+    options: &SlepcOptions,
+    sigma: f64,
+) -> Result<Solved<'a, 's>, EigenError> {
+    let k = hm.size().map_err(backend)?.0;
+    refuse_lobpcg_too_small(k, request.nev, options)?;
+    hm.axpy(-sigma, mm, same_pattern).map_err(backend)?;
+    match solve_shifted(session, hm, mm, k, request, options, sigma) {
+        Ok((eps, status, notes)) => Ok(Solved {
+            eps,
+            sigma,
+            hm,
+            mm,
+            same_pattern,
+            status,
+            notes,
+        }),
+        Err(e) => {
+            hm.axpy(sigma, mm, same_pattern).map_err(backend)?;
+            Err(e)
+        }
+    }
+}
+
+/// [`solve_pencil`] on the pencil already shifted: `hm` holds H - sigma M.
+fn solve_shifted<'s>(
     session: &'s petsc::Session,
     hm: &petsc::Mat<'s>,
     mm: &petsc::Mat<'s>,
@@ -85,11 +150,10 @@ pub(super) fn solve_pencil<'s>(
     request: &EigenRequest,
     options: &SlepcOptions,
     sigma: f64,
-) -> Result<Solved<'s>, EigenError> {
-    refuse_lobpcg_too_small(k, request.nev, options)?;
+) -> Result<(petsc::Eps<'s>, SolveStatus, Vec<String>), EigenError> {
     let world = session.world();
     let mut eps = petsc::Eps::new(session, world).map_err(backend)?;
-    configure(&mut eps, hm, mm, request, options, sigma).map_err(backend)?;
+    configure(&mut eps, hm, mm, request, options).map_err(backend)?;
     // The preset's options, then the user's (later ones win), in the global database for this
     // solve only (until `scoped` is dropped, after the solve).
     let all = format!(
@@ -137,7 +201,10 @@ pub(super) fn solve_pencil<'s>(
                 format!(" ({package})")
             }
         ),
-        format!("slepc: target/shift {sigma:.6e}, {ranks} MPI rank(s), {converged} converged"),
+        format!(
+            "slepc: pencil (H - sigma M, M), sigma {sigma:.6e}, {ranks} MPI rank(s), \
+             {converged} converged"
+        ),
     ];
     let preset_options = options.preset.petsc_options();
     if !preset_options.is_empty() {
@@ -149,17 +216,17 @@ pub(super) fn solve_pencil<'s>(
     if !options.petsc_options.is_empty() {
         notes.push(format!("slepc: options {}", options.petsc_options));
     }
-    Ok(Solved { eps, status, notes })
+    Ok((eps, status, notes))
 }
 
-/// The preset's settings on a fresh EPS (before the options database is applied).
+/// The preset's settings on a fresh EPS (before the options database is applied), for the
+/// shifted pencil (`hm` = H - sigma M): target and shift 0.
 pub(super) fn configure<'s>(
     eps: &mut petsc::Eps<'s>,
     hm: &petsc::Mat<'s>,
     mm: &petsc::Mat<'s>,
     request: &EigenRequest,
     options: &SlepcOptions,
-    sigma: f64,
 ) -> petsc::Result<()> {
     eps.set_operators(hm, mm)?;
     eps.set_problem_type(petsc::ProblemType::Ghep)?;
@@ -168,13 +235,13 @@ pub(super) fn configure<'s>(
     match options.preset {
         SlepcPreset::KsSinvert => {
             // The Krylov residual lives in the transformed problem (theta = 1 / (lambda -
-            // sigma), never 0 here): SLEPc's relative test is the right one there. The
+            // sigma), never 0 here: H - sigma M is positive definite): SLEPc's relative test is the right one there. The
             // EPS_CONV_NORM test would divide that residual by ||H||, of the original
             // problem's scale, and stop after one restart with residuals ~1e-4 (measured).
             eps.set_convergence_test(petsc::Convergence::Relative)?;
             eps.set_type("krylovschur")?;
             eps.set_which(petsc::Which::TargetMagnitude)?;
-            eps.set_target(sigma)?;
+            eps.set_target(0.0)?;
             eps.set_spectral_transform(
                 Some("sinvert"),
                 Some("preonly"),
@@ -194,7 +261,7 @@ pub(super) fn configure<'s>(
                 "hypre"
             };
             eps.set_spectral_transform(Some("precond"), Some("preonly"), Some(pc), None)?;
-            eps.set_st_shift(sigma)?;
+            eps.set_st_shift(0.0)?;
             if let Some(block) = lobpcg_block(request.nev, hm.size()?.0) {
                 eps.set_lobpcg_block_size(block)?;
             }

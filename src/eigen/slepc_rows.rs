@@ -73,28 +73,29 @@ pub fn solve_distributed(
         hessian,
         mass,
     } = rows;
-    let hm = petsc::Mat::aij_from_rows(&session, world, k, first, &ptr, &cols, &hessian, true)
+    let mut hm = petsc::Mat::aij_from_rows(&session, world, k, first, &ptr, &cols, &hessian, true)
         .map_err(backend)?;
     drop(hessian);
     let mm = petsc::Mat::aij_from_rows(&session, world, k, first, &ptr, &cols, &mass, true)
         .map_err(backend)?;
     drop((mass, cols, ptr));
-    let solved = solve_pencil(&session, &hm, &mm, k, request, options, sigma)?;
+    // H and M share `ptr` and `cols`.
+    let solved = solve_pencil(&session, &mut hm, &mm, true, request, options, sigma)?;
     let count = solved.status.converged.min(request.nev);
     // This rank's entries of each pair's vector, ascending by eigenvalue.
-    let mut x = hm.create_vector().map_err(backend)?;
+    let mut x = mm.create_vector().map_err(backend)?;
     let mut pairs: Vec<(f64, Vec<f64>)> = Vec::with_capacity(count);
     for i in 0..count {
-        let lambda = solved.eps.eigenpair(i, &mut x).map_err(backend)?;
+        let lambda = solved.eigenpair(i, &mut x).map_err(backend)?;
         pairs.push((lambda, x.local_values().map_err(backend)?));
     }
-    drop(solved.eps);
+    let (status, notes) = solved.finish()?;
     pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
     let mut info = EigenInfo {
         solver: format!("slepc:{}", options.label()),
-        iterations: solved.status.iterations,
-        locked: solved.status.converged,
-        notes: solved.notes,
+        iterations: status.iterations,
+        locked: status.converged,
+        notes,
         ..EigenInfo::default()
     };
     check_distributed(&session, &hm, &mm, &pairs, &mut info)?;
@@ -113,7 +114,7 @@ pub fn solve_distributed(
     Ok(DistributedSolution {
         values: pairs.iter().map(|p| p.0).collect(),
         info,
-        status: solved.status,
+        status,
         vectors,
     })
 }
@@ -133,7 +134,7 @@ fn check_distributed(
         hm.norm_one().map_err(backend)?,
         mm.norm_one().map_err(backend)?,
     ];
-    let mut x = hm.create_vector().map_err(backend)?;
+    let mut x = mm.create_vector().map_err(backend)?;
     let mut hx = hm.create_vector().map_err(backend)?;
     let mut mx = hm.create_vector().map_err(backend)?;
     // sums[j] = local ||r_j||^2, sums[nev + j] = local ||x_j||^2, then the Gram block.

@@ -51,7 +51,8 @@ const BYTES_PER_KERNEL_ON_EVERY_RANK: f64 = 120.0;
 /// One rank's share of SLEPc's storage: `own` entries of each of H_w and M on this rank, `rows`
 /// rows, `nev` pairs. Shift-and-invert holds a Cholesky factor (MUMPS: about 17 x the entries
 /// of H_w at K = 100,000, growing as K^(1/3) in 3D, 12 bytes each); the preconditioned solvers
-/// the shifted matrix and an AMG hierarchy (about twice its entries) and blocks of vectors.
+/// an AMG hierarchy (about twice the entries of H_w) and blocks of vectors. Neither holds a
+/// shifted copy of H_w: SLEPc is given H_w - sigma M in place of H_w (`eigen::slepc`).
 fn slepc_bytes(opts: &BasisOptions, own: f64, rows: f64, nev: f64) -> f64 {
     use crate::eigen::SlepcPreset;
     match &opts.solver {
@@ -59,7 +60,7 @@ fn slepc_bytes(opts: &BasisOptions, own: f64, rows: f64, nev: f64) -> f64 {
             let fill = 17.0 * (opts.kernels as f64 / 1e5).cbrt().max(0.5);
             12.0 * fill * own + 8.0 * rows * 3.0 * nev
         }
-        _ => 36.0 * own + 8.0 * rows * 10.0 * nev,
+        _ => 24.0 * own + 8.0 * rows * 10.0 * nev,
     }
 }
 
