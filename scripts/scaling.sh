@@ -7,8 +7,8 @@
 # For each K: the native one-process run (NATIVE, default this build's binary; set it to an
 # older build to compare against it), then `mpirun -n P ... --solver slepc` for each P, every
 # rank under /usr/bin/time -v. Prints one markdown row per run: each rank's peak (from
-# /usr/bin/time, in GB), the bar 1.2 x native / P, the ranks' estimates, iterations, and the
-# stage times. Ranks beyond the cores are oversubscribed: read their times as work, not
+# /usr/bin/time, in GB of 1e9 bytes), the bar 1.2 x native / P, the ranks' estimates,
+# iterations, and the stage times. Ranks beyond the cores are oversubscribed: read their times as work, not
 # speedups. Output files go to OUT (default /tmp/freeform-scaling). EXTRA is added to every
 # distributed run's arguments: with "--max-iter 3" the solve stops after its set-up and three
 # iterations, where the peak is reached, and every rank ends with the iteration-cap error (the
@@ -40,7 +40,7 @@ for k in $KERNELS; do
         /usr/bin/time -v -o "$native.time" "$NATIVE" modes "$SHAPE" --kernels "$k" \
             --modes "$MODES" --threads 2 --json --out "$OUT/native.npz" > "$native.json"
         native_kb=$(awk -F': ' '/Maximum resident/ {print $2}' "$native.time")
-        echo "| $k | native | $(python3 -c "print(f'{$native_kb / 1e6:.3f}')") | | | $(python3 -c "import json; print(json.load(open('$native.json'))['eigen']['iterations'])") | | | |"
+        echo "| $k | native | $(python3 -c "print(f'{$native_kb * 1024 / 1e9:.3f}')") | | | $(python3 -c "import json; print(json.load(open('$native.json'))['eigen']['iterations'])") | | | |"
     fi
     for p in $RANKS; do
         run="$OUT/k$k.p$p"
@@ -58,8 +58,9 @@ peaks = []
 for f in sorted(glob.glob(run + ".time.rank*")):
     for line in open(f):
         if "Maximum resident" in line:
-            peaks.append(float(line.split(":")[1]) / 1e6)
-bar = f"{1.2 * native_kb / 1e6 / p:.3f}" if native_kb > 0 else ""
+            # /usr/bin/time reports kibibytes; GB here is 1e9 bytes, as in the JSON reports.
+            peaks.append(float(line.split(":")[1]) * 1024 / 1e9)
+bar = f"{1.2 * native_kb * 1024 / 1e9 / p:.3f}" if native_kb > 0 else ""
 try:
     r = json.load(open(run + ".json"))
     d, t = r["distributed"], r["timings_s"]

@@ -112,3 +112,44 @@ fn ghep_with_known_eigenvalues() {
         ("krylovschur", "sinvert", "cholesky")
     );
 }
+
+#[test]
+fn axpy_on_the_same_and_on_a_different_pattern() {
+    // tridiag(-1, 3, -1) - 0.5 tridiag(-1, 2, -1) = tridiag(-0.5, 2, -0.5), and + 0.25 I
+    // (a diagonal pattern, a subset of the tridiagonal one): every product entry is a sum of
+    // at most three terms of exact binary fractions, so the comparison is exact.
+    let s = session().unwrap();
+    let n = 7;
+    let (ptr, cols, a_vals) = tridiagonal(n, 3.0);
+    let (_, _, b_vals) = tridiagonal(n, 2.0);
+    let mut a = Mat::aij_from_rows(&s, s.self_comm(), n, 0, &ptr, &cols, &a_vals, true).unwrap();
+    let b = Mat::aij_from_rows(&s, s.self_comm(), n, 0, &ptr, &cols, &b_vals, true).unwrap();
+    a.axpy(-0.5, &b, true).unwrap();
+    let diag_ptr: Vec<usize> = (0..=n).collect();
+    let diag_cols: Vec<u32> = (0..n as u32).collect();
+    let i = Mat::aij_from_rows(
+        &s,
+        s.self_comm(),
+        n,
+        0,
+        &diag_ptr,
+        &diag_cols,
+        &vec![1.0; n],
+        true,
+    )
+    .unwrap();
+    a.axpy(0.25, &i, false).unwrap();
+    let x_vals: Vec<f64> = (0..n).map(|i| (i + 1) as f64).collect();
+    let mut x = a.create_vector().unwrap();
+    x.set_local_values(&x_vals).unwrap();
+    let mut y = a.create_vector().unwrap();
+    a.mult(&x, &mut y).unwrap();
+    let expected: Vec<f64> = (0..n)
+        .map(|i| {
+            let left = if i > 0 { x_vals[i - 1] } else { 0.0 };
+            let right = if i + 1 < n { x_vals[i + 1] } else { 0.0 };
+            2.25 * x_vals[i] - 0.5 * (left + right)
+        })
+        .collect();
+    assert_eq!(y.gather_all().unwrap(), expected);
+}

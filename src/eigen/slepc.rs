@@ -12,12 +12,17 @@
 //!   GAMG's levels smoothed by Richardson + SOR ([`SlepcPreset::petsc_options`]), one block for
 //!   every pair with the native guard vectors where K allows it.
 //!
+//! Both are given the shifted pencil (H - sigma M, M) with target and shift 0, and sigma is
+//! added back to the eigenvalues (`slepc_pencil.rs`): PETSc then holds two matrices, not a
+//! third shifted copy.
+//!
 //! The LOBPCG presets use SLEPc's `EPS_CONV_NORM` test, ||r|| / ((||H|| + |lambda| ||M||)
 //! ||x||), which is freeform's own tolerance definition ([`super::EigenRequest::tol`]); the
 //! default relative test divides by |lambda| and aborts LOBPCG on the zero eigenvalue of the
 //! constant mode. Shift-and-invert keeps the relative test, applied to the transformed
 //! eigenvalue 1 / (lambda - sigma) (never 0); the residuals we recompute in the original
-//! problem decide convergence in the end. `EPSSetFromOptions` is always called after the preset, so PETSc options given in
+//! problem decide convergence in the end. `EPSSetFromOptions` is always called after the
+//! preset, so PETSc options given in
 //! [`SlepcOptions::petsc_options`] (or the `PETSC_OPTIONS` environment variable) override
 //! any of these choices. Residuals and M-orthonormality are recomputed by
 //! [`super::check_solution`], not taken from SLEPc.
