@@ -424,11 +424,12 @@ fn advised_solvers_agree_with_dense(
 
 /// The `lobpcg-gamg` preset with SLEPc's own default block size, min(16, nev), which the preset
 /// now replaces by one block for all pairs (or refuses, on a pencil too small for one), and
-/// GAMG's own level smoothers (Chebyshev + Jacobi; the preset now uses Richardson + SOR): the
-/// failures below (a false convergence, the iteration cap, SLEPc's breakdown stop) are SLEPc's
-/// with that configuration, and their reports are what these tests check.
+/// GAMG's own level smoothers (Chebyshev + Jacobi; the preset now uses Richardson + SOR), and
+/// GAMG's squared graph on the first level (the preset now turns it off): the failures below
+/// (a false convergence, the iteration cap, SLEPc's breakdown stop) are SLEPc's with that
+/// configuration, and their reports are what these tests check.
 const OLD_BLOCK: &str = "lobpcg-gamg:-eps_lobpcg_blocksize 16 -st_mg_levels_ksp_type chebyshev \
-                         -st_mg_levels_pc_type jacobi";
+                         -st_mg_levels_pc_type jacobi -st_pc_gamg_square_graph 1";
 
 /// SLEPc's LOBPCG reports every pair converged but one is far off. Smallest case found with
 /// the `lobpcg-gamg` preset where one block with guard vectors fits (K >= 5 x 18): K = 120,

@@ -199,10 +199,10 @@ fn slepc_basis_metadata_names_the_solver_that_ran() {
     );
 }
 
-/// The options that give `lobpcg-gamg` its earlier configuration: SLEPc's own block size and
-/// GAMG's own level smoothers.
-const OLD_LOBPCG_GAMG_OPTIONS: &str =
-    "-eps_lobpcg_blocksize 16 -st_mg_levels_ksp_type chebyshev -st_mg_levels_pc_type jacobi";
+/// The options that give `lobpcg-gamg` its earlier configuration: SLEPc's own block size,
+/// GAMG's own level smoothers and its squared first-level graph.
+const OLD_LOBPCG_GAMG_OPTIONS: &str = "-eps_lobpcg_blocksize 16 -st_mg_levels_ksp_type chebyshev \
+     -st_mg_levels_pc_type jacobi -st_pc_gamg_square_graph 1";
 
 /// `freeform modes box:5,1,1 --kernels K --modes M --solver slepc --slepc lobpcg-gamg` with
 /// SLEPc's own block size and GAMG's own level smoothers (as the preset was when these failures
