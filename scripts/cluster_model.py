@@ -33,8 +33,8 @@ ITERATIONS = 26  # the default at K = 100,000 (flat in P; docs/slepc.md "Scaling
 REDUCTIONS_PER_ITER = 190  # BVDotVec + BVOrthogonalizeV calls per iteration (-log_view)
 VCYCLES_PER_ITER = 142  # KSPSolve calls per iteration (-log_view): 44 columns x ~3
 BLOCK = 44  # vectors per LOBPCG block (m + 1 = 33 pairs + guard vectors)
-FIXED_BYTES = 0.07e9  # memory fit a + b K / P at K = 100,000 and 300,000 (2026-12-05)
-BYTES_PER_KERNEL_SHARE = 18e3  # b of that fit (17.6 and 18.4 kB)
+FIXED_BYTES = 0.095e9  # memory fit a + b K / P at K = 100,000 and 300,000 (2026-12-05)
+BYTES_PER_KERNEL_SHARE = 15e3  # b of that fit (14.8 and 15.1 kB)
 BYTES_PER_KERNEL_EVERY_RANK = 120  # centres, radii, FPS choices (memory.rs)
 POINT_HALO = 1.29  # evaluated / owned points - 1 = 0.035 at K / P = 50,000 (P = 2): 1.29 x 50,000^(-1/3)
 GHOST_WIDTH = 2.0  # kernel spacings a row's non-zeros reach (supports of radius ~2 spacings)
