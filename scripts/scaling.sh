@@ -8,8 +8,8 @@
 # older build to compare against it), then `mpirun -n P ... --solver slepc` for each P, every
 # rank under /usr/bin/time -v. Prints one markdown row per run: each rank's peak (from
 # /usr/bin/time, in GB of 1e9 bytes), the bar 1.2 x native / P, the ranks' estimates,
-# iterations, and the stage times. Ranks beyond the cores are oversubscribed: read their times as work, not
-# speedups. Output files go to OUT (default /tmp/freeform-scaling). EXTRA is added to every
+# iterations, and the stage times. Ranks beyond the cores are oversubscribed: read their
+# times as work, not speedups. Output files go to OUT (default /tmp/freeform-scaling). EXTRA is added to every
 # distributed run's arguments: with "--max-iter 3" the solve stops after its set-up and three
 # iterations, where the peak is reached, and every rank ends with the iteration-cap error (the
 # ranks are let finish so that each writes its peak; there is then no report, so no estimate,

@@ -205,7 +205,7 @@ const OLD_LOBPCG_GAMG_OPTIONS: &str = "-eps_lobpcg_blocksize 16 -st_mg_levels_ks
      -st_mg_levels_pc_type jacobi -st_pc_gamg_square_graph 1";
 
 /// `freeform modes box:5,1,1 --kernels K --modes M --solver slepc --slepc lobpcg-gamg` with
-/// SLEPc's own block size and GAMG's own level smoothers (as the preset was when these failures
+/// `OLD_LOBPCG_GAMG_OPTIONS` (the preset as it was when these failures
 /// were found; the preset now refuses K this small) into a
 /// temporary directory, for runs that must fail: the whole stderr and its one `error:` line,
 /// after checking the exit status 1, that there is exactly one error line, no PETSc output,

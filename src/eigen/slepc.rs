@@ -22,9 +22,8 @@
 //! constant mode. Shift-and-invert keeps the relative test, applied to the transformed
 //! eigenvalue 1 / (lambda - sigma) (never 0); the residuals we recompute in the original
 //! problem decide convergence in the end. `EPSSetFromOptions` is always called after the
-//! preset, so PETSc options given in
-//! [`SlepcOptions::petsc_options`] (or the `PETSC_OPTIONS` environment variable) override
-//! any of these choices. Residuals and M-orthonormality are recomputed by
+//! preset, so PETSc options given in [`SlepcOptions::petsc_options`] (or the `PETSC_OPTIONS`
+//! environment variable) override any of these choices. Residuals and M-orthonormality are recomputed by
 //! [`super::check_solution`], not taken from SLEPc.
 //!
 //! SLEPc's LOBPCG can lose B-orthogonality when it works through several blocks; LAPACK's
@@ -282,12 +281,12 @@ pub fn solve_rows(
             .map_err(backend)?;
     let mm = petsc::Mat::aij_from_rows(&session, world, k, m.first, &m.ptr, &m.cols, &m.vals, true)
         .map_err(backend)?;
-    // The same pattern on every rank or PETSc's pattern merge on every rank: MatAXPY is
-    // collective, so the ranks agree on the flag.
-    let mut same = [f64::from(u8::from(h.ptr == m.ptr && h.cols == m.cols))];
-    session.allreduce_sum(world, &mut same).map_err(backend)?;
-    let ranks = session.size(world).map_err(backend)?;
-    let same_pattern = same[0] as usize == ranks;
+    // MatAXPY is collective: the pattern counts as shared only if it is on every rank.
+    let mut differs = [f64::from(u8::from(h.ptr != m.ptr || h.cols != m.cols))];
+    session
+        .allreduce_max(world, &mut differs)
+        .map_err(backend)?;
+    let same_pattern = differs[0] == 0.0;
     let solved = solve_pencil(
         &session,
         &mut hm,

@@ -235,9 +235,10 @@ pub(super) fn configure<'s>(
     match options.preset {
         SlepcPreset::KsSinvert => {
             // The Krylov residual lives in the transformed problem (theta = 1 / (lambda -
-            // sigma), never 0 here: H - sigma M is positive definite): SLEPc's relative test is the right one there. The
-            // EPS_CONV_NORM test would divide that residual by ||H||, of the original
-            // problem's scale, and stop after one restart with residuals ~1e-4 (measured).
+            // sigma), never 0 here: H - sigma M is positive definite): SLEPc's relative test
+            // is the right one there. The EPS_CONV_NORM test would divide that residual by
+            // ||H||, of the original problem's scale, and stop after one restart with
+            // residuals ~1e-4 (measured).
             eps.set_convergence_test(petsc::Convergence::Relative)?;
             eps.set_type("krylovschur")?;
             eps.set_which(petsc::Which::TargetMagnitude)?;

@@ -134,7 +134,7 @@ fn check_distributed(
         hm.norm_one().map_err(backend)?,
         mm.norm_one().map_err(backend)?,
     ];
-    let mut x = mm.create_vector().map_err(backend)?;
+    let mut x = hm.create_vector().map_err(backend)?;
     let mut hx = hm.create_vector().map_err(backend)?;
     let mut mx = hm.create_vector().map_err(backend)?;
     // sums[j] = local ||r_j||^2, sums[nev + j] = local ||x_j||^2, then the Gram block.
