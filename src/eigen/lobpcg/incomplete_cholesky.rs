@@ -3,16 +3,19 @@
 //! sparse Cholesky when the latter's fill is too large: the factor has exactly as many entries
 //! as the lower triangle of A, and factorization costs ~ sum over rows of (row length)^2.
 //!
-//! Stored by rows (CSR of the lower triangle, diagonal last in each row). Solves sweep the
-//! rows sequentially on row-major slabs of columns (each step a contiguous row operation),
-//! one slab per thread: deterministic.
+//! A = H + sigma M is never formed: each row of the factor starts as the merge of the lower
+//! triangles of H and M (the values A would hold, bit for bit) and is factored in place.
+//!
+//! Stored by rows (CSR of the lower triangle, diagonal last in each row, u32 column indices).
+//! Solves sweep the rows sequentially on row-major slabs of columns (each step a contiguous
+//! row operation), one slab per thread: deterministic.
 //!
 //! Breakdown (a non-positive pivot, possible for matrices that are not M-matrices) is handled
 //! by the caller by factoring A + alpha diag(A) with a growing alpha (Manteuffel's shift).
 
 use super::workspace::{Block, ROW_CHUNK};
 use crate::simd::multiversion;
-use crate::sparse::SparseMatrix;
+use crate::sparse::{self, SparseMatrix};
 use rayon::prelude::*;
 
 /// An IC(0) factor.
@@ -21,15 +24,18 @@ pub(super) struct IncompleteCholesky {
     /// Row pointers, length n + 1.
     ptr: Vec<usize>,
     /// Column indices per row, ascending, diagonal last.
-    idx: Vec<usize>,
+    idx: Vec<u32>,
     /// Values of L (the diagonal entry of each row is L_ii).
     val: Vec<f64>,
 }
 
-/// A non-positive (or non-finite) pivot at `row`.
-#[derive(Debug, Clone, Copy)]
-pub(super) struct Breakdown {
-    pub row: usize,
+/// Why a factorization stopped.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum Breakdown {
+    /// A non-positive (or non-finite) pivot, or a missing diagonal, at `row`.
+    Pivot { row: usize },
+    /// More rows than u32 column indices address.
+    TooLarge { rows: usize },
 }
 
 impl IncompleteCholesky {
@@ -38,78 +44,25 @@ impl IncompleteCholesky {
         self.val.len()
     }
 
-    /// IC(0) of `a + alpha diag(a)` (symmetric, both triangles stored; only the lower triangle
-    /// is read). A pivot below `1e-12 * (1 + alpha) a_ii` counts as a breakdown.
-    pub fn factor(a: &SparseMatrix, alpha: f64) -> Result<Self, Breakdown> {
-        let n = a.nrows();
-        let sym = a.symbolic();
-        let (aidx, aval) = (sym.row_idx(), a.val());
-        // Row i of the lower triangle = entries k <= i of column i (A is symmetric).
-        let mut ptr = Vec::with_capacity(n + 1);
-        let mut idx = Vec::new();
-        let mut val = Vec::new();
-        ptr.push(0);
-        let mut row: Vec<(usize, f64)> = Vec::new();
-        for i in 0..n {
-            row.clear();
-            let range = sym.col_range(i);
-            row.extend(
-                aidx[range.clone()]
-                    .iter()
-                    .zip(&aval[range])
-                    .filter(|(&k, _)| k <= i)
-                    .map(|(&k, &v)| (k, v)),
-            );
-            row.sort_by_key(|e| e.0);
-            row.dedup_by(|next, kept| {
-                if next.0 == kept.0 {
-                    kept.1 += next.1;
-                    true
-                } else {
-                    false
-                }
-            });
-            if row.last().map(|e| e.0) != Some(i) {
-                // Missing diagonal: a zero pivot.
-                return Err(Breakdown { row: i });
-            }
-            if let Some(last) = row.last_mut() {
-                last.1 *= 1.0 + alpha;
-            }
-            idx.extend(row.iter().map(|e| e.0));
-            val.extend(row.iter().map(|e| e.1));
-            ptr.push(idx.len());
+    /// IC(0) of `A + alpha diag(A)` with A = `h` + `sigma` `m` (both symmetric K x K, both
+    /// triangles stored, sorted columns; only the lower triangles are read). A pivot below
+    /// `1e-12 * (1 + alpha) a_ii` counts as a breakdown.
+    pub fn factor(
+        h: &SparseMatrix,
+        m: &SparseMatrix,
+        sigma: f64,
+        alpha: f64,
+    ) -> Result<Self, Breakdown> {
+        let n = h.nrows();
+        if u32::try_from(n).is_err() {
+            return Err(Breakdown::TooLarge { rows: n });
         }
-        // Factor row by row: L_ik = (a_ik - sum_{j<k} L_ij L_kj) / L_kk, L_ii = sqrt(...).
-        // `pos[j]` = position of column j in the current row, or usize::MAX.
-        let mut pos = vec![usize::MAX; n];
-        for i in 0..n {
-            let (start, end) = (ptr[i], ptr[i + 1]);
-            let diag_scale = val[end - 1];
-            for (p, &j) in idx[start..end].iter().enumerate() {
-                pos[j] = start + p;
-            }
-            for p in start..end - 1 {
-                let k = idx[p];
-                let (ks, ke) = (ptr[k], ptr[k + 1]);
-                let mut s = val[p];
-                for q in ks..ke - 1 {
-                    let pj = pos[idx[q]];
-                    if pj != usize::MAX {
-                        s -= val[pj] * val[q];
-                    }
-                }
-                val[p] = s / val[ke - 1];
-            }
-            let d = val[end - 1] - val[start..end - 1].iter().map(|v| v * v).sum::<f64>();
-            if !(d.is_finite() && d > 1e-12 * diag_scale) {
-                return Err(Breakdown { row: i });
-            }
-            val[end - 1] = d.sqrt();
-            for &j in &idx[start..end] {
-                pos[j] = usize::MAX;
-            }
+        let (ptr, idx, mut val) = lower_pencil(h, m, sigma)?;
+        // Manteuffel's shift on the diagonal (last in each row).
+        for &end in &ptr[1..] {
+            val[end - 1] *= 1.0 + alpha;
         }
+        factor_rows(&ptr, &idx, &mut val)?;
         Ok(Self { ptr, idx, val })
     }
 
@@ -165,10 +118,104 @@ impl IncompleteCholesky {
     }
 }
 
+/// The lower triangle of H + sigma M by rows (row i = column i's entries k <= i, sorted,
+/// the diagonal last): row pointers, u32 column indices, values, merged from the two matrices
+/// as [`sparse::add_scaled`] merges them (`h + sigma m`, or one side's term alone: the same
+/// bits).
+fn lower_pencil(
+    h: &SparseMatrix,
+    m: &SparseMatrix,
+    sigma: f64,
+) -> Result<(Vec<usize>, Vec<u32>, Vec<f64>), Breakdown> {
+    let n = h.nrows();
+    let lower = |a: &SparseMatrix| (a.val().len() + n) / 2;
+    let cap = lower(h).max(lower(m));
+    let mut ptr = Vec::with_capacity(n + 1);
+    let mut idx: Vec<u32> = Vec::with_capacity(cap);
+    let mut val = Vec::with_capacity(cap);
+    ptr.push(0);
+    let (mut ch, mut cm) = (Vec::new(), Vec::new());
+    for i in 0..n {
+        sparse::sorted_column(h, i, &mut ch);
+        sparse::sorted_column(m, i, &mut cm);
+        let (mut p, mut q) = (0, 0);
+        loop {
+            let (k, v) = match (ch.get(p), cm.get(q)) {
+                (Some(&(k, a)), Some(&(l, b))) if k == l => {
+                    p += 1;
+                    q += 1;
+                    (k, a + sigma * b)
+                }
+                (Some(&(k, a)), Some(&(l, _))) if k < l => {
+                    p += 1;
+                    (k, a)
+                }
+                (Some(&(k, a)), None) => {
+                    p += 1;
+                    (k, a)
+                }
+                (_, Some(&(l, b))) => {
+                    q += 1;
+                    (l, sigma * b)
+                }
+                (None, None) => break,
+            };
+            if k > i {
+                break;
+            }
+            // k <= i < n <= u32::MAX, checked by the caller.
+            idx.push(k as u32);
+            val.push(v);
+        }
+        if idx.last().map(|&k| k as usize) != Some(i) || idx.len() == ptr[i] {
+            // Missing diagonal: a zero pivot.
+            return Err(Breakdown::Pivot { row: i });
+        }
+        ptr.push(idx.len());
+    }
+    Ok((ptr, idx, val))
+}
+
+/// Factor the rows in place: L_ik = (a_ik - sum_{j<k} L_ij L_kj) / L_kk, L_ii = sqrt(...).
+fn factor_rows(ptr: &[usize], idx: &[u32], val: &mut [f64]) -> Result<(), Breakdown> {
+    let n = ptr.len() - 1;
+    // `pos[j]` = offset of column j in the current row, or u32::MAX.
+    let mut pos = vec![u32::MAX; n];
+    for i in 0..n {
+        let (start, end) = (ptr[i], ptr[i + 1]);
+        let diag_scale = val[end - 1];
+        for (p, &j) in idx[start..end].iter().enumerate() {
+            // A row has at most n <= u32::MAX entries.
+            pos[j as usize] = p as u32;
+        }
+        for p in start..end - 1 {
+            let k = idx[p] as usize;
+            let (ks, ke) = (ptr[k], ptr[k + 1]);
+            let mut s = val[p];
+            for q in ks..ke - 1 {
+                let pj = pos[idx[q] as usize];
+                if pj != u32::MAX {
+                    s -= val[start + pj as usize] * val[q];
+                }
+            }
+            val[p] = s / val[ke - 1];
+        }
+        let d = val[end - 1] - val[start..end - 1].iter().map(|v| v * v).sum::<f64>();
+        if !(d.is_finite() && d > 1e-12 * diag_scale) {
+            return Err(Breakdown::Pivot { row: i });
+        }
+        val[end - 1] = d.sqrt();
+        for &j in &idx[start..end] {
+            pos[j as usize] = u32::MAX;
+        }
+    }
+    Ok(())
+}
+
 multiversion! {
     /// (L L^T)^-1 in place on a row-major n x `width` slab, L in compressed rows (`ptr`,
     /// `idx`, `val`, the diagonal last in each row).
-    fn solve_slab(ptr: &[usize], idx: &[usize], val: &[f64], data: &mut [f64], width: usize) {
+    fn solve_slab(ptr: &[usize], idx: &[u32], val: &[f64], data: &mut [f64], width: usize) {
         let n = ptr.len() - 1;
         // Forward: L y = b.
         for i in 0..n {
@@ -176,7 +223,7 @@ multiversion! {
             let (before, rest) = data.split_at_mut(i * width);
             let yi = &mut rest[..width];
             for p in start..end - 1 {
-                let k = idx[p];
+                let k = idx[p] as usize;
                 let l = val[p];
                 let yk = &before[k * width..(k + 1) * width];
                 for (a, &b) in yi.iter_mut().zip(yk) {
@@ -194,7 +241,7 @@ multiversion! {
             let inv = 1.0 / val[end - 1];
             xi.iter_mut().for_each(|a| *a *= inv);
             for p in start..end - 1 {
-                let k = idx[p];
+                let k = idx[p] as usize;
                 let l = val[p];
                 let yk = &mut before[k * width..(k + 1) * width];
                 for (a, &b) in yk.iter_mut().zip(xi.iter()) {
@@ -230,7 +277,8 @@ mod tests {
             ptr.push(idx.len());
         }
         let a = crate::sparse::from_compressed(n, ptr, idx, val);
-        let ic = IncompleteCholesky::factor(&a, 0.0).unwrap();
+        let zero = crate::sparse::from_compressed(n, (0..=n).collect(), (0..n).collect(), vec![0.0; n]);
+        let ic = IncompleteCholesky::factor(&a, &zero, 1.0, 0.0).unwrap();
         assert_eq!(ic.entries(), 2 * n - 1);
         let mut b = Block::new(n, 3);
         for i in 0..n {
@@ -250,18 +298,18 @@ mod tests {
         let h = testing::grid_laplacian([5, 4, 3], 1.5);
         let m = testing::identity(60);
         let a = crate::sparse::add_scaled(1.0, &h, 0.1, &m);
-        let ic = IncompleteCholesky::factor(&a, 0.0).unwrap();
+        let ic = IncompleteCholesky::factor(&h, &m, 0.1, 0.0).unwrap();
         let dense = crate::sparse::to_dense(&a);
         let mut l = faer::Mat::<f64>::zeros(60, 60);
         for i in 0..60 {
             for p in ic.ptr[i]..ic.ptr[i + 1] {
-                l[(i, ic.idx[p])] = ic.val[p];
+                l[(i, ic.idx[p] as usize)] = ic.val[p];
             }
         }
         let llt = &l * l.transpose();
         for i in 0..60 {
             for p in ic.ptr[i]..ic.ptr[i + 1] {
-                let k = ic.idx[p];
+                let k = ic.idx[p] as usize;
                 assert!((llt[(i, k)] - dense[(i, k)]).abs() < 1e-12);
             }
         }

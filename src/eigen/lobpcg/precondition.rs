@@ -287,10 +287,9 @@ fn incomplete(
     sigma: f64,
     report: &mut SetupReport,
 ) -> Option<IncompleteCholesky> {
-    let a = sparse::add_scaled(1.0, h, sigma, m);
     let t0 = Instant::now();
     for alpha in [0.0, 1e-3, 1e-2, 1e-1, 1.0] {
-        match IncompleteCholesky::factor(&a, alpha) {
+        match IncompleteCholesky::factor(h, m, sigma, alpha) {
             Ok(ic) => {
                 report.numeric_seconds = t0.elapsed().as_secs_f64();
                 report.factor_entries = ic.entries();
@@ -302,10 +301,16 @@ fn incomplete(
                 ));
                 return Some(ic);
             }
-            Err(Breakdown { row }) => {
+            Err(Breakdown::Pivot { row }) => {
                 report.notes.push(format!(
                     "preconditioner: IC(0) broke down at row {row} with diagonal shift alpha = {alpha:e}"
                 ));
+            }
+            Err(Breakdown::TooLarge { rows }) => {
+                report.notes.push(format!(
+                    "preconditioner: IC(0) indexes columns with 32 bits and K = {rows} is larger"
+                ));
+                break;
             }
         }
     }
@@ -348,8 +353,9 @@ fn cholesky(
     par: Par,
     report: &mut SetupReport,
 ) -> Result<Preconditioner<'static>, CholeskyFailure> {
-    let a = sparse::add_scaled(1.0, h, sigma, m);
-    let lower = (a.val().len() + a.nrows()) / 2;
+    // A = H + sigma M has the union of the two patterns, so at least as many entries as
+    // either: a bound known before A is formed (4 GB at K = 1,000,000).
+    let lower = (h.val().len().max(m.val().len()) + h.nrows()) / 2;
     let least = (lower as f64 * MIN_FILL) as usize;
     if least > budget.entries {
         return Err(CholeskyFailure::OverBudget {
@@ -358,6 +364,8 @@ fn cholesky(
             analysed: false,
         });
     }
+    let a = sparse::add_scaled(1.0, h, sigma, m);
+    let lower = (a.val().len() + a.nrows()) / 2;
     let t0 = Instant::now();
     let symbolic = factorize_symbolic_cholesky(
         a.symbolic(),
