@@ -585,10 +585,19 @@ pub fn check_solution(
         "check_solution: shape mismatch"
     );
     let norms = (sparse::norm_1(h), sparse::norm_1(m));
-    let mut hx = Mat::<f64>::zeros(k, nev);
-    let mut mx = Mat::<f64>::zeros(k, nev);
-    sparse::sym_mul_block(h, vectors.as_ref(), hx.as_mut());
-    sparse::sym_mul_block(m, vectors.as_ref(), mx.as_mut());
+    // Row-major copies for the fused row-major kernel (one pass over the shared pattern, a
+    // contiguous row of X per entry); each product row is summed in stored order as the
+    // column-major kernel sums it, so the figures are the same bits.
+    let x: Vec<f64> = (0..k)
+        .flat_map(|i| (0..nev).map(move |j| vectors[(i, j)]))
+        .collect();
+    let (mut hx_rows, mut mx_rows) = (vec![0.0; k * nev], vec![0.0; k * nev]);
+    sparse::sym_mul_pair_row_major(h, m, &x, nev, &mut hx_rows, &mut mx_rows, nev, nev);
+    drop(x);
+    let hx = Mat::from_fn(k, nev, |i, j| hx_rows[i * nev + j]);
+    drop(hx_rows);
+    let mx = Mat::from_fn(k, nev, |i, j| mx_rows[i * nev + j]);
+    drop(mx_rows);
     fill_residual_report(values, vectors, &hx, &mx, norms, info);
 }
 

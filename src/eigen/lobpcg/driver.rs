@@ -18,6 +18,7 @@ use crate::eigen::{
 use crate::progress::Progress;
 use crate::sparse;
 use faer::{Mat, Par};
+use std::time::Instant;
 
 /// Solve `problem` (already validated) for `request.nev` pairs.
 pub(super) fn solve(
@@ -27,6 +28,7 @@ pub(super) fn solve(
     progress: &dyn Progress,
 ) -> Result<EigenSolution, EigenError> {
     opts.validate()?;
+    let clock = Instant::now();
     let (h, m) = (problem.h, problem.m);
     let assembled = h.assembled().zip(m.assembled());
     let k = h.dim();
@@ -63,6 +65,7 @@ pub(super) fn solve(
         solver: "lobpcg".into(),
         ..EigenInfo::default()
     };
+    let seconds_norms = clock.elapsed().as_secs_f64();
     if assembled.is_none() {
         info.notes.push(format!(
             "matrix-free: H and M applied as operators; 1-norms estimated (||H||_1 ~ {:.3e}, \
@@ -85,6 +88,7 @@ pub(super) fn solve(
     let nx = (nwant + guard).min(k - 1);
     let par = Par::rayon(0);
     progress.begin("eigen (lobpcg)", Some(request.max_iter as u64));
+    let clock = Instant::now();
     let built = match (problem.preconditioner, assembled) {
         (Some(user), _) => Ok((
             Preconditioner::User(user),
@@ -104,6 +108,8 @@ pub(super) fn solve(
         }
     };
     info.notes.extend(report.notes.iter().cloned());
+    let seconds_setup = clock.elapsed().as_secs_f64();
+    let clock = Instant::now();
     info.notes.push(format!(
         "block: {nwant} wanted + {} guard = {nx} columns; constant mode deflated; seed {:#x}",
         nx - nwant,
@@ -148,6 +154,7 @@ pub(super) fn solve(
         stop = state.run(request.tol, request.max_iter, opts, &mut pre, progress);
     }
     progress.finish();
+    let seconds_iterations = clock.elapsed().as_secs_f64();
     // Make the returned vectors consistent with explicitly computed products.
     let stop = match stop {
         Stop::MaxIter | Stop::Stagnated => match state.finalize(opts) {
@@ -229,7 +236,14 @@ pub(super) fn solve(
         nev,
         |i, j| if j == 0 { y0[i] } else { wanted[(i, j - 1)] },
     );
+    let clock = Instant::now();
     check(&values, &vectors, &mut info)?;
+    info.notes.push(format!(
+        "time outside the iterations: constant mode and norms {seconds_norms:.2} s, \
+         preconditioner setup {seconds_setup:.2} s, final check {:.2} s; the iterations (with \
+         any switch of preconditioner) {seconds_iterations:.2} s",
+        clock.elapsed().as_secs_f64()
+    ));
     if info.residuals[0] > request.tol {
         info.notes.push(format!(
             "the constant vector is not in the null space of H to the tolerance: relative residual {:.3e}",

@@ -86,13 +86,19 @@ impl Eigensolver for Lobpcg {
         request: &EigenRequest,
         progress: &dyn Progress,
     ) -> Result<EigenSolution, EigenError> {
+        let clock = std::time::Instant::now();
         validate_problem(h, m, request)?;
-        driver::solve(
+        let seconds = clock.elapsed().as_secs_f64();
+        let mut solution = driver::solve(
             &self.options,
             &OperatorProblem::new(h, m),
             request,
             progress,
-        )
+        )?;
+        solution.info.notes.push(format!(
+            "time: checks of the input (finite, symmetric) {seconds:.2} s"
+        ));
+        Ok(solution)
     }
 
     /// Matrix-free LOBPCG: H and M are applied only through [`crate::eigen::LinearOperator`]

@@ -364,11 +364,14 @@ fn cholesky(
             analysed: false,
         });
     }
-    let a = sparse::add_scaled(1.0, h, sigma, m);
-    let lower = (a.val().len() + a.nrows()) / 2;
+    // With one pattern for H and M (the assembled pencil) the analysis reads H's, and A is
+    // formed only for a factor within budget; otherwise A's pattern is the union.
+    let union = (!sparse::same_pattern(h, m)).then(|| sparse::add_scaled(1.0, h, sigma, m));
+    let pattern = union.as_ref().unwrap_or(h).symbolic();
+    let lower = (pattern.row_idx().len() + h.nrows()) / 2;
     let t0 = Instant::now();
     let symbolic = factorize_symbolic_cholesky(
-        a.symbolic(),
+        pattern,
         Side::Lower,
         SymmetricOrdering::Amd,
         Default::default(),
@@ -386,6 +389,10 @@ fn cholesky(
             analysed: true,
         });
     }
+    let a = match union {
+        Some(a) => a,
+        None => sparse::add_scaled(1.0, h, sigma, m),
+    };
     let mut values = Vec::new();
     values
         .try_reserve_exact(entries)
@@ -421,8 +428,8 @@ fn cholesky(
     report.notes.push(format!(
         "preconditioner: sparse Cholesky of H + sigma M (sigma = {sigma:.3e}, AMD, {kind}): {entries} factor \
          entries ({:.1}x the {} stored entries of the lower triangle of A, {:.2} GB), symbolic {:.2} s, numeric {:.2} s",
-        entries as f64 / ((a.val().len() + a.nrows()) / 2).max(1) as f64,
-        (a.val().len() + a.nrows()) / 2,
+        entries as f64 / lower.max(1) as f64,
+        lower,
         entries as f64 * 8e-9,
         report.symbolic_seconds,
         report.numeric_seconds
