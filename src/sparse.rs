@@ -93,21 +93,57 @@ pub fn sym_mul_row_major(
 
 multiversion! {
     /// yrow = sum_t val[t] x[idx[t] * ldx..][..yrow.len()] (one row of a sparse x block product).
+    /// The columns go in groups of 16, 8, 4 and 1 whose sums stay in registers over the whole
+    /// row (one store per output instead of one per stored entry); each output is still the
+    /// sum from 0 in stored order, so the bits do not depend on the grouping.
     fn row_times_block(idx: &[usize], val: &[f64], x: &[f64], ldx: usize, yrow: &mut [f64]) {
         let ncols = yrow.len();
-        yrow.fill(0.0);
-        for (&j, &aij) in idx.iter().zip(val) {
-            let xrow = &x[j * ldx..j * ldx + ncols];
-            for (yv, &xv) in yrow.iter_mut().zip(xrow) {
-                *yv += aij * xv;
-            }
+        let mut c0 = 0;
+        while ncols - c0 >= 16 {
+            columns_in_registers::<16>(idx, val, x, ldx, c0, &mut yrow[c0..c0 + 16]);
+            c0 += 16;
+        }
+        if ncols - c0 >= 8 {
+            columns_in_registers::<8>(idx, val, x, ldx, c0, &mut yrow[c0..c0 + 8]);
+            c0 += 8;
+        }
+        if ncols - c0 >= 4 {
+            columns_in_registers::<4>(idx, val, x, ldx, c0, &mut yrow[c0..c0 + 4]);
+            c0 += 4;
+        }
+        while c0 < ncols {
+            columns_in_registers::<1>(idx, val, x, ldx, c0, &mut yrow[c0..c0 + 1]);
+            c0 += 1;
         }
     }
 }
 
+/// y = sum_t val[t] x[idx[t] * ldx + c0..][..W], the W sums kept in registers.
+#[inline(always)]
+fn columns_in_registers<const W: usize>(
+    idx: &[usize],
+    val: &[f64],
+    x: &[f64],
+    ldx: usize,
+    c0: usize,
+    y: &mut [f64],
+) {
+    let mut acc = [0.0f64; W];
+    for (&j, &aij) in idx.iter().zip(val) {
+        let start = j * ldx + c0;
+        let xrow: &[f64; W] = x[start..start + W]
+            .try_into()
+            .unwrap_or_else(|_| unreachable!("a slice of length W"));
+        for (a, &xv) in acc.iter_mut().zip(xrow) {
+            *a += aij * xv;
+        }
+    }
+    y.copy_from_slice(&acc);
+}
+
 multiversion! {
     /// rowa = sum_t va[t] x[idx[t] * ldx..], rowb likewise with vb: two sparse rows with the
-    /// same pattern times one block, in one pass.
+    /// same pattern times one block, in one pass; columns grouped as in [`row_times_block`].
     fn rows_pair_times_block(
         idx: &[usize],
         va: &[f64],
@@ -118,16 +154,48 @@ multiversion! {
         rowb: &mut [f64],
     ) {
         let ncols = rowa.len();
-        rowa.fill(0.0);
-        rowb.fill(0.0);
-        for ((&j, &ai), &bi) in idx.iter().zip(va).zip(vb) {
-            let xrow = &x[j * ldx..j * ldx + ncols];
-            for ((ua, ub), &xv) in rowa.iter_mut().zip(rowb.iter_mut()).zip(xrow) {
-                *ua += ai * xv;
-                *ub += bi * xv;
-            }
+        let mut c0 = 0;
+        while ncols - c0 >= 8 {
+            pair_columns_in_registers::<8>(idx, va, vb, x, ldx, c0, rowa, rowb);
+            c0 += 8;
+        }
+        if ncols - c0 >= 4 {
+            pair_columns_in_registers::<4>(idx, va, vb, x, ldx, c0, rowa, rowb);
+            c0 += 4;
+        }
+        while c0 < ncols {
+            pair_columns_in_registers::<1>(idx, va, vb, x, ldx, c0, rowa, rowb);
+            c0 += 1;
         }
     }
+}
+
+/// Columns `c0..c0 + W` of both rows of [`rows_pair_times_block`], the 2 W sums in registers.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn pair_columns_in_registers<const W: usize>(
+    idx: &[usize],
+    va: &[f64],
+    vb: &[f64],
+    x: &[f64],
+    ldx: usize,
+    c0: usize,
+    rowa: &mut [f64],
+    rowb: &mut [f64],
+) {
+    let (mut acc_a, mut acc_b) = ([0.0f64; W], [0.0f64; W]);
+    for ((&j, &ai), &bi) in idx.iter().zip(va).zip(vb) {
+        let start = j * ldx + c0;
+        let xrow: &[f64; W] = x[start..start + W]
+            .try_into()
+            .unwrap_or_else(|_| unreachable!("a slice of length W"));
+        for ((ua, ub), &xv) in acc_a.iter_mut().zip(acc_b.iter_mut()).zip(xrow) {
+            *ua += ai * xv;
+            *ub += bi * xv;
+        }
+    }
+    rowa[c0..c0 + W].copy_from_slice(&acc_a);
+    rowb[c0..c0 + W].copy_from_slice(&acc_b);
 }
 
 /// `true` if `a` and `b` have the same shape and identical stored patterns (column ranges and

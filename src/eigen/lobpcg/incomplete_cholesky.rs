@@ -217,18 +217,24 @@ multiversion! {
     /// `idx`, `val`, the diagonal last in each row).
     fn solve_slab(ptr: &[usize], idx: &[u32], val: &[f64], data: &mut [f64], width: usize) {
         let n = ptr.len() - 1;
-        // Forward: L y = b.
+        // Forward: L y = b, the columns of row i in groups kept in registers over the row.
         for i in 0..n {
             let (start, end) = (ptr[i], ptr[i + 1]);
             let (before, rest) = data.split_at_mut(i * width);
             let yi = &mut rest[..width];
-            for p in start..end - 1 {
-                let k = idx[p] as usize;
-                let l = val[p];
-                let yk = &before[k * width..(k + 1) * width];
-                for (a, &b) in yi.iter_mut().zip(yk) {
-                    *a -= l * b;
-                }
+            let (cols, ls) = (&idx[start..end - 1], &val[start..end - 1]);
+            let mut c0 = 0;
+            while width - c0 >= 8 {
+                subtract_in_registers::<8>(cols, ls, before, width, c0, yi);
+                c0 += 8;
+            }
+            if width - c0 >= 4 {
+                subtract_in_registers::<4>(cols, ls, before, width, c0, yi);
+                c0 += 4;
+            }
+            while c0 < width {
+                subtract_in_registers::<1>(cols, ls, before, width, c0, yi);
+                c0 += 1;
             }
             let inv = 1.0 / val[end - 1];
             yi.iter_mut().for_each(|a| *a *= inv);
@@ -250,6 +256,32 @@ multiversion! {
             }
         }
     }
+}
+
+/// y[c0..c0 + W] -= sum_t l[t] rows[cols[t] * width + c0..][..W], in stored order, the W
+/// values in registers (the same operations as one subtraction per entry and column).
+#[inline(always)]
+fn subtract_in_registers<const W: usize>(
+    cols: &[u32],
+    l: &[f64],
+    rows: &[f64],
+    width: usize,
+    c0: usize,
+    y: &mut [f64],
+) {
+    let mut acc: [f64; W] = y[c0..c0 + W]
+        .try_into()
+        .unwrap_or_else(|_| unreachable!("a slice of length W"));
+    for (&k, &lk) in cols.iter().zip(l) {
+        let start = k as usize * width + c0;
+        let yk: &[f64; W] = rows[start..start + W]
+            .try_into()
+            .unwrap_or_else(|_| unreachable!("a slice of length W"));
+        for (a, &b) in acc.iter_mut().zip(yk) {
+            *a -= lk * b;
+        }
+    }
+    y[c0..c0 + W].copy_from_slice(&acc);
 }
 
 #[cfg(test)]
