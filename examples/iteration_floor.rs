@@ -30,7 +30,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(path)?)?;
     let run = Run::from_report(&report)?;
 
-    let (triad_len, gemm_n) = if quick { (1 << 20, 256) } else { (40 << 20, 2048) };
+    let (triad_len, gemm_n) = if quick {
+        (1 << 20, 256)
+    } else {
+        (40 << 20, 2048)
+    };
     let machine = Machine {
         triad_1: on_threads(1, || triad(triad_len)),
         triad_2: on_threads(2, || triad(triad_len)),
@@ -186,8 +190,14 @@ impl Floor {
         // product columns are preconditioned residual columns. Each of the two threads
         // streams the factor (8-byte value, 4-byte index) forward and backward.
         let precondition = slower(
-            (4.0 * run.factor_entries * run.matvecs / 2.0 / m.gemm_2, "flops"),
-            (it * 2.0 * 2.0 * 12.0 * run.factor_entries / m.triad_2, "bandwidth"),
+            (
+                4.0 * run.factor_entries * run.matvecs / 2.0 / m.gemm_2,
+                "flops",
+            ),
+            (
+                it * 2.0 * 2.0 * 12.0 * run.factor_entries / m.triad_2,
+                "bandwidth",
+            ),
         );
         // Dense parts per iteration, nx = n columns each of X, P and W, ns = 3 n:
         // Gram lower halves of S^T HS and S^T MS: 2 K ns^2; the update of S, HS, MS to

@@ -57,13 +57,13 @@ impl IncompleteCholesky {
         if u32::try_from(n).is_err() {
             return Err(Breakdown::TooLarge { rows: n });
         }
-        let (ptr, idx, mut val) = lower_pencil(h, m, sigma)?;
+        let mut ic = lower_pencil(h, m, sigma)?;
         // Manteuffel's shift on the diagonal (last in each row).
-        for &end in &ptr[1..] {
-            val[end - 1] *= 1.0 + alpha;
+        for &end in &ic.ptr[1..] {
+            ic.val[end - 1] *= 1.0 + alpha;
         }
-        factor_rows(&ptr, &idx, &mut val)?;
-        Ok(Self { ptr, idx, val })
+        factor_rows(&ic.ptr, &ic.idx, &mut ic.val)?;
+        Ok(ic)
     }
 
     /// Columns `c0..c0 + w` of `s` <- (L L^T)^-1 times them, using `tmp` (at least w columns)
@@ -119,14 +119,14 @@ impl IncompleteCholesky {
 }
 
 /// The lower triangle of H + sigma M by rows (row i = column i's entries k <= i, sorted,
-/// the diagonal last): row pointers, u32 column indices, values, merged from the two matrices
+/// the diagonal last), not yet factored, merged from the two matrices
 /// as [`sparse::add_scaled`] merges them (`h + sigma m`, or one side's term alone: the same
 /// bits).
 fn lower_pencil(
     h: &SparseMatrix,
     m: &SparseMatrix,
     sigma: f64,
-) -> Result<(Vec<usize>, Vec<u32>, Vec<f64>), Breakdown> {
+) -> Result<IncompleteCholesky, Breakdown> {
     let n = h.nrows();
     let lower = |a: &SparseMatrix| (a.val().len() + n) / 2;
     let cap = lower(h).max(lower(m));
@@ -173,7 +173,7 @@ fn lower_pencil(
         }
         ptr.push(idx.len());
     }
-    Ok((ptr, idx, val))
+    Ok(IncompleteCholesky { ptr, idx, val })
 }
 
 /// Factor the rows in place: L_ik = (a_ik - sum_{j<k} L_ij L_kj) / L_kk, L_ii = sqrt(...).
@@ -309,7 +309,8 @@ mod tests {
             ptr.push(idx.len());
         }
         let a = crate::sparse::from_compressed(n, ptr, idx, val);
-        let zero = crate::sparse::from_compressed(n, (0..=n).collect(), (0..n).collect(), vec![0.0; n]);
+        let zero =
+            crate::sparse::from_compressed(n, (0..=n).collect(), (0..n).collect(), vec![0.0; n]);
         let ic = IncompleteCholesky::factor(&a, &zero, 1.0, 0.0).unwrap();
         assert_eq!(ic.entries(), 2 * n - 1);
         let mut b = Block::new(n, 3);
