@@ -105,6 +105,7 @@ pub(super) fn build(
         return Ok((Preconditioner::Identity, report));
     }
     let mut try_incomplete = kind == PreconditionerKind::IncompleteCholesky;
+    let mut early_incomplete = None;
     if matches!(
         kind,
         PreconditionerKind::Cholesky | PreconditionerKind::Auto
@@ -121,7 +122,26 @@ pub(super) fn build(
             }
         };
         for attempt in 0..2 {
-            match cholesky(h, m, report.sigma, budget, max_cols, par, &mut report) {
+            let outcome = if attempt == 0 && kind == PreconditionerKind::Auto {
+                // Both sequential: IC(0) of the same pencil is factored on the other thread
+                // while the exact factor is analysed, ready for when the analysis rejects it.
+                let sigma = report.sigma;
+                let (exact, ic) = rayon::join(
+                    || cholesky(h, m, sigma, budget, max_cols, par, &mut report),
+                    || {
+                        let mut ic_report = SetupReport {
+                            sigma,
+                            ..SetupReport::default()
+                        };
+                        (incomplete(h, m, sigma, &mut ic_report), ic_report)
+                    },
+                );
+                early_incomplete = Some(ic);
+                exact
+            } else {
+                cholesky(h, m, report.sigma, budget, max_cols, par, &mut report)
+            };
+            match outcome {
                 Ok(pre) => return Ok((pre, report)),
                 Err(CholeskyFailure::OverBudget {
                     entries,
@@ -168,7 +188,19 @@ pub(super) fn build(
         }
     }
     if try_incomplete {
-        if let Some(ic) = incomplete(h, m, report.sigma, &mut report) {
+        let ic = match early_incomplete {
+            // Factored beside the analysis with the shift still in use.
+            Some((ic, ic_report)) if ic_report.sigma == report.sigma => {
+                if ic.is_some() {
+                    report.numeric_seconds = ic_report.numeric_seconds;
+                    report.factor_entries = ic_report.factor_entries;
+                }
+                report.notes.extend(ic_report.notes);
+                ic
+            }
+            _ => incomplete(h, m, report.sigma, &mut report),
+        };
+        if let Some(ic) = ic {
             return Ok((Preconditioner::Incomplete(Box::new(ic)), report));
         }
     }
