@@ -524,10 +524,14 @@ impl<'a> State<'a> {
         }
     }
 
-    /// The first `nwant` Ritz vectors as a K x nwant column-major matrix.
-    pub fn wanted_vectors(&self) -> Mat<f64> {
+    /// `y0` (the constant mode, K) followed by the first `nwant` Ritz vectors, as a
+    /// K x (nwant + 1) column-major matrix.
+    pub fn vectors_with_constant(&self, y0: &[f64]) -> Mat<f64> {
         let ld = self.s.ld;
-        Mat::from_fn(self.k, self.nwant, |i, j| self.s.data[i * ld + j])
+        Mat::from_fn(self.k, self.nwant + 1, |i, j| match j {
+            0 => y0[i],
+            _ => self.s.data[i * ld + j - 1],
+        })
     }
 
     /// Current width of X plus P (for the final report).
