@@ -5,8 +5,9 @@
 //! report and sets each part of the iteration against its floor:
 //! - sparse products H W and M W: `matvecs x 2 nnz(H)` flops, or streaming the two matrices
 //!   (indices and values) once per product call, whichever takes longer;
-//! - IC(0) triangular solves: `4 nnz(L)` flops per column (forward and backward), or streaming
-//!   the factor twice per application on each thread (each thread solves its own columns);
+//! - the preconditioner's triangular solves (IC(0), or the exact factor at small K):
+//!   `4 nnz(L)` flops per column (forward and backward), or streaming the factor twice per
+//!   application on each thread (each thread solves its own columns);
 //! - orthogonalization and Rayleigh-Ritz: their dense flops (below) at the GEMM rate.
 //!
 //! The block is X (nx = m + guards), P (nx) and W (nx) at the start of the iteration:
@@ -57,7 +58,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("per iteration | measured s | floor s | measured / floor | floor bound by");
     let rows = [
         ("sparse products", run.seconds.products, floor.products),
-        ("IC(0) solves", run.seconds.precondition, floor.precondition),
+        ("factor solves", run.seconds.precondition, floor.precondition),
         (
             "orthogonalization + Rayleigh-Ritz",
             run.seconds.dense,
@@ -137,8 +138,9 @@ impl Run {
             dense: number_after(times, "orthogonalization ")?
                 + number_after(times, "Rayleigh-Ritz and updates ")?,
         };
-        let ic = note("preconditioner: IC(0)")?;
-        let factor_entries = number_after(ic, "): ")?;
+        // IC(0) at large K; the exact sparse Cholesky where `Auto` keeps it (small K).
+        let factor = note("preconditioner: IC(0)").or_else(|_| note("preconditioner: sparse Cholesky"))?;
+        let factor_entries = number_after(factor, "): ")?;
         let block = note("block: ")?;
         let nx = number_after(block, "= ")?;
         Ok(Self {
@@ -186,9 +188,10 @@ impl Floor {
             (2.0 * run.nnz * run.matvecs / m.gemm_2, "flops"),
             (it * 2.0 * 16.0 * run.nnz / m.triad_2, "bandwidth"),
         );
-        // IC(0): forward and backward, 2 flops per entry and column each; about half the
-        // product columns are preconditioned residual columns. Each of the two threads
-        // streams the factor (8-byte value, 4-byte index) forward and backward.
+        // The factor (IC(0), or the exact one): forward and backward, 2 flops per entry and
+        // column each; about half the product columns are preconditioned residual columns.
+        // Each of the two threads streams the factor (8-byte value, 4-byte index) forward
+        // and backward.
         let precondition = slower(
             (
                 4.0 * run.factor_entries * run.matvecs / 2.0 / m.gemm_2,

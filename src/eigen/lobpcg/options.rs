@@ -9,7 +9,9 @@ pub enum PreconditionerKind {
     /// [`PreconditionerKind::IncompleteCholesky`]. "Small": at most
     /// [`LobpcgOptions::max_factor_entries`] entries and at most
     /// [`LobpcgOptions::max_fill_ratio`] times the entries of the lower triangle of
-    /// H + sigma M, both known from the symbolic analysis before any numeric work.
+    /// H + sigma M, both known from the symbolic analysis before any numeric work. The
+    /// analysis is sequential, so IC(0) is factored on another thread meanwhile and used when
+    /// the analysis rejects the exact factor (the same factor as `IncompleteCholesky`).
     Auto,
     /// Sparse Cholesky of H + sigma M (AMD ordering), whatever its size.
     Cholesky,
