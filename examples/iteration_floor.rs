@@ -58,7 +58,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("per iteration | measured s | floor s | measured / floor | floor bound by");
     let rows = [
         ("sparse products", run.seconds.products, floor.products),
-        ("factor solves", run.seconds.precondition, floor.precondition),
+        (
+            "factor solves",
+            run.seconds.precondition,
+            floor.precondition,
+        ),
         (
             "orthogonalization + Rayleigh-Ritz",
             run.seconds.dense,
@@ -139,7 +143,8 @@ impl Run {
                 + number_after(times, "Rayleigh-Ritz and updates ")?,
         };
         // IC(0) at large K; the exact sparse Cholesky where `Auto` keeps it (small K).
-        let factor = note("preconditioner: IC(0)").or_else(|_| note("preconditioner: sparse Cholesky"))?;
+        let factor =
+            note("preconditioner: IC(0)").or_else(|_| note("preconditioner: sparse Cholesky"))?;
         let factor_entries = number_after(factor, "): ")?;
         let block = note("block: ")?;
         let nx = number_after(block, "= ")?;

@@ -25,8 +25,14 @@ use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use faer::{Mat, MatMut, MatRef};
 use rayon::prelude::*;
 
-/// A symmetric sparse matrix, K x K, both triangles stored, sorted row indices per column.
-pub type SparseMatrix = SparseColMat<usize, f64>;
+/// A symmetric sparse matrix, K x K, both triangles stored, sorted row indices per column,
+/// 32-bit column pointers and row indices (at most 2^32 - 1 stored entries; see
+/// [`MAX_ENTRIES`]).
+pub type SparseMatrix = SparseColMat<u32, f64>;
+
+/// Most stored entries a [`SparseMatrix`] holds: its column pointers are u32. (A K = 1,000,000
+/// RKPM pencil has 253M; the limit is ~17 times that.)
+pub const MAX_ENTRIES: usize = u32::MAX as usize;
 
 /// Rows handled by one rayon task in the row-parallel kernels. Fixed, so the split does not
 /// depend on the thread count; 128 rows x ~200 entries keeps a task at ~25k multiply-adds
@@ -36,7 +42,7 @@ const ROWS_PER_TASK: usize = 128;
 /// Build a [`SparseMatrix`] from compressed arrays (column pointers `ptr`, length n + 1; sorted
 /// row indices `idx`; values `val`). Panics only on violated structural invariants, which
 /// callers in this crate construct by design.
-pub fn from_compressed(n: usize, ptr: Vec<usize>, idx: Vec<usize>, val: Vec<f64>) -> SparseMatrix {
+pub fn from_compressed(n: usize, ptr: Vec<u32>, idx: Vec<u32>, val: Vec<f64>) -> SparseMatrix {
     let symbolic = SymbolicSparseColMat::new_checked(n, n, ptr, None, idx);
     SparseColMat::new(symbolic, val)
 }
@@ -96,7 +102,7 @@ multiversion! {
     /// The columns go in groups of 16, 8, 4 and 1 whose sums stay in registers over the whole
     /// row (one store per output instead of one per stored entry); each output is still the
     /// sum from 0 in stored order, so the bits do not depend on the grouping.
-    fn row_times_block(idx: &[usize], val: &[f64], x: &[f64], ldx: usize, yrow: &mut [f64]) {
+    fn row_times_block(idx: &[u32], val: &[f64], x: &[f64], ldx: usize, yrow: &mut [f64]) {
         let ncols = yrow.len();
         let mut c0 = 0;
         while ncols - c0 >= 16 {
@@ -121,7 +127,7 @@ multiversion! {
 /// y = sum_t val[t] x[idx[t] * ldx + c0..][..W], the W sums kept in registers.
 #[inline(always)]
 fn columns_in_registers<const W: usize>(
-    idx: &[usize],
+    idx: &[u32],
     val: &[f64],
     x: &[f64],
     ldx: usize,
@@ -130,7 +136,7 @@ fn columns_in_registers<const W: usize>(
 ) {
     let mut acc = [0.0f64; W];
     for (&j, &aij) in idx.iter().zip(val) {
-        let start = j * ldx + c0;
+        let start = j as usize * ldx + c0;
         let xrow: &[f64; W] = x[start..start + W]
             .try_into()
             .unwrap_or_else(|_| unreachable!("a slice of length W"));
@@ -145,7 +151,7 @@ multiversion! {
     /// rowa = sum_t va[t] x[idx[t] * ldx..], rowb likewise with vb: two sparse rows with the
     /// same pattern times one block, in one pass; columns grouped as in [`row_times_block`].
     fn rows_pair_times_block(
-        idx: &[usize],
+        idx: &[u32],
         va: &[f64],
         vb: &[f64],
         x: &[f64],
@@ -174,7 +180,7 @@ multiversion! {
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn pair_columns_in_registers<const W: usize>(
-    idx: &[usize],
+    idx: &[u32],
     va: &[f64],
     vb: &[f64],
     x: &[f64],
@@ -185,7 +191,7 @@ fn pair_columns_in_registers<const W: usize>(
 ) {
     let (mut acc_a, mut acc_b) = ([0.0f64; W], [0.0f64; W]);
     for ((&j, &ai), &bi) in idx.iter().zip(va).zip(vb) {
-        let start = j * ldx + c0;
+        let start = j as usize * ldx + c0;
         let xrow: &[f64; W] = x[start..start + W]
             .try_into()
             .unwrap_or_else(|_| unreachable!("a slice of length W"));
@@ -310,7 +316,7 @@ pub fn sym_mul_block(a: &SparseMatrix, x: MatRef<'_, f64>, y: MatMut<'_, f64>) {
                         let range = sym.col_range(r0 + lr);
                         let mut acc = 0.0;
                         for (&j, &aij) in idx[range.clone()].iter().zip(&val[range]) {
-                            acc += aij * xcol[j];
+                            acc += aij * xcol[j as usize];
                         }
                         ycol[lr] = acc;
                     }
@@ -384,7 +390,7 @@ pub fn diagonal(a: &SparseMatrix) -> Vec<f64> {
             idx[range.clone()]
                 .iter()
                 .zip(&val[range])
-                .filter(|(&i, _)| i == j)
+                .filter(|(&i, _)| i as usize == j)
                 .map(|(_, &v)| v)
                 .sum()
         })
@@ -461,7 +467,7 @@ pub fn first_non_finite(a: &SparseMatrix) -> Option<(usize, usize)> {
             .iter()
             .zip(&val[range])
             .find(|(_, v)| !v.is_finite())
-            .map(|(&i, _)| (i, j))
+            .map(|(&i, _)| (i as usize, j))
     })
 }
 
@@ -473,7 +479,7 @@ pub(crate) fn sorted_column(a: &SparseMatrix, j: usize, out: &mut Vec<(usize, f6
     out.extend(
         sym.row_idx()[range.clone()]
             .iter()
-            .copied()
+            .map(|&i| i as usize)
             .zip(a.val()[range].iter().copied()),
     );
     if !out.windows(2).all(|w| w[0].0 < w[1].0) {
@@ -527,16 +533,17 @@ fn symmetry_defect_sorted(a: &SparseMatrix) -> f64 {
     for j in 0..n {
         let range = sym.col_range(j);
         for (&r, &v) in idx[range.clone()].iter().zip(&val[range]) {
+            let r = r as usize;
             if r <= j {
                 continue;
             }
             let end = sym.col_range(r).end;
             let mut p = cursor[r];
-            while p < end && idx[p] < j {
+            while p < end && (idx[p] as usize) < j {
                 defect = defect.max(val[p].abs());
                 p += 1;
             }
-            if p < end && idx[p] == j {
+            if p < end && idx[p] as usize == j {
                 defect = defect.max((v - val[p]).abs());
                 p += 1;
             } else {
@@ -548,7 +555,7 @@ fn symmetry_defect_sorted(a: &SparseMatrix) -> f64 {
     for (r, &start) in cursor.iter().enumerate() {
         let end = sym.col_range(r).end;
         for p in start..end {
-            if idx[p] >= r {
+            if idx[p] as usize >= r {
                 break;
             }
             defect = defect.max(val[p].abs());
@@ -569,7 +576,7 @@ fn symmetry_defect_by_transpose(a: &SparseMatrix) -> f64 {
     let mut count = vec![0usize; n + 1];
     for j in 0..n {
         for &i in &idx[sym.col_range(j)] {
-            count[i + 1] += 1;
+            count[i as usize + 1] += 1;
         }
     }
     for i in 0..n {
@@ -582,6 +589,7 @@ fn symmetry_defect_by_transpose(a: &SparseMatrix) -> f64 {
     for j in 0..n {
         let range = sym.col_range(j);
         for (&i, &v) in idx[range.clone()].iter().zip(&val[range]) {
+            let i = i as usize;
             t_idx[next[i]] = j;
             t_val[next[i]] = v;
             next[i] += 1;
@@ -640,7 +648,8 @@ fn symmetry_defect_by_transpose(a: &SparseMatrix) -> f64 {
 /// union pattern, sorted, duplicates summed). Used to form H + sigma M for the preconditioner.
 ///
 /// # Panics
-/// If the shapes differ (caller bug).
+/// If the shapes differ, or the union holds more than [`MAX_ENTRIES`] entries (caller bugs:
+/// callers bound nnz(A) + nnz(B) first).
 pub fn add_scaled(alpha: f64, a: &SparseMatrix, beta: f64, b: &SparseMatrix) -> SparseMatrix {
     assert!(
         a.nrows() == b.nrows() && a.ncols() == b.ncols(),
@@ -678,10 +687,11 @@ pub fn add_scaled(alpha: f64, a: &SparseMatrix, beta: f64, b: &SparseMatrix) -> 
                 }
                 (None, None) => break,
             };
-            idx.push(i);
+            // i < nrows, which a SparseMatrix's u32 indices address.
+            idx.push(i as u32);
             val.push(v);
         }
-        ptr.push(idx.len());
+        ptr.push(u32::try_from(idx.len()).expect("add_scaled: more than MAX_ENTRIES entries"));
     }
     let symbolic = SymbolicSparseColMat::new_checked(nrows, ncols, ptr, None, idx);
     SparseColMat::new(symbolic, val)
@@ -697,21 +707,26 @@ mod tests {
     use super::*;
     use faer::sparse::Triplet;
 
+    /// A triplet of a SparseMatrix (u32 indices) from usize indices.
+    fn tri(i: usize, j: usize, v: f64) -> Triplet<u32, u32, f64> {
+        Triplet::new(i as u32, j as u32, v)
+    }
+
     /// A small symmetric test matrix: 1D Laplacian-like with a random-ish diagonal.
     fn small(n: usize) -> SparseMatrix {
         let mut t = Vec::new();
         for i in 0..n {
-            t.push(Triplet::new(i, i, 2.0 + (i % 7) as f64 * 0.25));
+            t.push(tri(i, i, 2.0 + (i % 7) as f64 * 0.25));
             if i + 1 < n {
-                t.push(Triplet::new(i, i + 1, -1.0 + 0.01 * i as f64));
-                t.push(Triplet::new(i + 1, i, -1.0 + 0.01 * i as f64));
+                t.push(tri(i, i + 1, -1.0 + 0.01 * i as f64));
+                t.push(tri(i + 1, i, -1.0 + 0.01 * i as f64));
             }
             if i + 5 < n {
-                t.push(Triplet::new(i, i + 5, 0.3));
-                t.push(Triplet::new(i + 5, i, 0.3));
+                t.push(tri(i, i + 5, 0.3));
+                t.push(tri(i + 5, i, 0.3));
             }
         }
-        SparseColMat::try_new_from_triplets(n, n, &t).unwrap()
+        SparseMatrix::try_new_from_triplets(n, n, &t).unwrap()
     }
 
     #[test]
@@ -778,7 +793,12 @@ mod tests {
         assert_eq!(ya, za);
         assert_eq!(yb, zb);
         // A different pattern falls back to two products.
-        let eye = from_compressed(n, (0..=n).collect(), (0..n).collect(), vec![2.0; n]);
+        let eye = from_compressed(
+            n,
+            (0..=n as u32).collect(),
+            (0..n as u32).collect(),
+            vec![2.0; n],
+        );
         assert!(!same_pattern(&a, &eye));
         sym_mul_pair_row_major(&a, &eye, &x[1..], ld, &mut ya[2..], &mut yb[2..], ld, w);
         assert_eq!(ya, za);
@@ -818,10 +838,10 @@ mod tests {
         assert_eq!(first_non_finite(&a), None);
         assert_eq!(symmetry_defect(&a), 0.0);
         // alpha A + beta I.
-        let eye = SparseColMat::<usize, f64>::try_new_from_triplets(
+        let eye = SparseMatrix::try_new_from_triplets(
             n,
             n,
-            &(0..n).map(|i| Triplet::new(i, i, 1.0)).collect::<Vec<_>>(),
+            &(0..n).map(|i| tri(i, i, 1.0)).collect::<Vec<_>>(),
         )
         .unwrap();
         let s = add_scaled(2.0, &a, 0.5, &eye);
@@ -837,21 +857,21 @@ mod tests {
     #[test]
     fn detects_non_finite_and_asymmetry() {
         let t = vec![
-            Triplet::new(0, 0, 1.0),
-            Triplet::new(1, 0, 2.0),
-            Triplet::new(0, 1, 2.5),
-            Triplet::new(1, 1, f64::NAN),
-            Triplet::new(2, 2, 1.0),
+            tri(0, 0, 1.0),
+            tri(1, 0, 2.0),
+            tri(0, 1, 2.5),
+            tri(1, 1, f64::NAN),
+            tri(2, 2, 1.0),
         ];
-        let a = SparseColMat::<usize, f64>::try_new_from_triplets(3, 3, &t).unwrap();
+        let a = SparseMatrix::try_new_from_triplets(3, 3, &t).unwrap();
         assert_eq!(first_non_finite(&a), Some((1, 1)));
         let t = vec![
-            Triplet::new(0, 0, 1.0),
-            Triplet::new(1, 0, 2.0),
-            Triplet::new(0, 1, 2.5),
-            Triplet::new(2, 1, 1.0),
+            tri(0, 0, 1.0),
+            tri(1, 0, 2.0),
+            tri(0, 1, 2.5),
+            tri(2, 1, 1.0),
         ];
-        let a = SparseColMat::<usize, f64>::try_new_from_triplets(3, 3, &t).unwrap();
+        let a = SparseMatrix::try_new_from_triplets(3, 3, &t).unwrap();
         // |2.0 - 2.5| = 0.5 and the unmatched (2,1) entry gives 1.0.
         assert_eq!(symmetry_defect(&a), 1.0);
     }
@@ -881,15 +901,15 @@ mod tests {
                             false => (true, i != j),
                         };
                         if lower {
-                            t.push(Triplet::new(i, j, v));
+                            t.push(tri(i, j, v));
                         }
                         if upper {
-                            t.push(Triplet::new(j, i, w));
+                            t.push(tri(j, i, w));
                         }
                     }
                 }
             }
-            let a = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &t).unwrap();
+            let a = SparseMatrix::try_new_from_triplets(n, n, &t).unwrap();
             let d = to_dense(&a);
             let mut want = 0.0f64;
             for i in 0..n {

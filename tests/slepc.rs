@@ -361,7 +361,7 @@ fn plain_residual(
                 .iter()
                 .zip(&a.val()[range])
             {
-                y[i] += v * xj;
+                y[i as usize] += v * xj;
                 col += v.abs();
             }
             norm1 = norm1.max(col);

@@ -176,11 +176,28 @@ fn operand(py: Python<'_>, obj: &Bound<'_, PyAny>, name: &'static str) -> PyResu
             Ok(a.as_array().to_vec())
         };
         let (r, c, v) = (get("row")?, get("col")?, get("data")?);
-        let triplets: Vec<faer::sparse::Triplet<usize, usize, f64>> = r
+        let index_range = u32::MAX as f64;
+        if rows.max(cols) > u32::MAX as usize
+            || v.len() > freeform::sparse::MAX_ENTRIES
+            || r.iter()
+                .chain(&c)
+                .any(|&i| !(0.0..index_range).contains(&i) || i.fract() != 0.0)
+        {
+            return Err(invalid(
+                py,
+                format!(
+                    "{name}: indices must be whole numbers in [0, 2^32 - 1) and at most {} \
+                     entries (the native sparse matrix has 32-bit indices)",
+                    freeform::sparse::MAX_ENTRIES
+                ),
+            ));
+        }
+        // Whole numbers in u32's range, checked above.
+        let triplets: Vec<faer::sparse::Triplet<u32, u32, f64>> = r
             .iter()
             .zip(&c)
             .zip(&v)
-            .map(|((&i, &j), &x)| faer::sparse::Triplet::new(i as usize, j as usize, x))
+            .map(|((&i, &j), &x)| faer::sparse::Triplet::new(i as u32, j as u32, x))
             .collect();
         let matrix = SparseMatrix::try_new_from_triplets(rows, cols, &triplets)
             .map_err(|e| invalid(py, format!("{name}: {e:?}")))?;

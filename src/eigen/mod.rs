@@ -743,7 +743,7 @@ fn entry(a: &SparseMatrix, i: usize, j: usize) -> f64 {
     a.symbolic().row_idx()[range.clone()]
         .iter()
         .zip(&a.val()[range])
-        .filter(|(&r, _)| r == i)
+        .filter(|(&r, _)| r as usize == i)
         .map(|(_, &v)| v)
         .sum()
 }

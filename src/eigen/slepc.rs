@@ -214,8 +214,7 @@ impl RowBlock {
         };
         for j in range {
             let r = sym.col_range(j);
-            out.cols
-                .extend(sym.row_idx()[r.clone()].iter().map(|&i| i as u32));
+            out.cols.extend_from_slice(&sym.row_idx()[r.clone()]);
             out.vals.extend_from_slice(&a.val()[r]);
             out.ptr.push(out.cols.len());
         }

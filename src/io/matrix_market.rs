@@ -119,7 +119,7 @@ pub fn write_matrix_market(
         .map(|j| {
             sym.row_idx()[sym.col_range(j)]
                 .iter()
-                .filter(|&&i| i >= j)
+                .filter(|&&i| i as usize >= j)
                 .count()
         })
         .sum();
@@ -132,8 +132,8 @@ pub fn write_matrix_market(
         for j in 0..a.ncols() {
             let r = sym.col_range(j);
             for (&i, &v) in sym.row_idx()[r.clone()].iter().zip(&a.val()[r]) {
-                if i >= j {
-                    writeln!(w, "{} {} {v:.16e}", i + 1, j + 1)?;
+                if i as usize >= j {
+                    writeln!(w, "{} {} {v:.16e}", i as usize + 1, j + 1)?;
                 }
             }
         }
@@ -319,13 +319,26 @@ pub fn read_matrix_market_from(
             ),
         });
     }
+    if triplets.len() > crate::sparse::MAX_ENTRIES {
+        return Err(MatrixFileError::Parse {
+            path: path.to_path_buf(),
+            line: 0,
+            reason: format!(
+                "{} stored entries (both triangles) are more than the {} a SparseMatrix \
+                 addresses (u32 indices)",
+                triplets.len(),
+                crate::sparse::MAX_ENTRIES
+            ),
+        });
+    }
     Ok(csc_from_triplets(n, triplets))
 }
 
-/// CSC with sorted row indices from triplets (column-major sort, duplicates summed).
+/// CSC with sorted row indices from triplets (column-major sort, duplicates summed); n and
+/// the number of triplets are within u32's range (checked by the caller: n <= triplets).
 fn csc_from_triplets(n: usize, mut t: Vec<(usize, usize, f64)>) -> SparseMatrix {
     t.sort_by_key(|a| (a.1, a.0));
-    let mut ptr = vec![0usize; n + 1];
+    let mut ptr = vec![0u32; n + 1];
     let mut idx = Vec::with_capacity(t.len());
     let mut val: Vec<f64> = Vec::with_capacity(t.len());
     let mut last: Option<(usize, usize)> = None;
@@ -337,7 +350,7 @@ fn csc_from_triplets(n: usize, mut t: Vec<(usize, usize, f64)>) -> SparseMatrix 
             continue;
         }
         last = Some((i, j));
-        idx.push(i);
+        idx.push(i as u32);
         val.push(v);
         ptr[j + 1] += 1;
     }

@@ -17,7 +17,7 @@
 
 use super::rkpm::ShapeFunctions;
 use crate::eigen::RowPencil;
-use crate::sparse::{from_compressed, SparseMatrix};
+use crate::sparse::{self, from_compressed, SparseMatrix};
 use crate::{Error, Result};
 use rayon::prelude::*;
 
@@ -211,7 +211,7 @@ impl Accumulator {
             ));
         }
         let mut rows = self.rows;
-        let (ptr, idx, hval, mval) = mirror(&mut rows, k);
+        let (ptr, idx, hval, mval) = mirror(&mut rows, k)?;
         drop(rows);
         release_freed_memory();
         if let Some(bad) = hval.iter().chain(&mval).position(|v| !v.is_finite()) {
@@ -471,12 +471,16 @@ impl ChunkView<'_> {
     }
 }
 
+/// The compressed arrays of H_w and M on their shared pattern: column pointers, row indices,
+/// H_w's values, M's values.
+type Mirrored = (Vec<u32>, Vec<u32>, Vec<f64>, Vec<f64>);
+
 /// Full symmetric CSR (= CSC) arrays from the upper-triangle rows: entry (i, j) with j > i is
 /// also stored as (j, i) with the identical value, so the result is exactly symmetric.
 /// Lower entries of a row come first (rows ascending), then its upper entries: columns stay
 /// sorted. Each row's storage is released once it is copied.
 #[inline(never)]
-fn mirror(rows: &mut [Row], k: usize) -> (Vec<usize>, Vec<usize>, Vec<f64>, Vec<f64>) {
+fn mirror(rows: &mut [Row], k: usize) -> Result<Mirrored> {
     let mut count = vec![0usize; k];
     for (i, r) in rows.iter().enumerate() {
         count[i] += r.cols.len();
@@ -486,22 +490,37 @@ fn mirror(rows: &mut [Row], k: usize) -> (Vec<usize>, Vec<usize>, Vec<f64>, Vec<
             }
         }
     }
-    let mut ptr = vec![0usize; k + 1];
+    let nnz: usize = count.iter().sum();
+    // The margin keeps a boundary-aware basis's grounded restriction (nnz + 2 K + 1 entries at
+    // most) within range too.
+    if nnz > sparse::MAX_ENTRIES - 2 * k - 1 {
+        return Err(Error::param(
+            "kernels",
+            k.to_string(),
+            format!(
+                "H_w and M would hold {nnz} entries each, more than the {} a SparseMatrix \
+                 addresses (u32): use fewer kernels or a smaller support factor",
+                sparse::MAX_ENTRIES
+            ),
+        ));
+    }
+    // Every partial sum is at most nnz <= u32::MAX (checked above).
+    let mut ptr = vec![0u32; k + 1];
     for i in 0..k {
-        ptr[i + 1] = ptr[i] + count[i];
+        ptr[i + 1] = ptr[i] + count[i] as u32;
     }
     drop(count);
-    let nnz = ptr[k];
-    let (mut idx, mut hv, mut mv) = (vec![0usize; nnz], vec![0.0; nnz], vec![0.0; nnz]);
+    let (mut idx, mut hv, mut mv) = (vec![0u32; nnz], vec![0.0; nnz], vec![0.0; nnz]);
     // Lower parts are filled from the front as rows are visited in ascending order, so each
     // row's lower entries end up sorted; its own upper entries go after them.
-    let mut next = ptr.clone();
+    let mut next: Vec<usize> = ptr.iter().map(|&p| p as usize).collect();
     for (i, r) in rows.iter().enumerate() {
         for (e, &j) in r.cols.iter().enumerate() {
             let j = j as usize;
             if j != i {
                 let d = next[j];
-                idx[d] = i;
+                // Row indices are below k, which u32 kernel indices (Row::cols) address.
+                idx[d] = i as u32;
                 hv[d] = r.h[e];
                 mv[d] = r.m[e];
                 next[j] += 1;
@@ -511,12 +530,10 @@ fn mirror(rows: &mut [Row], k: usize) -> (Vec<usize>, Vec<usize>, Vec<f64>, Vec<
     for (i, r) in rows.iter_mut().enumerate() {
         let d = next[i];
         let c = r.cols.len();
-        for (slot, &j) in idx[d..d + c].iter_mut().zip(r.cols.iter()) {
-            *slot = j as usize;
-        }
+        idx[d..d + c].copy_from_slice(&r.cols);
         hv[d..d + c].copy_from_slice(&r.h);
         mv[d..d + c].copy_from_slice(&r.m);
         *r = Row::default();
     }
-    (ptr, idx, hv, mv)
+    Ok((ptr, idx, hv, mv))
 }

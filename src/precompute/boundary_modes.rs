@@ -231,7 +231,8 @@ enum Ground {
 }
 
 /// The principal submatrix A_FF (n x n), or the grounded (n + 1) x (n + 1) matrix with
-/// Q [y; g] = y - g 1 (see [`Ground`]).
+/// Q [y; g] = y - g 1 (see [`Ground`]). It holds at most nnz(A) + 2 n + 1 entries, which the
+/// assembly keeps within a [`SparseMatrix`]'s u32 range.
 fn restricted(a: &SparseMatrix, part: &RegionPartition, ground: Ground) -> SparseMatrix {
     let map = free_index(part);
     let n = part.free.len();
@@ -239,25 +240,29 @@ fn restricted(a: &SparseMatrix, part: &RegionPartition, ground: Ground) -> Spars
     let mut out_ptr = Vec::with_capacity(n + 2);
     let mut out_idx = Vec::new();
     let mut out_val = Vec::new();
-    out_ptr.push(0);
+    out_ptr.push(0u32);
+    let entries = |len: usize| {
+        u32::try_from(len).expect("restricted: more entries than a SparseMatrix addresses")
+    };
     // Row sums over the free rows: (A_FF 1)_j per free column j (A is symmetric).
     let mut sums = vec![0.0; n];
     for (j, &kj) in part.free.iter().enumerate() {
         let mut s = 0.0;
-        for e in ptr[kj]..ptr[kj + 1] {
-            let i = map[idx[e]];
+        for e in ptr[kj] as usize..ptr[kj + 1] as usize {
+            let i = map[idx[e] as usize];
             if i != usize::MAX {
-                out_idx.push(i);
+                // i < n <= K, addressed by u32 like A's own indices.
+                out_idx.push(i as u32);
                 out_val.push(val[e]);
                 s += val[e];
             }
         }
         sums[j] = s;
         if ground != Ground::None {
-            out_idx.push(n);
+            out_idx.push(n as u32);
             out_val.push(-s);
         }
-        out_ptr.push(out_idx.len());
+        out_ptr.push(entries(out_idx.len()));
     }
     if ground == Ground::None {
         return sparse::from_compressed(n, out_ptr, out_idx, out_val);
@@ -268,12 +273,12 @@ fn restricted(a: &SparseMatrix, part: &RegionPartition, ground: Ground) -> Spars
         _ => 0.0,
     };
     for (j, s) in sums.iter().enumerate() {
-        out_idx.push(j);
+        out_idx.push(j as u32);
         out_val.push(-s);
     }
-    out_idx.push(n);
+    out_idx.push(n as u32);
     out_val.push(total + alpha);
-    out_ptr.push(out_idx.len());
+    out_ptr.push(entries(out_idx.len()));
     sparse::from_compressed(n + 1, out_ptr, out_idx, out_val)
 }
 
@@ -363,8 +368,8 @@ fn lifts(h: &SparseMatrix, part: &RegionPartition) -> Result<Mat<f64>> {
         let (ptr, idx, val) = (h.col_ptr(), h.row_idx(), h.val());
         for kk in 0..k {
             if let Some(r @ 1..) = part.owner[kk] {
-                for e in ptr[kk]..ptr[kk + 1] {
-                    let i = map[idx[e]];
+                for e in ptr[kk] as usize..ptr[kk + 1] as usize {
+                    let i = map[idx[e] as usize];
                     if i != usize::MAX {
                         rhs[(i, r - 1)] -= val[e];
                     }

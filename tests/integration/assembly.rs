@@ -17,7 +17,7 @@ fn dense(a: &SparseMatrix) -> Vec<Vec<f64>> {
     for j in 0..n {
         let (rows, vals) = (a.row_idx_of_col_raw(j), a.val_of_col(j));
         for (r, v) in rows.iter().zip(vals) {
-            d[*r][j] = *v;
+            d[*r as usize][j] = *v;
         }
     }
     d

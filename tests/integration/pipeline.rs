@@ -528,7 +528,7 @@ fn lobpcg_matches_the_dense_solver_on_rkpm_matrices() {
             for c in 0..kernels.len() {
                 let (rows, vals) = (a.mass.row_idx_of_col_raw(c), a.mass.val_of_col(c));
                 for (r, v) in rows.iter().zip(vals) {
-                    out[(*r, j)] += v * d.vectors[(c, j)];
+                    out[(*r as usize, j)] += v * d.vectors[(c, j)];
                 }
             }
         }

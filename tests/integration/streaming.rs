@@ -63,6 +63,7 @@ fn assert_same(a: &SparseMatrix, dense: &[Vec<f64>], hit: &[Vec<bool>], what: &s
     let mut stored = vec![vec![false; k]; k];
     for j in 0..k {
         for (&i, &v) in a.row_idx_of_col_raw(j).iter().zip(a.val_of_col(j)) {
+            let i = i as usize;
             assert_eq!(
                 v.to_bits(),
                 dense[i][j].to_bits(),

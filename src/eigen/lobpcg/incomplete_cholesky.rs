@@ -293,24 +293,28 @@ mod tests {
     fn ic0_is_exact_on_a_tridiagonal_and_matches_on_the_pattern() {
         // For a tridiagonal matrix IC(0) = exact Cholesky: the solve inverts A to round-off.
         let n = 40;
-        let mut ptr = vec![0];
+        let mut ptr = vec![0u32];
         let (mut idx, mut val) = (Vec::new(), Vec::new());
-        for j in 0..n {
+        for j in 0..n as u32 {
             if j > 0 {
                 idx.push(j - 1);
                 val.push(-1.0);
             }
             idx.push(j);
             val.push(2.5);
-            if j + 1 < n {
+            if j + 1 < n as u32 {
                 idx.push(j + 1);
                 val.push(-1.0);
             }
-            ptr.push(idx.len());
+            ptr.push(idx.len() as u32);
         }
         let a = crate::sparse::from_compressed(n, ptr, idx, val);
-        let zero =
-            crate::sparse::from_compressed(n, (0..=n).collect(), (0..n).collect(), vec![0.0; n]);
+        let zero = crate::sparse::from_compressed(
+            n,
+            (0..=n as u32).collect(),
+            (0..n as u32).collect(),
+            vec![0.0; n],
+        );
         let ic = IncompleteCholesky::factor(&a, &zero, 1.0, 0.0).unwrap();
         assert_eq!(ic.entries(), 2 * n - 1);
         let mut b = Block::new(n, 3);

@@ -38,7 +38,7 @@ pub(super) enum Preconditioner<'a> {
 
 /// A sparse Cholesky factor with its solve workspace.
 pub(super) struct Factor {
-    symbolic: SymbolicCholesky<usize>,
+    symbolic: SymbolicCholesky<u32>,
     values: Vec<f64>,
     mem: MemBuffer,
 }
@@ -398,7 +398,13 @@ fn cholesky(
     }
     // With one pattern for H and M (the assembled pencil) the analysis reads H's, and A is
     // formed only for a factor within budget; otherwise A's pattern is the union.
-    let union = (!sparse::same_pattern(h, m)).then(|| sparse::add_scaled(1.0, h, sigma, m));
+    let same = sparse::same_pattern(h, m);
+    if !same && h.val().len() + m.val().len() > sparse::MAX_ENTRIES {
+        return Err(CholeskyFailure::Failed(
+            "the union of the patterns of H and M may exceed a SparseMatrix's u32 range".into(),
+        ));
+    }
+    let union = (!same).then(|| sparse::add_scaled(1.0, h, sigma, m));
     let pattern = union.as_ref().unwrap_or(h).symbolic();
     let lower = (pattern.row_idx().len() + h.nrows()) / 2;
     let t0 = Instant::now();

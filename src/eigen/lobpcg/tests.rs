@@ -377,7 +377,7 @@ fn lobpcg_rejects_invalid_input() {
     ];
     let trip: Vec<_> = t
         .iter()
-        .map(|&(i, j, v)| faer::sparse::Triplet::new(i, j, v))
+        .map(|&(i, j, v)| faer::sparse::Triplet::new(i as u32, j as u32, v))
         .collect();
     let asym = faer::sparse::SparseColMat::try_new_from_triplets(4, 4, &trip).unwrap();
     assert!(matches!(
@@ -396,7 +396,10 @@ fn lobpcg_rejects_invalid_input() {
     let mut indef = h.clone();
     for j in 0..indef.ncols() {
         let range = indef.symbolic().col_range(j);
-        let rows: Vec<usize> = indef.symbolic().row_idx()[range.clone()].to_vec();
+        let rows: Vec<usize> = indef.symbolic().row_idx()[range.clone()]
+            .iter()
+            .map(|&i| i as usize)
+            .collect();
         for (p, i) in range.zip(rows) {
             indef.val_mut()[p] = if i == j { 1.0 } else { 0.5 };
         }
@@ -671,11 +674,11 @@ fn indefinite_laplacian(n: [usize; 3]) -> SparseMatrix {
             .iter()
             .zip(&h.val()[range])
         {
-            t.push(faer::sparse::Triplet::new(r, c, v));
+            t.push(faer::sparse::Triplet::new(r, c as u32, v));
         }
     }
     for (r, c, v) in [(i, i, -5.0), (j, j, -5.0), (i, j, 5.0), (j, i, 5.0)] {
-        t.push(faer::sparse::Triplet::new(r, c, v));
+        t.push(faer::sparse::Triplet::new(r as u32, c as u32, v));
     }
     faer::sparse::SparseColMat::try_new_from_triplets(h.nrows(), h.ncols(), &t).unwrap()
 }

@@ -171,11 +171,8 @@ mod tests {
                     let span = rows.ptr[r]..rows.ptr[r + 1];
                     // Column j of the symmetric CSC matrices is row j.
                     let (hs, ms) = (h.symbolic(), m.symbolic());
-                    let want: Vec<u32> = hs.row_idx()[hs.col_range(j)]
-                        .iter()
-                        .map(|&i| i as u32)
-                        .collect();
-                    assert_eq!(&rows.cols[span.clone()], &want[..], "row {j}, P = {size}");
+                    let want = &hs.row_idx()[hs.col_range(j)];
+                    assert_eq!(&rows.cols[span.clone()], want, "row {j}, P = {size}");
                     assert_eq!(
                         &rows.hessian[span.clone()],
                         &h.val()[hs.col_range(j)],
