@@ -8,10 +8,10 @@
 //! - the stream: one chunk's shape functions and their transpose;
 //! - H_w and M: nnz ~ 8 x the kernels covering a point (the pairs of kernels whose supports
 //!   overlap), ~280 per row at the default support, scaling with the support volume; both
-//!   matrices with their own indices, 32 bytes per non-zero, plus the upper triangle they are
-//!   mirrored from;
-//! - the eigensolve (while H_w and M are held): LOBPCG's shifted matrix, its preconditioner
-//!   and its dense K x 3 (m + 1) blocks; the dense solver's K x K matrices.
+//!   matrices with their own u32 indices, 24 bytes per non-zero, plus the upper triangle they
+//!   are mirrored from;
+//! - the eigensolve (while H_w and M are held): LOBPCG's IC(0) factor and its dense
+//!   K x 3 (m + 1) blocks; SLEPc's copies; the dense solver's K x K matrices.
 
 use super::options::{default_points, BasisOptions};
 use super::rkpm::CHUNK_POINTS;
@@ -102,16 +102,20 @@ impl MemoryEstimate {
         let points_bytes = BYTES_PER_POINT * n;
         let chunk = n.min(CHUNK_POINTS as f64);
         let stream_bytes = chunk * cover * BYTES_PER_PAIR + 16.0 * k;
-        // Two CSC matrices with their own row indices (8 + 8 bytes per entry each); while
-        // mirroring, the upper triangle (u32 + 2 f64 per entry, half the entries) as well.
-        let matrices = 32.0 * nnz + 16.0 * k;
+        // Two CSC matrices with their own u32 row indices (8 + 4 bytes per entry each); while
+        // mirroring, the upper triangle (u32 + 2 f64 per entry, half the entries), the
+        // mirrored arrays and the second matrix's copy of the indices.
+        let matrices = 24.0 * nnz + 8.0 * k;
         let mirroring = 10.0 * nnz + 24.0 * nnz;
         let nev = opts.modes as f64 + 1.0;
         let eigensolver = match opts.solver {
             SolverConfig::Dense => 5.0 * 8.0 * k * k,
-            // H + sigma M (16 bytes per entry), its IC(0) factor (lower triangle, 12 bytes per
-            // entry), S, H S, M S and two temporaries of K x 3 (m + 1).
-            _ => 16.0 * nnz + 6.0 * nnz + 5.0 * 8.0 * k * 3.0 * nev,
+            // The IC(0) factor (lower triangle, 12 bytes per entry; H + sigma M is not
+            // formed), S, H S, M S and two temporaries of K x 3 (m + 1).
+            SolverConfig::Lobpcg(_) => 6.0 * nnz + 5.0 * 8.0 * k * 3.0 * nev,
+            // SLEPc in one process: PETSc holds its own copies of the matrices; the figure the
+            // native path had before it stopped forming H + sigma M.
+            SolverConfig::Slepc(_) => 16.0 * nnz + 6.0 * nnz + 5.0 * 8.0 * k * 3.0 * nev,
         };
         let total = points_bytes + (stream_bytes + mirroring).max(matrices + eigensolver);
         // `as u64` saturates.
