@@ -7,7 +7,8 @@ use std::time::Instant;
 /// Wall time per pipeline stage, seconds.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, serde::Deserialize)]
 pub struct Timings {
-    /// Shape reading plus integration points and volumes.
+    /// Shape reading plus integration points and volumes (for a box, sphere or image also
+    /// the second sampling after the eigensolve, which does not hold the points).
     pub sampling: f64,
     /// Farthest point sampling of kernel centres, support radii.
     pub centers: f64,
