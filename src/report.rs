@@ -55,6 +55,19 @@ pub fn peak_memory_bytes() -> Option<u64> {
     Some(kb * 1024)
 }
 
+/// Hand freed memory back to the system. Millions of small freed allocations (the assembly's
+/// rows, the exact factor's analysis) stay in glibc's heaps otherwise, resident through the
+/// eigensolve (~4 GB at K = 1,000,000 after the assembly; docs/performance.md). A no-op
+/// elsewhere than Linux with glibc.
+pub fn release_freed_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: malloc_trim only returns free pages of malloc's own heaps to the system; it
+    // touches no live allocation and is thread-safe (it locks each arena).
+    unsafe {
+        libc::malloc_trim(0);
+    }
+}
+
 /// User + system CPU seconds of this process so far (all threads), from /proc/self/stat
 /// (Linux; clock ticks of 1/100 s), or None elsewhere. Less sensitive than wall time to other
 /// processes sharing the cores.

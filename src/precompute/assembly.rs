@@ -213,7 +213,7 @@ impl Accumulator {
         let mut rows = self.rows;
         let (ptr, idx, hval, mval) = mirror(&mut rows, k)?;
         drop(rows);
-        release_freed_memory();
+        crate::report::release_freed_memory();
         if let Some(bad) = hval.iter().chain(&mval).position(|v| !v.is_finite()) {
             return Err(Error::NonFinite {
                 what: "assembled matrices (check volumes and material values)",
@@ -278,7 +278,7 @@ impl Accumulator {
             mv[d..d + c].copy_from_slice(&r.m);
         }
         drop(rows);
-        release_freed_memory();
+        crate::report::release_freed_memory();
         if let Some(bad) = hv.iter().chain(&mv).position(|v| !v.is_finite()) {
             return Err(Error::NonFinite {
                 what: "assembled matrices (check volumes and material values)",
@@ -328,18 +328,6 @@ pub(crate) fn check_point_lengths(n: usize, volumes: &[f64], weights: &[f64]) ->
         }
     }
     Ok(())
-}
-
-/// Hand the memory of the freed rows back to the system. The rows are millions of small
-/// allocations, which glibc's malloc keeps in its heaps after they are freed: at K = 1,000,000
-/// that was ~4 GB of resident memory held through the eigensolve (docs/performance.md).
-fn release_freed_memory() {
-    #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    // SAFETY: malloc_trim only returns free pages of malloc's own heaps to the system; it
-    // touches no live allocation and is thread-safe (it locks each arena).
-    unsafe {
-        libc::malloc_trim(0);
-    }
 }
 
 /// One chunk's shape functions seen from its kernels.

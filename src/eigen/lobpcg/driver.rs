@@ -108,6 +108,8 @@ pub(super) fn solve(
         }
     };
     info.notes.extend(report.notes.iter().cloned());
+    // The exact factor's analysis (or a rejected attempt) freed many small allocations.
+    crate::report::release_freed_memory();
     let seconds_setup = clock.elapsed().as_secs_f64();
     let clock = Instant::now();
     info.notes.push(format!(
