@@ -180,10 +180,13 @@ fn point_shape(
     // Pass 1: window values and gradients, moment matrix and its gradient.
     let mut m = [[0.0f64; 4]; 4];
     let mut dm = [[[0.0f64; 4]; 4]; 3];
+    // M and dM_j are symmetric: only their upper triangles (r <= c) are summed, and mirrored
+    // after the loop. Each upper entry receives the same terms in the same order as when all
+    // 16 were summed (q_r q_c = q_c q_r exactly), so the result is the same bit for bit.
     for (slot, &k) in row.iter().enumerate() {
         let (w, gw, q) = window(kernels, k as usize, x, inv_ref);
         for r in 0..4 {
-            for c in 0..4 {
+            for c in r..4 {
                 let qq = q[r] * q[c];
                 m[r][c] += w * qq;
                 for j in 0..3 {
@@ -191,16 +194,31 @@ fn point_shape(
                 }
             }
         }
-        // d q / d x_j = e_{j+1} / a_ref: adds w (e q^T + q e^T) / a_ref.
+        // d q / d x_j = e_{j+1} / a_ref: adds w (e q^T + q e^T) / a_ref, whose upper entries
+        // are (j + 1, c) for c >= j + 1 and (c, j + 1) for c <= j + 1 (the diagonal twice).
         for j in 0..3 {
+            let e = j + 1;
             for c in 0..4 {
-                dm[j][j + 1][c] += w * q[c] * inv_ref;
-                dm[j][c][j + 1] += w * q[c] * inv_ref;
+                let t = w * q[c] * inv_ref;
+                if e <= c {
+                    dm[j][e][c] += t;
+                }
+                if c <= e {
+                    dm[j][c][e] += t;
+                }
             }
         }
         // Stash w and gw in the output rows to avoid recomputing them in pass 2.
         phi[slot] = w;
         grad[slot] = gw;
+    }
+    for r in 1..4 {
+        for c in 0..r {
+            m[r][c] = m[c][r];
+            for d in dm.iter_mut() {
+                d[r][c] = d[c][r];
+            }
+        }
     }
     let Some(l) = cholesky4(&m) else {
         phi.fill(0.0);
