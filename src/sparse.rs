@@ -124,6 +124,15 @@ multiversion! {
     }
 }
 
+/// `data[start..start + W]` as an array, so loops over it have a length known at compile time
+/// (the register-blocked kernels here and in the IC(0) sweep).
+#[inline(always)]
+pub(crate) fn fixed_row<const W: usize>(data: &[f64], start: usize) -> &[f64; W] {
+    data[start..start + W]
+        .try_into()
+        .unwrap_or_else(|_| unreachable!("a slice of length W"))
+}
+
 /// y = sum_t val[t] x[idx[t] * ldx + c0..][..W], the W sums kept in registers.
 #[inline(always)]
 fn columns_in_registers<const W: usize>(
@@ -136,10 +145,7 @@ fn columns_in_registers<const W: usize>(
 ) {
     let mut acc = [0.0f64; W];
     for (&j, &aij) in idx.iter().zip(val) {
-        let start = j as usize * ldx + c0;
-        let xrow: &[f64; W] = x[start..start + W]
-            .try_into()
-            .unwrap_or_else(|_| unreachable!("a slice of length W"));
+        let xrow = fixed_row::<W>(x, j as usize * ldx + c0);
         for (a, &xv) in acc.iter_mut().zip(xrow) {
             *a += aij * xv;
         }
@@ -191,10 +197,7 @@ fn pair_columns_in_registers<const W: usize>(
 ) {
     let (mut acc_a, mut acc_b) = ([0.0f64; W], [0.0f64; W]);
     for ((&j, &ai), &bi) in idx.iter().zip(va).zip(vb) {
-        let start = j as usize * ldx + c0;
-        let xrow: &[f64; W] = x[start..start + W]
-            .try_into()
-            .unwrap_or_else(|_| unreachable!("a slice of length W"));
+        let xrow = fixed_row::<W>(x, j as usize * ldx + c0);
         for ((ua, ub), &xv) in acc_a.iter_mut().zip(acc_b.iter_mut()).zip(xrow) {
             *ua += ai * xv;
             *ub += bi * xv;
@@ -661,40 +664,55 @@ pub fn add_scaled(alpha: f64, a: &SparseMatrix, beta: f64, b: &SparseMatrix) -> 
     let mut idx = Vec::with_capacity(cap);
     let mut val = Vec::with_capacity(cap);
     ptr.push(0);
-    let (mut ca, mut cb) = (Vec::new(), Vec::new());
+    let (mut ca, mut cb, mut merged) = (Vec::new(), Vec::new(), Vec::new());
     for j in 0..ncols {
         sorted_column(a, j, &mut ca);
         sorted_column(b, j, &mut cb);
-        let (mut p, mut q) = (0, 0);
-        while p < ca.len() || q < cb.len() {
-            let (i, v) = match (ca.get(p), cb.get(q)) {
-                (Some(&(i, v)), Some(&(k, w))) if i == k => {
-                    p += 1;
-                    q += 1;
-                    (i, alpha * v + beta * w)
-                }
-                (Some(&(i, v)), Some(&(k, _))) if i < k => {
-                    p += 1;
-                    (i, alpha * v)
-                }
-                (Some(&(i, v)), None) => {
-                    p += 1;
-                    (i, alpha * v)
-                }
-                (_, Some(&(k, w))) => {
-                    q += 1;
-                    (k, beta * w)
-                }
-                (None, None) => break,
-            };
-            // i < nrows, which a SparseMatrix's u32 indices address.
-            idx.push(i as u32);
-            val.push(v);
-        }
+        merged.clear();
+        merge_scaled(alpha, &ca, beta, &cb, &mut merged);
+        // Row indices are below nrows, which a SparseMatrix's u32 indices address.
+        idx.extend(merged.iter().map(|&(i, _)| i as u32));
+        val.extend(merged.iter().map(|&(_, v)| v));
         ptr.push(u32::try_from(idx.len()).expect("add_scaled: more than MAX_ENTRIES entries"));
     }
     let symbolic = SymbolicSparseColMat::new_checked(nrows, ncols, ptr, None, idx);
     SparseColMat::new(symbolic, val)
+}
+
+/// alpha a + beta b for two sorted, duplicate-free (index, value) lists (columns from
+/// [`sorted_column`]), appended to `out` in index order over the union of their indices: an
+/// index in one list only gives that list's term alone.
+pub(crate) fn merge_scaled(
+    alpha: f64,
+    a: &[(usize, f64)],
+    beta: f64,
+    b: &[(usize, f64)],
+    out: &mut Vec<(usize, f64)>,
+) {
+    let (mut p, mut q) = (0, 0);
+    loop {
+        let entry = match (a.get(p), b.get(q)) {
+            (Some(&(i, v)), Some(&(k, w))) if i == k => {
+                p += 1;
+                q += 1;
+                (i, alpha * v + beta * w)
+            }
+            (Some(&(i, v)), Some(&(k, _))) if i < k => {
+                p += 1;
+                (i, alpha * v)
+            }
+            (Some(&(i, v)), None) => {
+                p += 1;
+                (i, alpha * v)
+            }
+            (_, Some(&(k, w))) => {
+                q += 1;
+                (k, beta * w)
+            }
+            (None, None) => return,
+        };
+        out.push(entry);
+    }
 }
 
 /// Dense copy of `a` (K x K). For the dense reference solver and tests only.

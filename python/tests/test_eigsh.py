@@ -130,6 +130,16 @@ def test_bad_operators_are_refused():
         freeform.eigsh(MatMat(skew), MatMat(np.eye(N)), NEV, check_symmetry=True)
     with pytest.raises(freeform.InvalidInputError, match="positive definite"):
         freeform.eigsh(MatMat(laplacian()), MatMat(-np.eye(N)), NEV)
+    # Sparse input whose indices the native 32-bit matrix cannot hold: negative or fractional
+    # (a negative index used to be cast to row 0 silently).
+    for bad in (-1.0, 2.5):
+        sparse_like = SparseLike(laplacian())
+        coo = Coo(laplacian())
+        coo.row = coo.row.astype(float)
+        coo.row[0] = bad
+        sparse_like.tocoo = lambda coo=coo: coo
+        with pytest.raises(freeform.InvalidInputError, match="whole numbers"):
+            freeform.eigsh(sparse_like, MatMat(np.eye(N)), NEV)
 
 
 def test_scipy_sparse_and_linear_operators():

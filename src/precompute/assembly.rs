@@ -481,7 +481,7 @@ fn mirror(rows: &mut [Row], k: usize) -> Result<Mirrored> {
     let nnz: usize = count.iter().sum();
     // The margin keeps a boundary-aware basis's grounded restriction (nnz + 2 K + 1 entries at
     // most) within range too.
-    if nnz > sparse::MAX_ENTRIES - 2 * k - 1 {
+    if nnz + 2 * k + 1 > sparse::MAX_ENTRIES {
         return Err(Error::param(
             "kernels",
             k.to_string(),

@@ -29,13 +29,10 @@ pub(super) struct IncompleteCholesky {
     val: Vec<f64>,
 }
 
-/// Why a factorization stopped.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(super) enum Breakdown {
-    /// A non-positive (or non-finite) pivot, or a missing diagonal, at `row`.
-    Pivot { row: usize },
-    /// More rows than u32 column indices address.
-    TooLarge { rows: usize },
+/// A non-positive (or non-finite) pivot, or a missing diagonal, at `row`.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Breakdown {
+    pub row: usize,
 }
 
 impl IncompleteCholesky {
@@ -45,18 +42,15 @@ impl IncompleteCholesky {
     }
 
     /// IC(0) of `A + alpha diag(A)` with A = `h` + `sigma` `m` (both symmetric K x K, both
-    /// triangles stored, sorted columns; only the lower triangles are read). A pivot below
-    /// `1e-12 * (1 + alpha) a_ii` counts as a breakdown.
+    /// triangles stored; only the lower triangles are read; the factor's u32 column indices
+    /// are the matrices' own row indices). A pivot below `1e-12 * (1 + alpha) a_ii` counts as
+    /// a breakdown.
     pub fn factor(
         h: &SparseMatrix,
         m: &SparseMatrix,
         sigma: f64,
         alpha: f64,
     ) -> Result<Self, Breakdown> {
-        let n = h.nrows();
-        if u32::try_from(n).is_err() {
-            return Err(Breakdown::TooLarge { rows: n });
-        }
         let mut ic = lower_pencil(h, m, sigma)?;
         // Manteuffel's shift on the diagonal (last in each row).
         for &end in &ic.ptr[1..] {
@@ -119,9 +113,8 @@ impl IncompleteCholesky {
 }
 
 /// The lower triangle of H + sigma M by rows (row i = column i's entries k <= i, sorted,
-/// the diagonal last), not yet factored, merged from the two matrices
-/// as [`sparse::add_scaled`] merges them (`h + sigma m`, or one side's term alone: the same
-/// bits).
+/// the diagonal last), not yet factored, merged as [`sparse::add_scaled`] merges the columns
+/// of A (the same bits).
 fn lower_pencil(
     h: &SparseMatrix,
     m: &SparseMatrix,
@@ -134,43 +127,23 @@ fn lower_pencil(
     let mut idx: Vec<u32> = Vec::with_capacity(cap);
     let mut val = Vec::with_capacity(cap);
     ptr.push(0);
-    let (mut ch, mut cm) = (Vec::new(), Vec::new());
+    let (mut ch, mut cm, mut row) = (Vec::new(), Vec::new(), Vec::new());
     for i in 0..n {
         sparse::sorted_column(h, i, &mut ch);
         sparse::sorted_column(m, i, &mut cm);
-        let (mut p, mut q) = (0, 0);
-        loop {
-            let (k, v) = match (ch.get(p), cm.get(q)) {
-                (Some(&(k, a)), Some(&(l, b))) if k == l => {
-                    p += 1;
-                    q += 1;
-                    (k, a + sigma * b)
-                }
-                (Some(&(k, a)), Some(&(l, _))) if k < l => {
-                    p += 1;
-                    (k, a)
-                }
-                (Some(&(k, a)), None) => {
-                    p += 1;
-                    (k, a)
-                }
-                (_, Some(&(l, b))) => {
-                    q += 1;
-                    (l, sigma * b)
-                }
-                (None, None) => break,
-            };
-            if k > i {
-                break;
-            }
-            // k <= i < n <= u32::MAX, checked by the caller.
-            idx.push(k as u32);
-            val.push(v);
-        }
-        if idx.last().map(|&k| k as usize) != Some(i) || idx.len() == ptr[i] {
+        let (ph, pm) = (
+            ch.partition_point(|e| e.0 <= i),
+            cm.partition_point(|e| e.0 <= i),
+        );
+        row.clear();
+        sparse::merge_scaled(1.0, &ch[..ph], sigma, &cm[..pm], &mut row);
+        if row.last().map(|e| e.0) != Some(i) {
             // Missing diagonal: a zero pivot.
-            return Err(Breakdown::Pivot { row: i });
+            return Err(Breakdown { row: i });
         }
+        // Indices k <= i come from the matrices' own u32 row indices.
+        idx.extend(row.iter().map(|&(k, _)| k as u32));
+        val.extend(row.iter().map(|&(_, v)| v));
         ptr.push(idx.len());
     }
     Ok(IncompleteCholesky { ptr, idx, val })
@@ -202,7 +175,7 @@ fn factor_rows(ptr: &[usize], idx: &[u32], val: &mut [f64]) -> Result<(), Breakd
         }
         let d = val[end - 1] - val[start..end - 1].iter().map(|v| v * v).sum::<f64>();
         if !(d.is_finite() && d > 1e-12 * diag_scale) {
-            return Err(Breakdown::Pivot { row: i });
+            return Err(Breakdown { row: i });
         }
         val[end - 1] = d.sqrt();
         for &j in &idx[start..end] {
@@ -269,14 +242,9 @@ fn subtract_in_registers<const W: usize>(
     c0: usize,
     y: &mut [f64],
 ) {
-    let mut acc: [f64; W] = y[c0..c0 + W]
-        .try_into()
-        .unwrap_or_else(|_| unreachable!("a slice of length W"));
+    let mut acc = *sparse::fixed_row::<W>(y, c0);
     for (&k, &lk) in cols.iter().zip(l) {
-        let start = k as usize * width + c0;
-        let yk: &[f64; W] = rows[start..start + W]
-            .try_into()
-            .unwrap_or_else(|_| unreachable!("a slice of length W"));
+        let yk = sparse::fixed_row::<W>(rows, k as usize * width + c0);
         for (a, &b) in acc.iter_mut().zip(yk) {
             *a -= lk * b;
         }

@@ -333,16 +333,10 @@ fn incomplete(
                 ));
                 return Some(ic);
             }
-            Err(Breakdown::Pivot { row }) => {
+            Err(Breakdown { row }) => {
                 report.notes.push(format!(
                     "preconditioner: IC(0) broke down at row {row} with diagonal shift alpha = {alpha:e}"
                 ));
-            }
-            Err(Breakdown::TooLarge { rows }) => {
-                report.notes.push(format!(
-                    "preconditioner: IC(0) indexes columns with 32 bits and K = {rows} is larger"
-                ));
-                break;
             }
         }
     }
