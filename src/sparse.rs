@@ -69,18 +69,7 @@ pub fn sym_mul_row_major(
     if n == 0 || ncols == 0 {
         return;
     }
-    assert!(
-        ncols <= ldx && ncols <= ldy,
-        "sym_mul_row_major: ncols exceeds a stride"
-    );
-    assert!(
-        x.len() >= (n - 1) * ldx + ncols,
-        "sym_mul_row_major: x too short"
-    );
-    assert!(
-        y.len() >= (n - 1) * ldy + ncols,
-        "sym_mul_row_major: y too short"
-    );
+    check_row_major("sym_mul_row_major", n, x.len(), ldx, y.len(), ldy, ncols);
     let sym = a.symbolic();
     let idx = sym.row_idx();
     let val = a.val();
@@ -220,9 +209,32 @@ pub fn same_pattern(a: &SparseMatrix, b: &SparseMatrix) -> bool {
         })
 }
 
+/// The layout checks of the row-major products (`n` >= 1 rows): strides of at least
+/// `ncols`, and X and Y long enough for `n` rows.
+///
+/// # Panics
+/// If a check fails (a caller bug), naming `what`.
+fn check_row_major(
+    what: &str,
+    n: usize,
+    x_len: usize,
+    ldx: usize,
+    y_len: usize,
+    ldy: usize,
+    ncols: usize,
+) {
+    assert!(
+        ncols <= ldx && ncols <= ldy,
+        "{what}: ncols exceeds a stride"
+    );
+    assert!(x_len >= (n - 1) * ldx + ncols, "{what}: x too short");
+    assert!(y_len >= (n - 1) * ldy + ncols, "{what}: y too short");
+}
+
 /// YA = A X and YB = B X in one pass when A and B share their pattern (one read of the
 /// indices and one gather of each X row feed both products); otherwise two calls of
-/// [`sym_mul_row_major`]. Same layout rules and determinism as [`sym_mul_row_major`].
+/// [`sym_mul_row_major`]. Same layout rules and determinism as [`sym_mul_row_major`]. Checks
+/// the patterns on every call (O(nnz)); [`SharedPattern`] checks them once for many products.
 #[allow(clippy::too_many_arguments)]
 pub fn sym_mul_pair_row_major(
     a: &SparseMatrix,
@@ -234,53 +246,79 @@ pub fn sym_mul_pair_row_major(
     ldy: usize,
     ncols: usize,
 ) {
-    let n = a.nrows();
-    if n == 0 || ncols == 0 {
-        return;
+    match SharedPattern::new(a, b) {
+        Some(pair) => pair.mul_row_major(x, ldx, ya, yb, ldy, ncols),
+        None => {
+            sym_mul_row_major(a, x, ldx, ya, ldy, ncols);
+            sym_mul_row_major(b, x, ldx, yb, ldy, ncols);
+        }
     }
-    if !same_pattern(a, b) {
-        sym_mul_row_major(a, x, ldx, ya, ldy, ncols);
-        sym_mul_row_major(b, x, ldx, yb, ldy, ncols);
-        return;
+}
+
+/// Two symmetric matrices whose stored patterns were found identical once ([`same_pattern`]),
+/// for fused products without checking again: the borrow keeps both unchanged while it
+/// lives.
+#[derive(Clone, Copy)]
+pub struct SharedPattern<'m> {
+    a: &'m SparseMatrix,
+    b: &'m SparseMatrix,
+}
+
+impl<'m> SharedPattern<'m> {
+    /// The pair, if `a` and `b` share their pattern (O(nnz) check); None otherwise.
+    pub fn new(a: &'m SparseMatrix, b: &'m SparseMatrix) -> Option<SharedPattern<'m>> {
+        same_pattern(a, b).then_some(SharedPattern { a, b })
     }
-    assert!(
-        ncols <= ldx && ncols <= ldy,
-        "sym_mul_pair_row_major: ncols exceeds a stride"
-    );
-    assert!(
-        x.len() >= (n - 1) * ldx + ncols,
-        "sym_mul_pair_row_major: x too short"
-    );
-    assert!(
-        ya.len() >= (n - 1) * ldy + ncols && yb.len() >= (n - 1) * ldy + ncols,
-        "sym_mul_pair_row_major: y too short"
-    );
-    let sym = a.symbolic();
-    let idx = sym.row_idx();
-    let sb = b.symbolic();
-    let (va, vb) = (a.val(), b.val());
-    let len = (n - 1) * ldy + ncols;
-    ya[..len]
-        .par_chunks_mut(ldy * ROWS_PER_TASK)
-        .zip(yb[..len].par_chunks_mut(ldy * ROWS_PER_TASK))
-        .enumerate()
-        .for_each(|(task, (ca, cb))| {
-            let r0 = task * ROWS_PER_TASK;
-            for (lr, (rowa, rowb)) in ca.chunks_mut(ldy).zip(cb.chunks_mut(ldy)).enumerate() {
-                let i = r0 + lr;
-                let range = sym.col_range(i);
-                let rb = sb.col_range(i);
-                rows_pair_times_block(
-                    &idx[range.clone()],
-                    &va[range],
-                    &vb[rb],
-                    x,
-                    ldx,
-                    &mut rowa[..ncols],
-                    &mut rowb[..ncols],
-                );
-            }
-        });
+
+    /// YA = A X and YB = B X in one pass over the shared pattern (layout as
+    /// [`sym_mul_row_major`]; the same bits as two separate products).
+    ///
+    /// # Panics
+    /// If a stride is below `ncols` or a slice is too short (caller bug).
+    #[allow(clippy::too_many_arguments)]
+    pub fn mul_row_major(
+        &self,
+        x: &[f64],
+        ldx: usize,
+        ya: &mut [f64],
+        yb: &mut [f64],
+        ldy: usize,
+        ncols: usize,
+    ) {
+        let (a, b) = (self.a, self.b);
+        let n = a.nrows();
+        if n == 0 || ncols == 0 {
+            return;
+        }
+        let y_len = ya.len().min(yb.len());
+        check_row_major("sym_mul_pair_row_major", n, x.len(), ldx, y_len, ldy, ncols);
+        let sym = a.symbolic();
+        let idx = sym.row_idx();
+        let sb = b.symbolic();
+        let (va, vb) = (a.val(), b.val());
+        let len = (n - 1) * ldy + ncols;
+        ya[..len]
+            .par_chunks_mut(ldy * ROWS_PER_TASK)
+            .zip(yb[..len].par_chunks_mut(ldy * ROWS_PER_TASK))
+            .enumerate()
+            .for_each(|(task, (ca, cb))| {
+                let r0 = task * ROWS_PER_TASK;
+                for (lr, (rowa, rowb)) in ca.chunks_mut(ldy).zip(cb.chunks_mut(ldy)).enumerate() {
+                    let i = r0 + lr;
+                    let range = sym.col_range(i);
+                    let rb = sb.col_range(i);
+                    rows_pair_times_block(
+                        &idx[range.clone()],
+                        &va[range],
+                        &vb[rb],
+                        x,
+                        ldx,
+                        &mut rowa[..ncols],
+                        &mut rowb[..ncols],
+                    );
+                }
+            });
+    }
 }
 
 /// Y = A X for symmetric `a` (K x K) and any dense layout of X, Y (K x b).

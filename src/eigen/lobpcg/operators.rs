@@ -19,6 +19,8 @@ pub(super) enum Which {
 pub(super) struct Operators<'a> {
     h: &'a dyn LinearOperator,
     m: &'a dyn LinearOperator,
+    /// Both assembled with one pattern (checked once here, not at every product).
+    shared: Option<sparse::SharedPattern<'a>>,
     pub norm_h: f64,
     pub norm_m: f64,
 }
@@ -30,9 +32,14 @@ impl<'a> Operators<'a> {
         norm_h: f64,
         norm_m: f64,
     ) -> Self {
+        let shared = match (h.assembled(), m.assembled()) {
+            (Some(a), Some(b)) => sparse::SharedPattern::new(a, b),
+            _ => None,
+        };
         Self {
             h,
             m,
+            shared,
             norm_h,
             norm_m,
         }
@@ -78,11 +85,9 @@ impl<'a> Operators<'a> {
         c0: usize,
         w: usize,
     ) -> Result<(), EigenError> {
-        if let (Some(h), Some(m)) = (self.h.assembled(), self.m.assembled()) {
+        if let Some(pair) = &self.shared {
             debug_assert_eq!(hs.ld, ms.ld);
-            sparse::sym_mul_pair_row_major(
-                h,
-                m,
+            pair.mul_row_major(
                 &s.data[c0..],
                 s.ld,
                 &mut hs.data[c0..],
