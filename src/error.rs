@@ -391,6 +391,22 @@ pub enum GeometryError {
         /// What is wrong (with a line or element number where known).
         reason: String,
     },
+    /// A USD stage that does not open, or a prim or attribute of it that cannot be read as
+    /// asked (`<file>: <prim path>[.<attribute>]: <reason>`).
+    #[error(
+        "{path}: {prim}{}: {reason}",
+        attribute.as_deref().map(|a| format!(".{a}")).unwrap_or_default()
+    )]
+    Usd {
+        /// The stage file.
+        path: PathBuf,
+        /// The prim path (`/` for the stage itself).
+        prim: String,
+        /// The attribute, where one is at fault.
+        attribute: Option<String>,
+        /// What is wrong and what to do.
+        reason: String,
+    },
     /// The mesh is not closed.
     #[error(
         "{path}: mesh is not watertight ({boundary_edges} boundary edges, {nonmanifold_edges} \

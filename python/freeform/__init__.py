@@ -1,7 +1,10 @@
 """freeform: mesh-free, reduced-order simulation of elastic objects from RKPM skinning
 eigenmodes, from Python.
 
-- ``sample("mesh.obj", points=20000)``: points inside a shape and their volumes.
+- ``sample("mesh.obj", points=20000)``: points inside a shape and their volumes (a USD prim
+  too: ``sample("scene.usda:/World/Toy")``).
+- ``read_usd_kaolin("run.usda", "/World/ball/points")``: Kaolin's physics schemas of a USD
+  prim (points, materials, skinning weights) as arrays.
 - ``Basis.from_shape("box:2,1,1", kernels=1000, modes=16)`` or
   ``Basis.from_points(points, youngs, poisson, density, volumes=None)``: the eigenmodes;
   ``basis.weights(points)`` evaluates them anywhere in the object.
@@ -23,12 +26,13 @@ from ._errors import (
     NotConvergedError,
     StrictModeError,
 )
-from ._native import Basis, Scene, World, __version__, eigsh, sample
+from ._native import Basis, Scene, World, __version__, eigsh, read_usd_kaolin, sample
 
 __all__ = [
     "Basis",
     "Scene",
     "World",
+    "read_usd_kaolin",
     "sample",
     "eigsh",
     "FreeformError",

@@ -22,6 +22,11 @@ def sample(
 ) -> tuple[Float2, npt.NDArray[np.float64]]:
     """Points inside a shape (N, 3), metres, and their volumes (N,), m^3."""
 
+def read_usd_kaolin(
+    path: Path, prim: str, instance: str = "default", time: Optional[float] = None
+) -> dict[str, Optional[dict[str, Any]]]:
+    """Kaolin's physics schemas of a USD prim: {"material": ..., "skinned": ...} as arrays."""
+
 def eigsh(
     h: Any,
     m: Any,

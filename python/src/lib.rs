@@ -7,6 +7,7 @@ mod eigen;
 mod errors;
 mod progress;
 mod sampling;
+mod usd;
 mod world;
 
 use pyo3::prelude::*;
@@ -19,6 +20,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<world::PyWorld>()?;
     m.add_function(wrap_pyfunction!(sampling::sample, m)?)?;
     m.add_function(wrap_pyfunction!(eigen::eigsh, m)?)?;
+    m.add_function(wrap_pyfunction!(usd::read_usd_kaolin, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

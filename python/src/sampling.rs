@@ -42,7 +42,13 @@ pub fn sample<'py>(
         (None, None) => Resolution::Count(20_000),
     };
     let ip = run_released(py, Front::Python, false, |_| {
-        let s = freeform::io::read_shape(shape, &ShapeOptions { allow_open_mesh })?;
+        let s = freeform::io::read_shape(
+            shape,
+            &ShapeOptions {
+                allow_open_mesh,
+                ..ShapeOptions::default()
+            },
+        )?;
         sample_shape(&s, resolution, &CloudVolumeOptions::default())
     })?;
     Ok((points_array(py, &ip.points), array1(py, ip.volumes)))

@@ -12,6 +12,8 @@ table's list (which the package prints for an unknown option).
 
 import inspect
 import math
+import pathlib
+import tempfile
 
 import numpy as np
 import pytest
@@ -55,7 +57,7 @@ COUNTS = [("-1", -1), ("0", 0), ("2**63", 2**63)]
 NOT_NUMBERS = {
     "self", "shape", "path", "text", "base_dir", "name", "basis", "scene", "motion",
     "placement", "boundaries", "preconditioner", "check_symmetry", "progress", "gradients",
-    "allow_open_mesh", "strict", "cache", "h", "m", "out", "options",
+    "allow_open_mesh", "strict", "cache", "h", "m", "out", "options", "prim", "instance",
 }
 
 
@@ -161,6 +163,24 @@ CASES["Scene.add_object"] = (
     CASES["Scene.add_object"][2])
 CASES["World.set_state"] = (_set_state, None, CASES["World.set_state"][2])
 
+# A stage with Kaolin's material schema on /P (docs/usd.md), for read_usd_kaolin's time code.
+KAOLIN_STAGE = pathlib.Path(tempfile.mkdtemp()) / "kaolin.usda"
+KAOLIN_STAGE.write_text("""#usda 1.0
+def Points "P" (
+    prepend apiSchemas = ["KaolinPhysicsMaterialAPI:default"]
+)
+{
+    point3f[] points = [(0, 0, 0)]
+    point3f[] kaolin_physics_material:default:pts = [(0, 0, 0)]
+    float[] kaolin_physics_material:default:yms = [1e6]
+    float[] kaolin_physics_material:default:prs = [0.4]
+    float[] kaolin_physics_material:default:rhos = [1000]
+    float kaolin_physics_material:default:appx_vol = 1
+}
+""")
+CASES["read_usd_kaolin"] = (lambda **a: ff.read_usd_kaolin(KAOLIN_STAGE, "/P", **a),
+                            dict(time=None), {"time": "float"})
+
 # Meaningful values, by (call, argument): the cases and why.
 ACCEPTED = {
     ("sample", "points"): ({"0"}, None),  # refused below, listed for the reason only
@@ -181,6 +201,8 @@ ACCEPTED = {
     ("eigsh", "max_iter"): ({"2**63"}, "an iteration cap: the solve stops when it converges"),
     ("World.set_state", "z"): ({"0", "-1", "1e300", "1e-300"}, "any finite state"),
     ("World.set_state", "zdot"): ({"0", "-1", "1e300", "1e-300"}, "any finite velocity"),
+    ("read_usd_kaolin", "time"): ({"0", "-1", "1e300", "1e-300"},
+                                  "any finite time code: USD resolves a value at every time"),
 }
 
 

@@ -352,6 +352,7 @@ mod tests {
         }
         let open = ShapeOptions {
             allow_open_mesh: true,
+            ..ShapeOptions::default()
         };
         let m = TriMesh::new(v, mis, &open).unwrap();
         assert!(!m.is_closed());

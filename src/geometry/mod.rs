@@ -13,6 +13,7 @@
 //! - [`VoxelImage`] is a label or Young's-modulus image; its filled voxels can be the shape.
 //! - [`generate`] builds simple meshes (box, icosphere) for tests and examples.
 
+mod axis;
 pub mod generate;
 mod mesh;
 mod pointcloud;
@@ -22,6 +23,7 @@ mod topology;
 mod voxels;
 pub mod winding;
 
+pub use axis::UpAxis;
 pub use mesh::TriMesh;
 pub use pointcloud::PointCloud;
 pub use shape::Shape;
@@ -89,6 +91,10 @@ pub struct ShapeOptions {
     /// oriented neighbouring triangles; inside is then decided by the generalized winding
     /// number >= 0.5 (see [`TriMesh`]). Off by default: such a mesh is an error.
     pub allow_open_mesh: bool,
+    /// The up axis of the frame a USD input is read into (a stage with the other `upAxis` is
+    /// turned by 90 degrees about x). Default Y; a scene sets it from its gravity
+    /// ([`UpAxis::from_gravity`]). Other formats have no up axis and ignore it.
+    pub up_axis: UpAxis,
 }
 
 /// Path label used in errors about meshes that did not come from a file.

@@ -32,6 +32,19 @@ pub enum ShapeSpec {
         /// The path as given (surrounding whitespace removed).
         path: PathBuf,
     },
+    /// A prim of a USD stage (`.usd`, `.usda`, `.usdc` or `.usdz`): `scene.usda:/World/Table`
+    /// names the prim, `scene.usda:/World/Table@12` also the time code to read a time-sampled
+    /// prim at; a bare `scene.usda` takes the stage's only mesh or points prim
+    /// ([`crate::io::usd`]).
+    Usd {
+        /// The stage file as given (surrounding whitespace removed).
+        path: PathBuf,
+        /// The prim path (absolute, as written after the `:`); None: the stage's only mesh or
+        /// points prim.
+        prim: Option<String>,
+        /// The time code to read at (after `@`); None: the prim's default value.
+        time: Option<f64>,
+    },
 }
 
 /// The shape file formats a spec may name, by extension (case-insensitive).
@@ -76,6 +89,9 @@ impl ShapeSpec {
                 format!("missing sizes: write {lower}:{}", usage(&lower)),
             ));
         }
+        if let Some(usd) = parse_usd(spec, trimmed)? {
+            return Ok(usd);
+        }
         let path = Path::new(trimmed);
         let ext = path
             .extension()
@@ -107,7 +123,9 @@ impl ShapeSpec {
     /// The file a spec names; `None` for a primitive.
     pub fn path(&self) -> Option<&Path> {
         match self {
-            ShapeSpec::File { path, .. } | ShapeSpec::Image { path } => Some(path),
+            ShapeSpec::File { path, .. }
+            | ShapeSpec::Image { path }
+            | ShapeSpec::Usd { path, .. } => Some(path),
             ShapeSpec::Box { .. } | ShapeSpec::Sphere { .. } => None,
         }
     }
@@ -123,6 +141,11 @@ impl ShapeSpec {
             ShapeSpec::Image { path } => ShapeSpec::Image {
                 path: base.join(path),
             },
+            ShapeSpec::Usd { path, prim, time } => ShapeSpec::Usd {
+                path: base.join(path),
+                prim: prim.clone(),
+                time: *time,
+            },
             primitive => primitive.clone(),
         }
     }
@@ -133,9 +156,64 @@ impl ShapeSpec {
         match *self {
             ShapeSpec::Box { size } => Some(Shape::Box { size }),
             ShapeSpec::Sphere { radius } => Some(Shape::Sphere { radius }),
-            ShapeSpec::File { .. } | ShapeSpec::Image { .. } => None,
+            ShapeSpec::File { .. } | ShapeSpec::Image { .. } | ShapeSpec::Usd { .. } => None,
         }
     }
+}
+
+/// The USD file extensions, lower case, longest first (`.usd` is a prefix of the others).
+const USD_EXTENSIONS: [&str; 4] = [".usda", ".usdc", ".usdz", ".usd"];
+
+/// `FILE.usd[a|c|z]`, `FILE.usd[a|c|z]:/Prim/Path` or `FILE.usd[a|c|z]:/Prim/Path@TIME` as a
+/// [`ShapeSpec::Usd`]; None when the spec names no USD file.
+fn parse_usd(spec: &str, trimmed: &str) -> Result<Option<ShapeSpec>, GeometryError> {
+    let lower = trimmed.to_ascii_lowercase();
+    // The first USD extension followed by the end, ':' or '@' ends the file name.
+    let found = USD_EXTENSIONS.iter().find_map(|ext| {
+        lower.match_indices(ext).find_map(|(i, _)| {
+            let end = i + ext.len();
+            matches!(lower.as_bytes().get(end), None | Some(b':') | Some(b'@')).then_some(end)
+        })
+    });
+    let Some(end) = found else {
+        return Ok(None);
+    };
+    let path = PathBuf::from(&trimmed[..end]);
+    let rest = &trimmed[end..];
+    let (prim_part, time_part) = match rest.rfind('@') {
+        Some(at) => (&rest[..at], Some(&rest[at + 1..])),
+        None => (rest, None),
+    };
+    let usd_bad = |reason: String| GeometryError::BadPrimitive {
+        spec: spec.to_string(),
+        reason,
+    };
+    let prim = match prim_part.strip_prefix(':') {
+        None if prim_part.is_empty() => None,
+        None => {
+            return Err(usd_bad(format!(
+                "expected `:` before the prim path, got `{prim_part}`"
+            )))
+        }
+        Some(p) if p.starts_with('/') && p.len() > 1 && !p.ends_with('/') => Some(p.to_string()),
+        Some(p) => {
+            return Err(usd_bad(format!(
+                "`{p}` is not an absolute prim path; write FILE.usda:/World/Prim"
+            )))
+        }
+    };
+    let time = match time_part {
+        None => None,
+        Some(t) => match t.trim().parse::<f64>() {
+            Ok(v) if v.is_finite() => Some(v),
+            _ => {
+                return Err(usd_bad(format!(
+                    "`{t}` after `@` is not a finite time code; write FILE.usda:/World/Prim@12"
+                )))
+            }
+        },
+    };
+    Ok(Some(ShapeSpec::Usd { path, prim, time }))
 }
 
 fn usage(kind: &str) -> &'static str {
@@ -293,5 +371,34 @@ mod tests {
             }
         ));
         assert!(spec.primitive().is_none());
+    }
+
+    #[test]
+    fn usd_specs_name_file_prim_and_time() {
+        let usd = |p: &str, prim: Option<&str>, time: Option<f64>| ShapeSpec::Usd {
+            path: PathBuf::from(p),
+            prim: prim.map(str::to_string),
+            time,
+        };
+        let parse = |s: &str| ShapeSpec::parse(s).unwrap();
+        assert_eq!(parse("scene.usda"), usd("scene.usda", None, None));
+        assert_eq!(
+            parse(" dir/Scene.USDZ:/World/Table "),
+            usd("dir/Scene.USDZ", Some("/World/Table"), None)
+        );
+        assert_eq!(
+            parse("a.usd:/World/ball@40"),
+            usd("a.usd", Some("/World/ball"), Some(40.0))
+        );
+        assert_eq!(parse("a.usdc@-2.5"), usd("a.usdc", None, Some(-2.5)));
+        // A directory named like a stage is not the file.
+        assert_eq!(
+            parse("x.usd.d/b.usda:/W"),
+            usd("x.usd.d/b.usda", Some("/W"), None)
+        );
+        assert!(reason("a.usda:World").contains("not an absolute prim path"));
+        assert!(reason("a.usda:/World/").contains("not an absolute prim path"));
+        assert!(reason("a.usda:/World@x").contains("not a finite time code"));
+        assert!(reason("a.usda:/World@inf").contains("not a finite time code"));
     }
 }

@@ -1,5 +1,5 @@
 //! File formats: shape inputs (OBJ, STL, OFF, PLY meshes and point clouds), 3D Gaussian splat PLY
-//! files ([`splat`]), the basis file (.npz)
+//! files ([`splat`]), USD stages ([`usd`]), the basis file (.npz)
 //! and matrix exchange (MatrixMarket, PETSc binary).
 //!
 //! [`read_shape`] is the entry for shapes: it parses a spec ([`crate::geometry::ShapeSpec`]) and
@@ -15,6 +15,7 @@ pub mod ply;
 mod shape;
 pub mod splat;
 pub mod stl;
+pub mod usd;
 pub mod vtk;
 
 pub(crate) use file::check_triangle_indices;

@@ -43,6 +43,9 @@ pub fn read_shape_spec(spec: &ShapeSpec, opts: &ShapeOptions) -> Result<Shape, G
             ShapeFileFormat::Off => Ok(Shape::Mesh(off::read_off(path, opts)?)),
             ShapeFileFormat::Ply => ply::read_ply(path, opts),
         },
+        ShapeSpec::Usd { path, prim, time } => {
+            super::usd::read_usd_shape(path, prim.as_deref(), *time, opts)
+        }
         ShapeSpec::Image { path } => Ok(Shape::Image(std::sync::Arc::new(image::read_image(
             path,
             &Default::default(),

@@ -271,6 +271,11 @@ fn slot_of(name: &str) -> Option<Slot> {
     })
 }
 
+/// The logistic function 1 / (1 + e^-x): a stored 3DGS opacity to 0..1.
+pub fn sigmoid(x: f64) -> f64 {
+    1.0 / (1.0 + (-x).exp())
+}
+
 impl Splats {
     /// Splats in the standard 3DGS layout (`x y z nx ny nz f_dc_0..2 f_rest_* opacity
     /// scale_0..2 rot_0..3`, all `float`, normals zero): means (N x 3, metres), log-scales

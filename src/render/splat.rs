@@ -7,6 +7,7 @@
 
 use super::camera::Camera;
 use super::target::{Scalars, Target};
+pub use crate::io::splat::sigmoid;
 use crate::io::splat::Splats;
 use crate::linalg3::{quat_to_matrix, sym_eig3, Mat3};
 use crate::Point3;
@@ -32,11 +33,6 @@ pub struct Gaussians {
     pub colours: Vec<[f64; 3]>,
     /// Opacities, N, 0..1 (after the sigmoid).
     pub opacities: Vec<f64>,
-}
-
-/// The logistic function 1 / (1 + e^-x): a stored 3DGS opacity to 0..1.
-pub fn sigmoid(x: f64) -> f64 {
-    1.0 / (1.0 + (-x).exp())
 }
 
 impl Gaussians {

@@ -42,6 +42,31 @@ pub fn key(shape_spec: &str, shape_file: Option<&Path>, opts: &BasisOptions) -> 
     Ok(hex(&Sha256::digest(desc.to_string().as_bytes())))
 }
 
+/// The text a shape read from a USD prim enters the cache key as: the SHA-256 of its points
+/// (and triangles) as read, so the prim, the time code, the up axis and every composed layer
+/// count, not only the root layer's bytes.
+pub fn geometry_text(shape: &crate::geometry::Shape) -> String {
+    use crate::geometry::Shape;
+    fn points(h: &mut Sha256, p: &[crate::Point3]) {
+        for c in p.iter().flatten() {
+            h.update(c.to_bits().to_le_bytes());
+        }
+    }
+    let mut h = Sha256::new();
+    match shape {
+        Shape::Mesh(m) => {
+            points(&mut h, m.vertices());
+            for v in m.triangles().iter().flatten() {
+                h.update(v.to_le_bytes());
+            }
+        }
+        Shape::PointCloud(c) => points(&mut h, c.points()),
+        // A USD prim reads as a mesh or a cloud only.
+        Shape::Box { .. } | Shape::Sphere { .. } | Shape::Image(_) => {}
+    }
+    format!("usd {} sha256 {}", shape.kind(), hex(&h.finalize()))
+}
+
 /// Path of the cached basis for `key` in `dir`.
 pub fn path(dir: &Path, key: &str) -> PathBuf {
     dir.join(format!("{key}.npz"))

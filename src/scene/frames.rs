@@ -1,9 +1,11 @@
 //! Frame output as observers of a [`World`]: [`FrameWriter`] writes VTK (`.vtp` per frame
-//! and a `.pvd` collection per object, for ParaView) and PLY files (3DGS splat PLY for splat
-//! objects).
+//! and a `.pvd` collection per object, for ParaView), PLY files (3DGS splat PLY for splat
+//! objects) and one USD stage for the run ([`super::usd_frames`]).
 
 use super::object::SceneObject;
 use super::spec::{collider_stem, Format};
+use super::stress_arrays::StressArrays;
+use super::usd_frames::{UsdDrawn, UsdFrameWriter};
 use super::world::World;
 use crate::io::vtk::{self, PointData};
 use crate::{Error, Result};
@@ -37,6 +39,8 @@ pub struct FrameWriter {
     stress: bool,
     /// When the `.pvd` collections were last written (None: not yet).
     pvd_written: Option<std::time::Instant>,
+    /// The run's USD stage, with [`Format::Usd`].
+    usd: Option<UsdFrameWriter>,
 }
 
 /// Least time between two rewrites of the `.pvd` collections during a run: each rewrite
@@ -59,7 +63,27 @@ impl FrameWriter {
             rotate_splat_sh: true,
             stress: false,
             pvd_written: None,
+            usd: formats
+                .contains(&Format::Usd)
+                .then(|| UsdFrameWriter::new(out, true)),
         })
+    }
+
+    /// Write Kaolin's physics schemas (materials, skinning weights) on each object's prim of
+    /// the USD stage (default true; the scene's `output.usd_physics`). No effect without USD.
+    #[must_use]
+    pub fn usd_physics(mut self, on: bool) -> FrameWriter {
+        if let Some(u) = self.usd.as_mut() {
+            *u = UsdFrameWriter::new(&self.out, on);
+        }
+        self
+    }
+
+    /// Whether any per-object files (VTK, PLY) are written.
+    fn per_object_files(&self) -> bool {
+        self.formats
+            .iter()
+            .any(|f| matches!(f, Format::Vtk | Format::Ply))
     }
 
     /// Whether splat objects' `.ply` frames rotate the SH colour (default true; the scene's
@@ -88,13 +112,15 @@ impl FrameWriter {
     }
 
     /// Write one frame of one object: its own render points, then each render input.
-    fn write_object(&mut self, object: &SceneObject, frame: usize) -> Result<()> {
+    fn write_object(&mut self, index: usize, object: &SceneObject, frame: usize) -> Result<()> {
         let name = object.name();
         let dir = self.out.join(name);
-        std::fs::create_dir_all(&dir).map_err(|source| Error::Io {
-            path: dir.clone(),
-            source,
-        })?;
+        if self.per_object_files() {
+            std::fs::create_dir_all(&dir).map_err(|source| Error::Io {
+                path: dir.clone(),
+                source,
+            })?;
+        }
         let x = object.render_positions();
         let own = Drawn {
             stem: name.to_string(),
@@ -103,11 +129,15 @@ impl FrameWriter {
             splats: object
                 .splats()
                 .and_then(|b| Some((b, object.splat_frame(x.clone(), self.rotate_splat_sh)?))),
-            stress: self.stress.then(|| object.render_stress()).transpose()?,
+            stress: self
+                .stress
+                .then(|| object.render_stress().map(|s| StressArrays::of(&s)))
+                .transpose()?,
             x,
         };
+        self.usd_drawn(index, 0, frame, &own);
         self.write_drawn(&dir, name, object.sim().time(), frame, own)?;
-        for set in object.render_sets() {
+        for (k, set) in object.render_sets().iter().enumerate() {
             let x = set.positions(object.sim());
             let drawn = Drawn {
                 stem: format!("{name}_{}", set.name()),
@@ -121,13 +151,30 @@ impl FrameWriter {
                 }),
                 stress: self
                     .stress
-                    .then(|| object.render_set_stress(set))
+                    .then(|| object.render_set_stress(set).map(|s| StressArrays::of(&s)))
                     .transpose()?,
                 x,
             };
+            self.usd_drawn(index, k + 1, frame, &drawn);
             self.write_drawn(&dir, name, object.sim().time(), frame, drawn)?;
         }
         Ok(())
+    }
+
+    /// Hand one drawn set to the USD stage, if one is written.
+    fn usd_drawn(&mut self, object: usize, set: usize, frame: usize, d: &Drawn<'_>) {
+        if let Some(u) = self.usd.as_mut() {
+            u.drawn(
+                object,
+                set,
+                frame,
+                UsdDrawn {
+                    x: &d.x,
+                    splats: d.splats.as_ref().map(|(b, m)| (*b, m)),
+                    stress: d.stress.as_ref(),
+                },
+            );
+        }
     }
 
     /// Write one frame of one drawn point set into `dir` (`<object>/`), in every format.
@@ -142,6 +189,7 @@ impl FrameWriter {
         let stem = format!("{}_{frame:06}", d.stem);
         for f in self.formats.clone() {
             match f {
+                Format::Usd => {}
                 Format::Vtk => {
                     let path = dir.join(format!("{stem}.vtp"));
                     let disp: Vec<[f64; 3]> =
@@ -149,9 +197,8 @@ impl FrameWriter {
                             .zip(d.rest)
                             .map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]])
                             .collect();
-                    let stress = d.stress.as_deref().map(StressArrays::of);
                     let mut data = vec![PointData::Vector("displacement", &disp)];
-                    if let Some(s) = &stress {
+                    if let Some(s) = &d.stress {
                         data.push(PointData::Tensor("stress", &s.tensor));
                         data.push(PointData::Vector("principal_stress", &s.principal));
                         data.push(PointData::Scalar("von_mises", &s.von_mises));
@@ -208,38 +255,7 @@ struct Drawn<'a> {
     x: Vec<crate::Point3>,
     triangles: Option<&'a [[u32; 3]]>,
     splats: Option<(&'a crate::io::splat::Splats, crate::io::splat::MovedSplats)>,
-    stress: Option<Vec<crate::linalg3::Mat3>>,
-}
-
-/// The stress point arrays of one frame of one object, Pa.
-struct StressArrays {
-    tensor: Vec<[f64; 9]>,
-    principal: Vec<[f64; 3]>,
-    von_mises: Vec<f64>,
-}
-
-impl StressArrays {
-    fn of(sigma: &[crate::linalg3::Mat3]) -> StressArrays {
-        let principal: Vec<[f64; 3]> = sigma
-            .iter()
-            .map(crate::elasticity::principal_stresses)
-            .collect();
-        let von_mises = principal
-            .iter()
-            .map(|p| {
-                (0.5 * ((p[0] - p[1]).powi(2) + (p[1] - p[2]).powi(2) + (p[2] - p[0]).powi(2)))
-                    .sqrt()
-            })
-            .collect();
-        StressArrays {
-            tensor: sigma
-                .iter()
-                .map(|s| std::array::from_fn(|k| s[k / 3][k % 3]))
-                .collect(),
-            principal,
-            von_mises,
-        }
-    }
+    stress: Option<StressArrays>,
 }
 
 impl FrameWriter {
@@ -287,8 +303,14 @@ impl FrameWriter {
 
 impl FrameObserver for FrameWriter {
     fn frame(&mut self, world: &World, frame: usize) -> Result<()> {
-        for object in world.objects() {
-            self.write_object(object, frame)?;
+        if let Some(u) = self.usd.as_mut() {
+            u.begin_frame(world)?;
+        }
+        for (i, object) in world.objects().iter().enumerate() {
+            self.write_object(i, object, frame)?;
+        }
+        if let Some(u) = self.usd.as_mut() {
+            u.end_frame(world, frame);
         }
         self.write_colliders(world, frame)?;
         self.frames += 1;
@@ -300,6 +322,15 @@ impl FrameObserver for FrameWriter {
 
     fn finish(&mut self, world: &World) -> Result<()> {
         for path in self.write_collections(world)? {
+            self.files.push(path.display().to_string());
+        }
+        if let Some(path) = self
+            .usd
+            .as_mut()
+            .map(UsdFrameWriter::finish)
+            .transpose()?
+            .flatten()
+        {
             self.files.push(path.display().to_string());
         }
         Ok(())

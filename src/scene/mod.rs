@@ -40,6 +40,8 @@ mod settings;
 mod setup;
 mod shape;
 mod spec;
+mod stress_arrays;
+mod usd_frames;
 mod world;
 
 pub use frames::{FrameObserver, FrameWriter};
@@ -53,6 +55,7 @@ pub use spec::{
     BasisSettings, CacheSettings, Format, ObjectSpec, OutputSettings, Scene, Simulation,
     SolverSettings, MAX_OBJECT_STEPS, MAX_STEPS,
 };
+pub use usd_frames::{UsdFrameWriter, STAGE_FILE};
 pub use world::World;
 
 use crate::material::{Material, MaterialOverride, Region};

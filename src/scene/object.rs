@@ -8,7 +8,7 @@ use super::settings::RunSettings;
 use super::setup::{material_at, object_basis, object_image, ObjectBasis, ResolvedShape};
 use super::shape::ShapeSource;
 use super::spec::{ObjectSpec, Scene};
-use crate::geometry::{PointCloud, Shape, ShapeOptions};
+use crate::geometry::{PointCloud, Shape, ShapeOptions, ShapeSpec, UpAxis};
 use crate::io::splat::{MovedSplats, Splats};
 use crate::linalg3::Mat3;
 use crate::material::MaterialField;
@@ -135,11 +135,20 @@ impl SceneObject {
             (_, ShapeSource::Spec(parsed)) => {
                 let opts = ShapeOptions {
                     allow_open_mesh: spec.allow_open_mesh,
+                    up_axis: UpAxis::from_gravity(scene.simulation.gravity),
                 };
-                let resolved = parsed.resolved(&settings.base_dir);
-                let shape =
-                    crate::io::read_shape_spec(&resolved, &opts).map_err(|e| ctx(e.into()))?;
-                (shape, None)
+                match parsed.resolved(&settings.base_dir) {
+                    // A USD splat prim is simulated and written as splats, like a 3DGS file.
+                    ShapeSpec::Usd { path, prim, time } => {
+                        crate::io::usd::read_usd_object(&path, prim.as_deref(), time, &opts)
+                            .map_err(|e| ctx(e.into()))?
+                    }
+                    resolved => {
+                        let shape = crate::io::read_shape_spec(&resolved, &opts)
+                            .map_err(|e| ctx(e.into()))?;
+                        (shape, None)
+                    }
+                }
             }
             (_, ShapeSource::Arrays) => {
                 return Err(ctx(Error::Scene {
@@ -150,6 +159,12 @@ impl SceneObject {
                     ),
                 }))
             }
+        };
+        // A USD prim enters the cache key by what was read (prim, time code, up axis and
+        // referenced layers all change it), not by the root layer's bytes.
+        let (shape_spec, file) = match spec.shape.source() {
+            ShapeSource::Spec(ShapeSpec::Usd { .. }) => (super::cache::geometry_text(&shape), None),
+            _ => (shape_spec, file),
         };
         let image = object_image(spec, scene, Some(&shape), &settings.base_dir).map_err(ctx)?;
         let resolved = ResolvedShape {
@@ -180,7 +195,12 @@ impl SceneObject {
         )?;
         object.render.splats = splats;
         object.image = image;
-        object.load_render_sets(&settings.base_dir).map_err(ctx)?;
+        object
+            .load_render_sets(
+                &settings.base_dir,
+                UpAxis::from_gravity(scene.simulation.gravity),
+            )
+            .map_err(ctx)?;
         Ok((object, resolved.shape))
     }
 
@@ -321,6 +341,16 @@ impl SceneObject {
         &self.basis
     }
 
+    /// Skinning weights at the render points ([`Self::render_rest`]), evaluated at setup.
+    pub fn render_weights(&self) -> &SkinningWeights {
+        &self.render.weights
+    }
+
+    /// Materials at the integration points (N entries: Pa, -, kg/m^3).
+    pub fn materials(&self) -> &MaterialField {
+        &self.material
+    }
+
     /// Integration points at rest (N x 3, metres) with their volumes (m^3).
     pub fn rest_points(&self) -> &IntegrationPoints {
         &self.points
@@ -419,10 +449,14 @@ impl SceneObject {
 
     /// Read the render inputs of the spec (relative to `base_dir`) and evaluate the basis at
     /// them; names must differ (they name the files).
-    pub(super) fn load_render_sets(&mut self, base_dir: &std::path::Path) -> Result<()> {
+    pub(super) fn load_render_sets(
+        &mut self,
+        base_dir: &std::path::Path,
+        up: UpAxis,
+    ) -> Result<()> {
         for file in &self.spec.render {
             let path = base_dir.join(file);
-            let set = RenderSet::load(&path, &self.basis)?;
+            let set = RenderSet::load(&path, &self.basis, up)?;
             if set.name() == self.spec.name
                 || self.render_sets.iter().any(|s| s.name() == set.name())
             {

@@ -3,6 +3,7 @@
 //! share with the object's own render points (splat frames, stress) lives here too.
 
 use crate::error::GeometryError;
+use crate::geometry::{ShapeSpec, UpAxis};
 use crate::io::splat::{MovedSplats, Splats};
 use crate::linalg3::Mat3;
 use crate::material::MaterialField;
@@ -51,14 +52,25 @@ pub fn set_name(file: &Path) -> String {
 }
 
 impl RenderSet {
-    /// Read `file` (OBJ, STL, OFF or PLY mesh, PLY point cloud, or 3DGS splat PLY; meshes need not
-    /// be closed) and evaluate `basis` at its points.
+    /// Read `file` (OBJ, STL, OFF or PLY mesh, PLY point cloud, 3DGS splat PLY, or a USD prim
+    /// `FILE.usda:/Prim/Path[@T]` read into a frame whose up axis is `up`; meshes need not be
+    /// closed) and evaluate `basis` at its points.
     ///
     /// # Errors
     /// The reader's error for an unreadable file; an [`Error::InvalidParameter`] naming the
     /// file (`render`) when some of its points are not covered by the kernels (the input lies
     /// outside the simulated object, where the map would be extrapolated).
-    pub(super) fn load(file: &Path, basis: &Basis) -> Result<RenderSet> {
+    pub(super) fn load(file: &Path, basis: &Basis, up: UpAxis) -> Result<RenderSet> {
+        // A USD prim (a mesh: triangles; points or splats: their points). A spec that names
+        // a USD file but is malformed (prim path, time code) gets the spec parser's error.
+        match ShapeSpec::parse(&file.to_string_lossy()) {
+            Err(e @ GeometryError::BadPrimitive { .. }) => return Err(e.into()),
+            Ok(ShapeSpec::Usd { path, prim, time }) => {
+                let g = crate::io::usd::read_usd_geometry(&path, prim.as_deref(), time, up)?;
+                return Self::with_points(file, basis, g.points, g.triangles, None);
+            }
+            _ => {}
+        }
         let ext = file
             .extension()
             .and_then(|e| e.to_str())
@@ -87,12 +99,25 @@ impl RenderSet {
             }
             _ => {
                 return Err(GeometryError::InvalidInput(format!(
-                    "{}: a render input must be an .obj, .stl, .off or .ply file",
+                    "{}: a render input must be an .obj, .stl, .off or .ply file, or a USD \
+                     prim (FILE.usda:/Prim/Path)",
                     file.display()
                 ))
                 .into())
             }
         };
+        Self::with_points(file, basis, rest, triangles, splats)
+    }
+
+    /// The set read from `file`: its rest points, triangles or splats, with `basis` evaluated
+    /// at the points.
+    fn with_points(
+        file: &Path,
+        basis: &Basis,
+        rest: Vec<Point3>,
+        triangles: Option<Vec<[u32; 3]>>,
+        splats: Option<Splats>,
+    ) -> Result<RenderSet> {
         if rest.is_empty() {
             return Err(GeometryError::InvalidInput(format!(
                 "{}: the render input has no points",

@@ -21,7 +21,8 @@ pub fn run(scene: &Scene, settings: &RunSettings, progress: &dyn Progress) -> Re
         Some(out) => Some(
             FrameWriter::new(out, &scene.output.formats)?
                 .rotate_splat_sh(scene.output.rotate_splat_sh)
-                .stress(scene.output.stress),
+                .stress(scene.output.stress)
+                .usd_physics(scene.output.usd_physics),
         ),
         None => None,
     };

@@ -129,6 +129,9 @@ pub enum Format {
     /// Binary PLY per frame (points, or the deformed mesh for mesh inputs, or the deformed
     /// splats in the input's 3DGS layout for splat inputs).
     Ply,
+    /// One time-sampled USD stage for the run, `<out>/run.usda` (meshes, points, Gaussian
+    /// splats, colliders, stress; Kaolin's physics schemas; docs/usd.md).
+    Usd,
 }
 
 /// What is written per frame.
@@ -144,10 +147,15 @@ pub struct OutputSettings {
     /// 1-3) by the rotation of its deformation gradient in the `.ply` frames. Default true
     /// (view-dependent colour turns with the material); false copies the coefficients.
     pub rotate_splat_sh: bool,
-    /// Write the Cauchy stress at the render points into the VTK frames: `stress` (3 x 3,
-    /// Pa), `principal_stress` (sigma_1 >= sigma_2 >= sigma_3, Pa) and `von_mises` (Pa).
+    /// Write the Cauchy stress at the render points into the VTK frames (and the USD stage's
+    /// `primvars:`): `stress` (3 x 3, Pa), `principal_stress` (sigma_1 >= sigma_2 >=
+    /// sigma_3, Pa) and `von_mises` (Pa).
     /// Default false (it costs a deformation gradient and an eigendecomposition per point).
     pub stress: bool,
+    /// With `"usd"` among the formats: write Kaolin's physics schemas
+    /// (`KaolinPhysicsMaterialAPI`, `KaolinSkinnedPhysicsAPI`: materials and skinning weights)
+    /// on each object's prim, so that Kaolin can load the basis. Default true.
+    pub usd_physics: bool,
 }
 
 impl Default for OutputSettings {
@@ -157,6 +165,7 @@ impl Default for OutputSettings {
             formats: vec![Format::Vtk, Format::Ply],
             rotate_splat_sh: true,
             stress: false,
+            usd_physics: true,
         }
     }
 }

@@ -116,9 +116,12 @@ impl World {
         // Mesh colliders are read once, before any basis is computed, and shared by every
         // object.
         let mut loaded = scene.clone();
+        let up = crate::geometry::UpAxis::from_gravity(scene.simulation.gravity);
         for (i, c) in loaded.colliders.iter_mut().enumerate() {
             let mut shape = c.shape.clone();
-            shape.load(&settings.base_dir).map_err(|e| c.error(i, e))?;
+            shape
+                .load_in(&settings.base_dir, up)
+                .map_err(|e| c.error(i, e))?;
             c.shape = shape;
         }
         let env = Arc::new(Environment::new(
@@ -154,7 +157,9 @@ impl World {
             };
             let mut object =
                 SceneObject::from_parts(index, &p.spec, scene, None, parts, 0.0, progress)?;
-            object.load_render_sets(&settings.base_dir).map_err(ctx)?;
+            object
+                .load_render_sets(&settings.base_dir, up)
+                .map_err(ctx)?;
             objects.push(object);
             shapes.push(None);
         }
@@ -329,6 +334,11 @@ impl World {
                 ),
             )
         })
+    }
+
+    /// The world's gravity now, m/s^2 (None: none).
+    pub fn gravity(&self) -> Option<[f64; 3]> {
+        self.env.gravity()
     }
 
     /// Gravity for every object from the next step on, m/s^2 (None: none).

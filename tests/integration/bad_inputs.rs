@@ -564,7 +564,10 @@ fn fuzz_inputs(target: &str) -> Vec<(PathBuf, Vec<u8>)> {
 #[test]
 fn fuzz_corpus_and_findings_replay_without_panics() {
     for allow_open_mesh in [false, true] {
-        let opts = ShapeOptions { allow_open_mesh };
+        let opts = ShapeOptions {
+            allow_open_mesh,
+            ..ShapeOptions::default()
+        };
         for (path, bytes) in fuzz_inputs("ply") {
             let _ = ply::parse_ply_bytes(&path, &bytes, &opts);
         }

@@ -35,6 +35,7 @@ fn closed() -> ShapeOptions {
 fn open_ok() -> ShapeOptions {
     ShapeOptions {
         allow_open_mesh: true,
+        ..ShapeOptions::default()
     }
 }
 

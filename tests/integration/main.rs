@@ -41,4 +41,5 @@ mod streaming;
 mod strict;
 mod sweep_cli;
 mod tunnel;
+mod usd;
 mod world;

@@ -38,6 +38,7 @@ every = 2
 formats = ["vtk"]
 rotate_splat_sh = true
 stress = false
+usd_physics = true
 
 [cache]
 enabled = false

@@ -7,6 +7,7 @@ mod export;
 mod modes;
 mod problem;
 mod render;
+mod render_usd;
 mod run;
 mod sweep;
 
@@ -118,6 +119,7 @@ fn dispatch(command: Command) -> CliResult {
         Command::Compare(args) => compare::run(args),
         Command::Eval(args) => eval::run(args),
         Command::Export(args) => export::run(args),
+        Command::Render(args) if render_usd::is_usd(&args.dir) => render_usd::run(&args),
         Command::Render(args) => render::run(args),
     }
 }

@@ -67,6 +67,10 @@ pub struct ModesArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
+    /// Also write the basis as a USD stage Kaolin loads: Kaolin's physics schemas (materials,
+    /// skinning weights) at the integration points (docs/usd.md).
+    #[arg(long, value_name = "FILE")]
+    usd: Option<PathBuf>,
     /// Also draw the first modes' weights on the shape into this PNG file (a grid of
     /// tiles, three per row; docs/pictures.md).
     #[arg(long, value_name = "FILE")]
@@ -122,7 +126,7 @@ pub fn run(args: ModesArgs) -> CliResult {
             Computed {
                 report: run.report,
                 basis: Some(run.basis),
-                points: Some(run.points.points),
+                points: Some(run.points),
                 distributed: None,
             }
         }
@@ -145,19 +149,38 @@ pub fn run(args: ModesArgs) -> CliResult {
         .collect();
     freeform::error::check_strict(args.strict, &warnings)?;
     freeform::io::basis::save(&out, &basis, &metadata)?;
+    // A distributed run keeps no point set: sample one for the picture or the stage.
+    let sample = |count: usize| {
+        freeform::precompute::sample_shape(
+            &shape,
+            freeform::precompute::sampling::Resolution::Count(count),
+            &opts.cloud,
+        )
+    };
+    if let Some(usd) = &args.usd {
+        let ip = match &points {
+            Some(p) => p.clone(),
+            None => sample(report.points)?,
+        };
+        let material = opts.material_field(&shape, &ip.points)?;
+        let name = out
+            .file_stem()
+            .map_or("basis".into(), |s| s.to_string_lossy());
+        freeform::io::usd::kaolin::write_basis_stage(
+            usd,
+            &name,
+            &ip.points,
+            &ip.volumes,
+            &material,
+            &basis,
+        )?;
+    }
     if let Some(png) = &args.png {
         let sampled;
         let points = match &points {
-            Some(p) => p,
+            Some(p) => &p.points,
             None => {
-                // A distributed run keeps no point set: sample one for the picture.
-                let count = report.points.min(PICTURE_POINTS);
-                sampled = freeform::precompute::sample_shape(
-                    &shape,
-                    freeform::precompute::sampling::Resolution::Count(count),
-                    &opts.cloud,
-                )?
-                .points;
+                sampled = sample(report.points.min(PICTURE_POINTS))?.points;
                 &sampled
             }
         };
@@ -241,7 +264,7 @@ pub fn solver_config(
 struct Computed {
     report: freeform::precompute::ModesReport,
     basis: Option<freeform::precompute::skinning::Basis>,
-    points: Option<Vec<[f64; 3]>>,
+    points: Option<freeform::precompute::sampling::IntegrationPoints>,
     distributed: Option<serde_json::Value>,
 }
 

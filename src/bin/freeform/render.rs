@@ -117,35 +117,36 @@ pub fn parse_size(s: &str, flag: &str) -> Result<(u32, u32), Box<dyn std::error:
 #[derive(Args)]
 #[command(allow_negative_numbers = true)]
 pub struct RenderArgs {
-    /// The output directory of `freeform run` (with <object>.pvd and <object>/*.vtp).
-    dir: PathBuf,
+    /// The output directory of `freeform run` (with <object>.pvd and <object>/*.vtp), or a
+    /// USD stage (`run.usda`: its meshes, points and splats at each time code; docs/usd.md).
+    pub dir: PathBuf,
     /// Draw only this object [default: every object of the run in one picture].
     #[arg(long)]
-    object: Option<String>,
+    pub object: Option<String>,
     /// Colour by `displacement` (its length, m), `none` (one colour per object; splats their
     /// own), `splat` (the same), or the name of any point array of the frames (vectors by
     /// their length) [default: splat objects their own colour, others displacement].
     #[arg(long)]
-    color: Option<String>,
+    pub color: Option<String>,
     /// Image size, WIDTHxHEIGHT pixels.
     #[arg(long, default_value = "800x600")]
-    size: String,
+    pub size: String,
     #[command(flatten)]
-    view: ViewArgs,
+    pub view: ViewArgs,
     /// Draw a checkered ground at this height along the up axis, metres (e.g. 0 for
     /// examples/drop.toml's floor).
     #[arg(long)]
-    ground: Option<f64>,
+    pub ground: Option<f64>,
     /// Disc radius of point sets, metres [default: 0.6 x the median nearest-neighbour
     /// distance of the object's first frame].
     #[arg(long)]
-    radius: Option<f64>,
+    pub radius: Option<f64>,
     /// Render every N-th frame.
     #[arg(long, default_value_t = 1)]
-    every: usize,
-    /// Where to write frame_<n>.png [default: DIR/png].
+    pub every: usize,
+    /// Where to write frame_<n>.png [default: DIR/png; for a stage, its name with .png].
     #[arg(long)]
-    out: Option<PathBuf>,
+    pub out: Option<PathBuf>,
 }
 
 /// One object of the run: its name and frames (time, .vtp path).
@@ -250,7 +251,7 @@ fn scalars_of(data: &VtpData, colour: &Colour, path: &Path) -> Result<Option<Vec
     }
 }
 
-fn grow(b: &mut Option<Aabb>, points: &[[f64; 3]]) {
+pub fn grow(b: &mut Option<Aabb>, points: &[[f64; 3]]) {
     if let Some(pb) = Aabb::from_points(points) {
         *b = Some(match b.take() {
             None => pb,
@@ -263,7 +264,7 @@ fn grow(b: &mut Option<Aabb>, points: &[[f64; 3]]) {
 }
 
 /// Colours of objects drawn without scalars (cycled).
-const OBJECT_COLOURS: [[u8; 3]; 4] = [
+pub const OBJECT_COLOURS: [[u8; 3]; 4] = [
     [90, 140, 200],
     [220, 130, 60],
     [110, 180, 110],
@@ -271,7 +272,7 @@ const OBJECT_COLOURS: [[u8; 3]; 4] = [
 ];
 /// Width reserved right of the picture for the colour bar, pixels.
 const BAR_WIDTH: u32 = 130;
-const WHITE: [u8; 3] = [255, 255, 255];
+pub const WHITE: [u8; 3] = [255, 255, 255];
 
 pub fn run(args: RenderArgs) -> CliResult {
     let (w, h) = parse_size(&args.size, "--size")?;

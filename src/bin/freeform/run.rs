@@ -3,7 +3,7 @@
 use crate::{emit, set_threads, CliResult};
 use clap::Args;
 use freeform::progress::{Progress, Silent, TerminalProgress};
-use freeform::scene::{run as run_scene, RunSettings, RunSummary, Scene};
+use freeform::scene::{run as run_scene, Format, RunSettings, RunSummary, Scene};
 use std::io::IsTerminal;
 use std::path::PathBuf;
 
@@ -11,7 +11,8 @@ use std::path::PathBuf;
 pub struct RunArgs {
     /// The scene file (TOML; see docs/scenes.md and examples/*.toml).
     scene: PathBuf,
-    /// Directory for the frames (VTK .vtp + .pvd, PLY); none: simulate without writing frames.
+    /// Directory for the frames (VTK .vtp + .pvd, PLY, a USD stage); none: simulate without
+    /// writing frames.
     #[arg(long)]
     out: Option<PathBuf>,
     /// Print the JSON summary (per-step wall time, iterations, energy, line-search failures).
@@ -34,6 +35,21 @@ pub struct RunArgs {
     /// Time step, seconds, overriding the scene's `simulation.dt`.
     #[arg(long)]
     dt: Option<f64>,
+    /// Frame formats, overriding the scene's `output.formats`: any of vtk, ply, usd
+    /// (comma-separated or repeated; usd writes one stage, <out>/run.usda; docs/usd.md).
+    #[arg(long = "format", value_delimiter = ',', value_parser = parse_format)]
+    formats: Vec<Format>,
+}
+
+fn parse_format(s: &str) -> Result<Format, String> {
+    match s.trim().to_ascii_lowercase().as_str() {
+        "vtk" => Ok(Format::Vtk),
+        "ply" => Ok(Format::Ply),
+        "usd" | "usda" => Ok(Format::Usd),
+        other => Err(format!(
+            "`{other}` is not a frame format: use vtk, ply or usd"
+        )),
+    }
 }
 
 pub fn run(args: RunArgs) -> CliResult {
@@ -47,6 +63,9 @@ pub fn run(args: RunArgs) -> CliResult {
     }
     if let Some(dt) = args.dt {
         scene.simulation.dt = dt;
+    }
+    if !args.formats.is_empty() {
+        scene.output.formats = args.formats.clone();
     }
     if args.steps.is_some() || args.dt.is_some() {
         // The scene was checked as read; check the overridden one (the flags name the fields).

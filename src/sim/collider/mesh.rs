@@ -24,7 +24,9 @@
 
 use super::penetration::Penetration;
 use crate::error::GeometryError;
-use crate::geometry::{weld_exact, Aabb, EdgeReport, ShapeFileFormat, ShapeOptions, ShapeSpec};
+use crate::geometry::{
+    weld_exact, Aabb, EdgeReport, ShapeFileFormat, ShapeOptions, ShapeSpec, UpAxis,
+};
 use crate::linalg3::{cross, dot, norm, outer, sub};
 use crate::sim::motion::Rigid;
 use crate::{Error, Point3, Result};
@@ -101,7 +103,22 @@ impl MeshObstacle {
     /// The readers' `Io` and `Parse` errors (a PLY without faces is a `Parse` error); the
     /// mesh checks of [`MeshObstacle::from_triangles`].
     pub fn read(path: &Path, scale: f64, pose: &Rigid, sided: Sided) -> Result<MeshObstacle> {
-        let (vertices, triangles) = read_triangles(path)?;
+        Self::read_in(path, scale, pose, sided, UpAxis::Y)
+    }
+
+    /// As [`Self::read`], a USD stage's mesh prim (`scene.usda:/World/Table`) read into a
+    /// frame whose up axis is `up`, in metres (the stage's units) before `scale`.
+    ///
+    /// # Errors
+    /// As [`Self::read`]; [`GeometryError::Usd`] for a prim that is not a mesh.
+    pub fn read_in(
+        path: &Path,
+        scale: f64,
+        pose: &Rigid,
+        sided: Sided,
+        up: UpAxis,
+    ) -> Result<MeshObstacle> {
+        let (vertices, triangles) = read_triangles(path, up)?;
         let vertices = vertices
             .iter()
             .map(|p| pose.apply(&p.map(|c| c * scale)))
@@ -509,13 +526,26 @@ fn closest_on_triangle(p: &Point3, a: &Point3, b: &Point3, c: &Point3) -> (Point
 }
 
 /// Vertices (V x 3, metres) and triangles (F x 3, file order) of a mesh file, by extension.
-fn read_triangles(path: &Path) -> Result<(Vec<Point3>, Vec<[u32; 3]>)> {
+fn read_triangles(path: &Path, up: UpAxis) -> Result<(Vec<Point3>, Vec<[u32; 3]>)> {
     let spec = ShapeSpec::parse(&path.to_string_lossy())?;
+    if let ShapeSpec::Usd { path, prim, time } = &spec {
+        let g = crate::io::usd::read_usd_geometry(path, prim.as_deref(), *time, up)?;
+        let Some(t) = g.triangles else {
+            return Err(GeometryError::Usd {
+                path: path.clone(),
+                prim: g.prim,
+                attribute: None,
+                reason: "a mesh collider needs a Mesh prim (this one has no faces)".into(),
+            }
+            .into());
+        };
+        return Ok((g.points, t));
+    }
     let ShapeSpec::File { format, .. } = spec else {
         return Err(Error::param(
             "file",
             path.display(),
-            "a mesh collider needs a .obj, .stl, .off or .ply file",
+            "a mesh collider needs a .obj, .stl, .off or .ply file, or a USD mesh prim",
         ));
     };
     Ok(match format {

@@ -3,6 +3,7 @@
 //! [`MeshObstacle`].
 
 use super::mesh::{MeshObstacle, Sided};
+use crate::geometry::UpAxis;
 use crate::linalg3::Mat3;
 use crate::sim::motion::{rotation_matrix, AxisAngle, Rigid};
 use crate::{Error, Point3, Result};
@@ -58,7 +59,8 @@ pub enum ColliderShape {
 #[derive(Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MeshCollider {
-    /// The mesh file, OBJ, STL, OFF or PLY with faces (relative paths: to the scene file).
+    /// The mesh file, OBJ, STL, OFF or PLY with faces, or a USD stage's mesh prim
+    /// (`scene.usda:/World/Table`; docs/usd.md) (relative paths: to the scene file).
     pub file: PathBuf,
     /// `solid` (default): a closed, consistently oriented mesh whose inside is the obstacle;
     /// `outside`: a one-sided surface (may be open) whose triangle normals point to the free
@@ -100,9 +102,18 @@ impl MeshCollider {
     /// (a PLY without faces is a `Parse` error); the mesh checks of
     /// [`MeshObstacle::from_triangles`].
     pub fn read(&self, base_dir: &Path) -> Result<MeshObstacle> {
+        self.read_in(base_dir, UpAxis::Y)
+    }
+
+    /// As [`Self::read`], a USD stage's mesh read into a frame whose up axis is `up` (a
+    /// scene's, from its gravity); other formats have no up axis.
+    ///
+    /// # Errors
+    /// As [`Self::read`].
+    pub fn read_in(&self, base_dir: &Path, up: UpAxis) -> Result<MeshObstacle> {
         ColliderShape::Mesh(self.clone()).validate()?;
         let (scale, pose) = self.placement()?;
-        MeshObstacle::read(&base_dir.join(&self.file), scale, &pose, self.sided)
+        MeshObstacle::read_in(&base_dir.join(&self.file), scale, &pose, self.sided, up)
     }
 
     /// A solid mesh collider of `file` at its file coordinates.
@@ -272,9 +283,17 @@ impl ColliderShape {
     /// The file readers' errors with the path; [`crate::geometry::GeometryError`]s for a solid
     /// mesh that is not closed, a degenerate triangle (naming the triangle) or an empty mesh.
     pub fn load(&mut self, base_dir: &Path) -> Result<()> {
+        self.load_in(base_dir, UpAxis::Y)
+    }
+
+    /// As [`Self::load`], a USD stage's mesh read into a frame whose up axis is `up`.
+    ///
+    /// # Errors
+    /// As [`Self::load`].
+    pub fn load_in(&mut self, base_dir: &Path, up: UpAxis) -> Result<()> {
         if let ColliderShape::Mesh(m) = self {
             if m.loaded.is_none() {
-                m.loaded = Some(Arc::new(m.read(base_dir)?));
+                m.loaded = Some(Arc::new(m.read_in(base_dir, up)?));
             }
         }
         Ok(())
