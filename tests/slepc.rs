@@ -553,7 +553,8 @@ fn slepc_lobpcg_iteration_cap_is_named_with_the_ways_out() {
 
 /// SLEPc's LOBPCG gives up on its own (EPS_DIVERGED_BREAKDOWN: orthogonalizing a new block
 /// against the locked pairs failed) with 28 of 31 pairs: K = 90, m = 30 (also m = 32). One
-/// block of 34 would need K >= 170, so it is not advised.
+/// block of 34 would need K >= 170, so it is not advised. On some VMs the same pencil breaks
+/// down in the Rayleigh-Ritz step instead (the BLAS kernels decide which comes first).
 #[test]
 fn slepc_lobpcg_stop_on_its_own_breakdown_is_named_with_the_ways_out() {
     let (h, m) = box_pencil(90);
@@ -563,9 +564,25 @@ fn slepc_lobpcg_stop_on_its_own_breakdown_is_named_with_the_ways_out() {
         max_iter: 1000,
     };
     let lobpcg = SlepcSolver::new(SlepcOptions::parse(OLD_BLOCK).unwrap());
-    let partial = lobpcg
-        .solve(&h, &m, &req, &Silent)
-        .unwrap_or_else(|e| panic!("expected SLEPc's breakdown stop, got {e}"));
+    let partial = match lobpcg.solve(&h, &m, &req, &Silent) {
+        Ok(partial) => partial,
+        // The other way SLEPc's LOBPCG breaks down on this pencil: its Rayleigh-Ritz pencil
+        // loses definiteness first. Which of the two comes first depends on the machine's
+        // BLAS kernels (OpenBLAS picks them by CPU: one VM of this machine type stops, another
+        // breaks down in ?sygvd); both must name the ways out.
+        Err(e @ EigenError::SlepcLobpcgBreakdown { .. }) => {
+            let text = Front::Flags.render(&e);
+            assert!(
+                text.contains("--slepc ks-sinvert")
+                    && text.contains("--solver lobpcg")
+                    && text.ends_with("ask for fewer modes"),
+                "{text}"
+            );
+            advised_solvers_agree_with_dense(&h, &m, &req, &[], 27);
+            return;
+        }
+        Err(e) => panic!("expected SLEPc's breakdown stop, got {e}"),
+    };
     match partial.info.status {
         EigenStatus::SlepcLobpcgNotConverged {
             stop: SlepcLobpcgStop::Stopped { reason: -2 },
