@@ -201,6 +201,11 @@ pub enum Error {
         /// How to make the run smaller.
         advice: String,
     },
+    /// Gradients cannot be taken of this run as asked (an unconverged or inverted step, a
+    /// recording that no longer matches its object, a loss gradient of the wrong shape, a
+    /// tape that would not fit in memory); the message says which and what to do.
+    #[error("gradients: {0}")]
+    Gradient(String),
     /// The caller's [`crate::progress::Progress::cancelled`] asked the work to stop.
     #[error("cancelled by the caller during {stage}")]
     Cancelled {

@@ -175,6 +175,55 @@ impl ElasticTerm {
         self.evaluate(z, Some(grad))
     }
 
+    /// The reverse pass's material part at a step's end `z`: adds -v_c dP/dmu : G_c to
+    /// `mu[c]` and -v_c dP/dlambda : G_c to `lambda[c]` for every cubature point c, where
+    /// G_c = F_c(adjoint) - I is the deformation gradient's change along `adjoint` (F is affine
+    /// in z) and P = mu F + ((lambda + mu)(J - 1) - mu) cof F is linear in (mu, lambda):
+    /// dP/dmu = F + (J - 2) cof F, dP/dlambda = (J - 1) cof F. Returns the number of
+    /// points with det F <= 0.
+    pub fn add_material_adjoint(
+        &self,
+        z: &[f64],
+        adjoint: &[f64],
+        mu: &mut [f64],
+        lambda: &mut [f64],
+    ) -> usize {
+        let parts: Vec<(f64, f64, bool)> = (0..self.len())
+            .into_par_iter()
+            .with_min_len(CHUNK)
+            .map(|c| {
+                let f = self.deformation_gradient(c, z);
+                let mut g = self.deformation_gradient(c, adjoint);
+                for (r, row) in g.iter_mut().enumerate() {
+                    row[r] -= 1.0;
+                }
+                let j = crate::linalg3::det3(&f);
+                let cof = crate::linalg3::cofactor3(&f);
+                let (mut cof_g, mut f_g) = (0.0, 0.0);
+                for r in 0..3 {
+                    for k in 0..3 {
+                        cof_g += cof[r][k] * g[r][k];
+                        f_g += f[r][k] * g[r][k];
+                    }
+                }
+                let v = self.volumes[c];
+                let inverted = j.is_nan() || j <= 0.0;
+                (
+                    -v * (f_g + (j - 2.0) * cof_g),
+                    -v * (j - 1.0) * cof_g,
+                    inverted,
+                )
+            })
+            .collect();
+        let mut inverted = 0;
+        for (c, (dm, dl, inv)) in parts.into_iter().enumerate() {
+            mu[c] += dm;
+            lambda[c] += dl;
+            inverted += usize::from(inv);
+        }
+        inverted
+    }
+
     fn evaluate(&self, z: &[f64], grad: Option<&mut [f64]>) -> (f64, ElasticStats) {
         let nb = self.lanes.blocks();
         let per = CHUNK / LANES;

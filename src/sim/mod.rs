@@ -16,6 +16,8 @@
 //! - [`object`]: one simulated object (setup, state, stepping).
 //! - [`deformation`]: the deformation map's gradient F at any points.
 //! - [`gaussian`]: Gaussian splats carried by F (covariance, rotation, SH colour).
+//! - [`gradient`]: reverse-mode gradients of a loss over a recorded run (the adjoint of each
+//!   converged step).
 
 pub mod collider;
 pub mod contact;
@@ -25,6 +27,7 @@ pub mod elastic;
 pub mod environment;
 pub mod friction;
 pub mod gaussian;
+pub mod gradient;
 mod lanes;
 pub mod motion;
 pub mod newton;

@@ -25,6 +25,7 @@ mod eval_shapes;
 mod extremes;
 mod fem;
 mod geometry;
+mod gradient;
 mod images;
 mod matrix_free;
 mod options;

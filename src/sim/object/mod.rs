@@ -63,6 +63,10 @@ pub struct ReducedSim {
     /// Steps taken.
     steps: usize,
     history: newton::QuasiNewtonState,
+    /// Counts the calls that change the model or the state other than a step (setters,
+    /// resets, undone steps): a [`crate::sim::gradient::Recording`] refuses an object whose
+    /// revision moved.
+    revision: u64,
 }
 
 impl ReducedSim {
@@ -106,6 +110,7 @@ impl ReducedSim {
             time: 0.0,
             steps: 0,
             history: Default::default(),
+            revision: 0,
         };
         placement::place(
             sim.layout,
@@ -151,6 +156,7 @@ impl ReducedSim {
     /// rest system, which is factorized again; all or nothing: a term that makes it
     /// indefinite is refused and the object stays as it was.
     pub fn add_term(&mut self, term: Box<dyn Term>) -> Result<()> {
+        self.revision += 1;
         self.terms.added.push(term);
         match setup::rest_factor(&self.terms, self.layout, self.dt) {
             Ok(f) => {
@@ -226,6 +232,7 @@ impl ReducedSim {
     /// collider (>= 0; all 0 or an empty list: none), `eps_v` the smoothing velocity, m/s
     /// (sliding slower than it is treated as sticking, smoothly).
     pub fn set_collider_friction(&mut self, mu: &[f64], eps_v: f64) -> Result<()> {
+        self.revision += 1;
         let count = self.collider_count();
         if !mu.is_empty() && mu.len() != count {
             return Err(Error::LengthMismatch {
@@ -321,6 +328,7 @@ impl ReducedSim {
     /// Go back to a [`ReducedSim::snapshot`] (the quasi-Newton memory stays: it only
     /// changes where later minimisations start).
     pub(crate) fn restore(&mut self, s: &SimSnapshot) {
+        self.revision += 1;
         self.z.clone_from(&s.z);
         self.zdot.clone_from(&s.zdot);
         self.zdot_prev.clone_from(&s.zdot_prev);
@@ -341,6 +349,7 @@ impl ReducedSim {
 
     /// Gravity from the next step on, m/s^2 (None: no gravity term).
     pub fn set_gravity(&mut self, gravity: Option<[f64; 3]>) -> Result<()> {
+        self.revision += 1;
         Arc::make_mut(&mut self.env).set_gravity(gravity)?;
         self.follow_environment();
         Ok(())
@@ -361,6 +370,7 @@ impl ReducedSim {
     /// have the colliders the object was built with (the same count: each has this object's
     /// penalty stiffness and friction); otherwise it is refused and nothing changes.
     pub fn share_environment(&mut self, env: Arc<Environment>) -> Result<()> {
+        self.revision += 1;
         let (have, got) = (self.collider_count(), env.kinematics().len());
         if have != got {
             return Err(Error::LengthMismatch {
@@ -394,6 +404,7 @@ impl ReducedSim {
     /// simulation time (a keyframe at [`ReducedSim::time`] starts from now) and acts on the
     /// placed rest positions, like the motion it replaces; the region and its stiffness stay.
     pub fn set_boundary_motion(&mut self, index: usize, motion: Motion) -> Result<()> {
+        self.revision += 1;
         motion.validate()?;
         let count = self.terms.boundaries.len();
         let b = self.terms.boundaries.get_mut(index).ok_or_else(|| {
@@ -411,6 +422,7 @@ impl ReducedSim {
     /// the next step on; its penalty stiffness, motion and parent stay. A mesh not yet
     /// [`ColliderShape::load`]ed is read here.
     pub fn set_collider_shape(&mut self, index: usize, shape: ColliderShape) -> Result<()> {
+        self.revision += 1;
         self.check_collider(index)?;
         Arc::make_mut(&mut self.env).set_collider_shape(index, &shape)
     }
@@ -419,6 +431,7 @@ impl ReducedSim {
     /// time; relative to its parent's frame if it has one), e.g. a [`Motion::Pose`] set
     /// between steps by a caller.
     pub fn set_collider_motion(&mut self, index: usize, motion: Motion) -> Result<()> {
+        self.revision += 1;
         self.check_collider(index)?;
         Arc::make_mut(&mut self.env).set_collider_motion(index, motion)
     }
@@ -447,6 +460,7 @@ impl ReducedSim {
     /// then on, at the current time: a held region whose motion is not at rest now (a moving
     /// or keyframed target) is pulled to that target in the next steps.
     pub fn reset_placement(&mut self, placement: &Placement) -> Result<()> {
+        self.revision += 1;
         let rigid = placement_transform(placement)?;
         let old = (self.z.clone(), self.zdot.clone());
         self.z.fill(0.0);
@@ -484,6 +498,20 @@ impl ReducedSim {
         &self.zdot
     }
 
+    /// The model's and state's revision: it moves with every setter, reset or undone step
+    /// (not with a step).
+    pub fn revision(&self) -> u64 {
+        self.revision
+    }
+
+    /// Whether the colliders have friction (its contacts are lagged from each step's start).
+    pub fn has_collider_friction(&self) -> bool {
+        self.terms
+            .colliders
+            .as_ref()
+            .is_some_and(ContactTerm::has_friction)
+    }
+
     /// Simulated time, seconds.
     pub fn time(&self) -> f64 {
         self.time
@@ -499,6 +527,7 @@ impl ReducedSim {
     /// time and step count go on. All or nothing: wrong lengths or non-finite values are
     /// refused and leave the state as it was.
     pub fn set_state(&mut self, z: &[f64], zdot: &[f64]) -> Result<()> {
+        self.revision += 1;
         self.check_state_vector("z", z)?;
         self.check_state_vector("zdot", zdot)?;
         self.z.copy_from_slice(z);
@@ -513,6 +542,7 @@ impl ReducedSim {
     /// next step starts from an extrapolation that includes the change. All or nothing, as
     /// [`ReducedSim::set_state`].
     pub fn set_velocity(&mut self, zdot: &[f64]) -> Result<()> {
+        self.revision += 1;
         self.check_state_vector("zdot", zdot)?;
         self.zdot.copy_from_slice(zdot);
         Ok(())

@@ -5,7 +5,7 @@ use crate::sim::elastic::{Layout, Precision};
 use crate::sim::environment::Environment;
 use crate::sim::friction::ColliderLag;
 use crate::sim::newton::{EvalInfo, Potential};
-use crate::sim::terms::{HessianKind, StepAt, Terms};
+use crate::sim::terms::{HessianKind, ParameterAdjoint, StepAt, Terms};
 use faer::Mat;
 
 /// Where a step starts: the inertial predictor z_pred = z_n + h zdot_n, the initial guess
@@ -52,6 +52,11 @@ impl<'a> StepPotential<'a> {
     /// Number of reduced coordinates.
     pub(crate) fn dofs(&self) -> usize {
         self.at.layout.dofs()
+    }
+
+    /// The terms' parameter adjoints at the step's end `z` ([`Terms::parameter_adjoint`]).
+    pub(crate) fn parameter_adjoint(&self, z: &[f64], adjoint: &[f64], out: &mut ParameterAdjoint) {
+        self.terms.parameter_adjoint(&self.at, z, adjoint, out);
     }
 }
 

@@ -108,6 +108,11 @@ impl ContactTerm {
         self.friction = friction;
     }
 
+    /// Whether any collider has friction.
+    pub fn has_friction(&self) -> bool {
+        self.friction.is_some()
+    }
+
     /// The lagged friction contacts of a step of `dt` seconds from `t0` (state `z`, the
     /// obstacles of `kin`) and the smoothing displacement eps_v dt, metres; None when
     /// frictionless.

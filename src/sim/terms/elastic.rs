@@ -1,5 +1,6 @@
 //! The elastic energy ([`ElasticTerm`], over the cubature points) as a term of the potential.
 
+use super::adjoint::ParameterAdjoint;
 use super::term::{EnergySum, HessianKind, StepAt, Term, TermKind};
 use crate::sim::elastic::{ElasticTerm, Layout, Precision, Projection};
 use crate::sim::environment::Environment;
@@ -36,6 +37,16 @@ impl Term for ElasticTerm {
             }
         };
         add_matrix(h, &part);
+    }
+
+    fn add_parameter_adjoint(
+        &self,
+        _at: &StepAt<'_>,
+        z: &[f64],
+        adjoint: &[f64],
+        out: &mut ParameterAdjoint,
+    ) {
+        out.inverted += self.add_material_adjoint(z, adjoint, &mut out.mu, &mut out.lambda);
     }
 
     fn add_rest_hessian(&self, layout: Layout, _dt: f64, h: &mut Mat<f64>) {

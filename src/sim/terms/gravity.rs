@@ -1,5 +1,6 @@
 //! The work of gravity, -sum rho v g . (X + B z): linear in z (the constant part is dropped).
 
+use super::adjoint::ParameterAdjoint;
 use super::term::{EnergySum, HessianKind, StepAt, Term, TermKind};
 use crate::sim::environment::Environment;
 use faer::Mat;
@@ -27,6 +28,29 @@ impl Term for GravityTerm {
                 let f = g[r] * self.b[k];
                 sum.energy -= f * z[r * n4 + k];
                 sum.grad[r * n4 + k] -= f;
+            }
+        }
+    }
+
+    /// The gradient -g_r b (row r) gives dL/dg_r = adjoint_r . b, and each point's density
+    /// the part g_r (b . adjoint_r).
+    fn add_parameter_adjoint(
+        &self,
+        at: &StepAt<'_>,
+        _z: &[f64],
+        adjoint: &[f64],
+        out: &mut ParameterAdjoint,
+    ) {
+        let Some(g) = at.env.gravity() else {
+            return;
+        };
+        let n4 = at.layout.row_len();
+        let dg = out.gravity.get_or_insert([0.0; 3]);
+        for r in 0..3 {
+            let a = &adjoint[r * n4..(r + 1) * n4];
+            dg[r] += a.iter().zip(&self.b).map(|(x, y)| x * y).sum::<f64>();
+            for (q, ak) in out.density_linear.iter_mut().zip(a) {
+                *q += g[r] * ak;
             }
         }
     }

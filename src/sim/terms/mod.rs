@@ -7,6 +7,7 @@
 //! coefficients), then one file per term, then this file's sum. Every term's test checks its
 //! derivatives with [`check_derivatives`] (the leaf `crate::derivatives`, re-exported here).
 
+mod adjoint;
 mod boundary;
 mod collider;
 mod elastic;
@@ -18,6 +19,7 @@ mod term;
 pub use crate::derivatives::{check_derivatives, DerivativeCheck, Floors, HessianFn};
 pub use crate::sim::collider::ColliderShape;
 pub use crate::sim::friction::ColliderLag;
+pub use adjoint::ParameterAdjoint;
 pub use boundary::BoundaryTerm;
 pub use collider::{ContactHessian, ContactInfo, ContactTerm, SWEEP_SAMPLES};
 pub use gravity::GravityTerm;
@@ -89,6 +91,20 @@ impl Terms {
             term.add_rest_hessian(layout, dt, &mut h);
         }
         h
+    }
+
+    /// Every term's [`Term::add_parameter_adjoint`] at the step's end `z` for the adjoint
+    /// vector `adjoint` (H adjoint = dL/dz).
+    pub fn parameter_adjoint(
+        &self,
+        at: &StepAt<'_>,
+        z: &[f64],
+        adjoint: &[f64],
+        out: &mut ParameterAdjoint,
+    ) {
+        for term in self.iter() {
+            term.add_parameter_adjoint(at, z, adjoint, out);
+        }
     }
 
     /// The largest line-search step along `dir` from `z` that every term allows.

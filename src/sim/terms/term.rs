@@ -2,6 +2,7 @@
 //! step's fixed data ([`StepAt`]), the running sum of energy and gradient ([`EnergySum`]) and
 //! which Hessian is asked for ([`HessianKind`]).
 
+use super::adjoint::ParameterAdjoint;
 use crate::sim::elastic::{Layout, Precision};
 use crate::sim::environment::Environment;
 use crate::sim::friction::ColliderLag;
@@ -170,6 +171,21 @@ pub trait Term: Send + Sync {
     fn max_step(&self, at: &StepAt<'_>, z: &[f64], dir: &[f64]) -> f64 {
         let _ = (at, z, dir);
         f64::INFINITY
+    }
+
+    /// The reverse pass of a converged step: add -adjoint^T d(this term's gradient at `z`)/dp
+    /// to `out` for every parameter p the term depends on (the step's predictor, materials,
+    /// gravity; [`ParameterAdjoint`]), where `adjoint` solves H adjoint = dL/dz at the step's
+    /// end `z`. Default: nothing, for a term that depends on none of them (a caller's term
+    /// that reads [`StepAt::zpred`] must add its part to `out.zpred`).
+    fn add_parameter_adjoint(
+        &self,
+        at: &StepAt<'_>,
+        z: &[f64],
+        adjoint: &[f64],
+        out: &mut ParameterAdjoint,
+    ) {
+        let _ = (at, z, adjoint, out);
     }
 
     /// Whether the energy is a penalty: a difference of large parts whose rounding is

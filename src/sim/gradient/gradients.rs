@@ -1,0 +1,159 @@
+//! What a reverse pass returns ([`Gradients`]): dL/d(parameter) for the initial state, the
+//! materials (per cubature point, as the simulation uses them; per integration point or per
+//! region by summing) and gravity.
+
+use crate::precompute::sampling::IntegrationPoints;
+use crate::precompute::skinning::SkinningWeights;
+use crate::sim::terms::ParameterAdjoint;
+use crate::{Error, Result};
+use faer::Mat;
+use rayon::prelude::*;
+
+/// The gradients of a scalar loss L over a recorded run ([`super::Recording::backward`]).
+/// Units: the loss's unit per unit of each parameter.
+#[derive(Debug, Clone)]
+pub struct Gradients {
+    /// dL/dz at the recording's start, 12 (m + 1).
+    pub z0: Vec<f64>,
+    /// dL/dzdot at the recording's start, 12 (m + 1), per (1/s).
+    pub zdot0: Vec<f64>,
+    /// dL/dE per cubature point (the elastic energy's points; E of the integration point it
+    /// sits on), per Pa. A region's dL/dE is the sum over its points
+    /// ([`Gradients::youngs_at_points`] scatters them to the integration points).
+    pub youngs: Vec<f64>,
+    /// dL/dnu per cubature point.
+    pub poisson: Vec<f64>,
+    /// The integration point each cubature point sits on (the cubature's `source`).
+    pub cubature_source: Vec<usize>,
+    /// dL/dg, per (m/s^2); None when the object has no gravity term (gravity is not a
+    /// parameter of this run).
+    pub gravity: Option<[f64; 3]>,
+    /// The density's bilinear form: dL/drho_i = v_i (b_i^T Q b_i + q . b_i).
+    density_quadratic: Mat<f64>,
+    density_linear: Vec<f64>,
+    /// Steps reversed.
+    pub steps: usize,
+    /// Wall time of the reverse pass, seconds.
+    pub backward_s: f64,
+}
+
+/// (dmu/dE, dlambda/dE, dmu/dnu, dlambda/dnu) at Lame parameters (lambda, mu), Pa, from
+/// mu = E / (2 (1 + nu)) and lambda = E nu / ((1 + nu)(1 - 2 nu)).
+pub fn lame_derivatives(lambda: f64, mu: f64) -> [f64; 4] {
+    let e = mu * (3.0 * lambda + 2.0 * mu) / (lambda + mu);
+    let nu = lambda / (2.0 * (lambda + mu));
+    let d = (1.0 + nu) * (1.0 - 2.0 * nu);
+    [
+        mu / e,
+        lambda / e,
+        -mu / (1.0 + nu),
+        e * (1.0 + 2.0 * nu * nu) / (d * d),
+    ]
+}
+
+impl Gradients {
+    /// The gradients from the terms' summed adjoints `adj` over `steps` steps, the
+    /// cubature's Lame parameters (`lambda`, `mu`, Pa) and source indices.
+    pub(crate) fn new(
+        adj: ParameterAdjoint,
+        state: (Vec<f64>, Vec<f64>),
+        cubature: (&[f64], &[f64], &[usize]),
+        steps: usize,
+        backward_s: f64,
+    ) -> Gradients {
+        let (lambda, mu, source) = cubature;
+        let (youngs, poisson) = (0..mu.len())
+            .map(|c| {
+                let [mu_e, la_e, mu_nu, la_nu] = lame_derivatives(lambda[c], mu[c]);
+                (
+                    adj.mu[c] * mu_e + adj.lambda[c] * la_e,
+                    adj.mu[c] * mu_nu + adj.lambda[c] * la_nu,
+                )
+            })
+            .unzip();
+        Gradients {
+            z0: state.0,
+            zdot0: state.1,
+            youngs,
+            poisson,
+            cubature_source: source.to_vec(),
+            gravity: adj.gravity,
+            density_quadratic: adj.density_quadratic,
+            density_linear: adj.density_linear,
+            steps,
+            backward_s,
+        }
+    }
+
+    /// dL/dE of a homogeneous object (every point's E the one parameter): the sum over the
+    /// cubature points, per Pa.
+    pub fn youngs_total(&self) -> f64 {
+        self.youngs.iter().sum()
+    }
+
+    /// dL/dnu of a homogeneous object: the sum over the cubature points.
+    pub fn poisson_total(&self) -> f64 {
+        self.poisson.iter().sum()
+    }
+
+    /// dL/dE per integration point (`points` of them, the object's): the cubature points'
+    /// values at the points they sit on, 0 elsewhere (the elastic energy does not see them).
+    pub fn youngs_at_points(&self, points: usize) -> Result<Vec<f64>> {
+        self.scatter(&self.youngs, points)
+    }
+
+    /// dL/dnu per integration point, as [`Gradients::youngs_at_points`].
+    pub fn poisson_at_points(&self, points: usize) -> Result<Vec<f64>> {
+        self.scatter(&self.poisson, points)
+    }
+
+    fn scatter(&self, values: &[f64], points: usize) -> Result<Vec<f64>> {
+        let mut out = vec![0.0; points];
+        for (&i, v) in self.cubature_source.iter().zip(values) {
+            let slot = out.get_mut(i).ok_or_else(|| {
+                Error::Gradient(format!(
+                    "cubature point on integration point {i}, but the object has {points} \
+                     integration points: pass the object's own count"
+                ))
+            })?;
+            *slot += v;
+        }
+        Ok(out)
+    }
+
+    /// dL/drho per integration point, per (kg/m^3): the points `ip` and their skinning
+    /// weights `weights` (values used) are the ones the object was built from (the mass
+    /// moments sum over all of them). A region's dL/drho is the sum over its points.
+    pub fn density(&self, ip: &IntegrationPoints, weights: &SkinningWeights) -> Result<Vec<f64>> {
+        let nh = weights.modes;
+        let n4 = self.density_linear.len();
+        if 4 * nh != n4 || weights.points() != ip.len() {
+            return Err(Error::Gradient(format!(
+                "density gradients need the object's integration points and their weights \
+                 ({} handles, one weight row per point); got {} handles for {} points with \
+                 {} weight rows",
+                n4 / 4,
+                nh,
+                ip.len(),
+                weights.points()
+            )));
+        }
+        let q = &self.density_quadratic;
+        Ok((0..ip.len())
+            .into_par_iter()
+            .map(|i| {
+                let x = ip.points[i];
+                let xh = [x[0], x[1], x[2], 1.0];
+                let b: Vec<f64> = (0..n4)
+                    .map(|k| weights.values[i * nh + k / 4] * xh[k % 4])
+                    .collect();
+                let mut s: f64 = b.iter().zip(&self.density_linear).map(|(a, c)| a * c).sum();
+                for (k, bk) in b.iter().enumerate() {
+                    let col = q.col(k);
+                    s += bk * b.iter().enumerate().map(|(l, bl)| col[l] * bl).sum::<f64>();
+                }
+                ip.volumes[i] * s
+            })
+            .collect())
+    }
+}

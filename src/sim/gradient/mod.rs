@@ -1,0 +1,295 @@
+//! Reverse-mode gradients through a simulated object's run (docs/gradients.md).
+//!
+//! A converged backward-Euler step ends at a minimum z* of the incremental potential
+//! E(z; z_pred, p), so grad E(z*) = 0 and, by the implicit function theorem,
+//! dz*/dq = -H^-1 d(grad E)/dq with H the exact Hessian at z*. The reverse pass solves
+//! H lambda = dL/dz* once per step (12 (m + 1) unknowns, one dense Cholesky factor) and each
+//! term adds -lambda^T d(its gradient)/dq for its parameters
+//! ([`crate::sim::terms::Term::add_parameter_adjoint`]). z_pred = z_n + h zdot_n and
+//! zdot_{n+1} = (z_{n+1} - z_n) / h carry the adjoint back to the step before.
+//!
+//! [`Recording`] is the tape: the states z_0..z_T and zdot_0 (12 (m + 1) values per step,
+//! so no checkpointing is needed: a million steps at m = 16 take 1.6 GB). The exact Hessian is
+//! built in the reverse pass, once per step.
+//!
+//! Leaves first: `positions` (a loss on positions as a loss on z), `gradients` (what the pass
+//! returns), then this file (the tape and the pass).
+
+mod gradients;
+mod positions;
+
+pub use gradients::{lame_derivatives, Gradients};
+pub use positions::positions_adjoint;
+
+use crate::precompute::memory::available_memory;
+use crate::report::Stopwatch;
+use crate::sim::newton::Potential;
+use crate::sim::object::{ReducedSim, StepReport, StepStart};
+use crate::sim::terms::ParameterAdjoint;
+use crate::{Error, Result};
+use faer::linalg::solvers::{Llt, Solve};
+use faer::{Mat, Side};
+
+/// A recorded run of one object: start it on the object, step the object through it, then
+/// take the reverse pass ([`Recording::backward`]) once.
+///
+/// Collider friction is refused: its contacts are lagged from each step's start, which the
+/// reverse pass does not yet differentiate. Object-object contact is a world's and is not
+/// recorded here.
+#[derive(Debug, Clone)]
+pub struct Recording {
+    dofs: usize,
+    dt: f64,
+    /// The object's revision at the start ([`ReducedSim::revision`]).
+    revision: u64,
+    /// The object's step count at the start.
+    first_step: usize,
+    /// zdot_0, 12 (m + 1).
+    zdot0: Vec<f64>,
+    /// z_0 .. z_T, (T + 1) x 12 (m + 1).
+    states: Vec<f64>,
+    /// End time of each recorded step, s.
+    times: Vec<f64>,
+    /// The first step that did not converge: (step within the recording, 1-based; residual).
+    unconverged: Option<(usize, f64)>,
+    /// Wall time of the recorded steps, s.
+    forward_s: f64,
+}
+
+/// Bytes of one recorded step: one state of 12 (m + 1) f64.
+fn step_bytes(dofs: usize) -> u64 {
+    8 * dofs as u64
+}
+
+impl Recording {
+    /// Start recording `sim` from its current state, for a run of about `steps` steps: the
+    /// tape's memory ((steps + 1) x 12 (m + 1) x 8 bytes, plus the reverse pass's two
+    /// 12 (m + 1) square matrices) is checked against the memory available first.
+    ///
+    /// # Errors
+    /// [`Error::Gradient`] for collider friction, or a tape that would not fit.
+    pub fn start(sim: &ReducedSim, steps: usize) -> Result<Recording> {
+        if sim.has_collider_friction() {
+            return Err(Error::Gradient(
+                "the object has collider friction, whose lagged contacts the reverse pass does \
+                 not differentiate yet; record a frictionless run"
+                    .into(),
+            ));
+        }
+        let dofs = sim.z().len();
+        let estimate = (steps as u64 + 1) * step_bytes(dofs) + 2 * step_bytes(dofs * dofs);
+        if let Some((available, source)) = available_memory()? {
+            if estimate > available {
+                return Err(Error::Gradient(format!(
+                    "a tape of {steps} steps needs about {:.2} GB ({} bytes per step) but {:.2} GB \
+                     is available ({source}); record fewer steps per recording",
+                    estimate as f64 / 1e9,
+                    step_bytes(dofs),
+                    available as f64 / 1e9
+                )));
+            }
+        }
+        let mut states = Vec::with_capacity((steps + 1).saturating_mul(dofs));
+        states.extend_from_slice(sim.z());
+        Ok(Recording {
+            dofs,
+            dt: sim.dt(),
+            revision: sim.revision(),
+            first_step: sim.steps(),
+            zdot0: sim.zdot().to_vec(),
+            states,
+            times: Vec::with_capacity(steps),
+            unconverged: None,
+            forward_s: 0.0,
+        })
+    }
+
+    /// Steps recorded so far (T).
+    pub fn steps(&self) -> usize {
+        self.times.len()
+    }
+
+    /// Wall time of the recorded steps, seconds.
+    pub fn forward_s(&self) -> f64 {
+        self.forward_s
+    }
+
+    /// Bytes the tape holds.
+    pub fn tape_bytes(&self) -> u64 {
+        8 * (self.states.len() + self.zdot0.len() + self.times.len()) as u64
+    }
+
+    /// z after recorded step `t` (0: the start), 12 (m + 1).
+    pub fn state(&self, t: usize) -> Option<&[f64]> {
+        self.states.get(t * self.dofs..(t + 1) * self.dofs)
+    }
+
+    /// The object is the one recorded, unchanged since: same revision, step count and state.
+    fn check_object(&self, sim: &ReducedSim) -> Result<()> {
+        let t = self.steps();
+        let last = self.state(t).unwrap_or_default();
+        if sim.revision() != self.revision
+            || sim.steps() != self.first_step + t
+            || sim.z() != last
+            || sim.dt() != self.dt
+        {
+            return Err(Error::Gradient(format!(
+                "the object is not the one recorded, or it was changed since (a setter, a reset \
+                 or a step outside the recording after {t} recorded steps); start a new recording"
+            )));
+        }
+        Ok(())
+    }
+
+    /// Take one step of `sim` and record it.
+    ///
+    /// # Errors
+    /// [`Error::Gradient`] when the object was changed since the recording began (then
+    /// nothing is stepped).
+    pub fn step(&mut self, sim: &mut ReducedSim) -> Result<StepReport> {
+        self.check_object(sim)?;
+        if sim.has_collider_friction() {
+            return Err(Error::Gradient("collider friction was switched on".into()));
+        }
+        let report = sim.step();
+        self.forward_s += report.wall_s;
+        self.states.extend_from_slice(sim.z());
+        self.times.push(report.time);
+        if !report.solve.converged && self.unconverged.is_none() {
+            self.unconverged = Some((self.steps(), report.solve.residual));
+        }
+        // A step's report does not carry the setter count: the step itself moved nothing.
+        Ok(report)
+    }
+
+    /// The reverse pass for a loss L(z_0, ..., z_T): `dl_dz[t]` is dL/dz after recorded step t
+    /// (`dl_dz[0]` at the start), 12 (m + 1) values, or empty where L does not see that frame;
+    /// T + 1 entries. Positions become z with [`positions_adjoint`]. Consumes the recording.
+    ///
+    /// # Errors
+    /// [`Error::Gradient`]: a changed object, a loss gradient of the wrong shape or with NaN,
+    /// a step that did not converge or ended with inverted points (named), a step whose exact
+    /// Hessian is not positive definite.
+    pub fn backward(self, sim: &ReducedSim, dl_dz: &[Vec<f64>]) -> Result<Gradients> {
+        let sw = Stopwatch::start();
+        self.check_object(sim)?;
+        let (n, steps, h) = (self.dofs, self.steps(), self.dt);
+        self.check_loss(dl_dz)?;
+        if let Some((t, residual)) = self.unconverged {
+            return Err(Error::Gradient(format!(
+                "recorded step {t} did not converge (residual {residual:e}): the gradient is the \
+                 minimiser's only where each step converged; raise the solver's max_iter"
+            )));
+        }
+        let cub = sim.cubature();
+        let mut adj = ParameterAdjoint::new(n, cub.len());
+        let mut zbar = vec![0.0; n];
+        let mut vbar = vec![0.0; n];
+        for t in (1..=steps).rev() {
+            add(&mut zbar, &dl_dz[t]);
+            let z = self.state(t).unwrap_or_default();
+            let start = self.step_start(t);
+            let pot = sim.potential(&start);
+            // The adjoint of z_t collects the loss, later steps' predictors and zdot_t.
+            let rhs: Vec<f64> = zbar.iter().zip(&vbar).map(|(a, b)| a + b / h).collect();
+            let lambda = solve_exact(&pot, z, &rhs, t)?;
+            adj.zpred.fill(0.0);
+            adj.inverted = 0;
+            pot.parameter_adjoint(z, &lambda, &mut adj);
+            if adj.inverted > 0 {
+                return Err(Error::Gradient(format!(
+                    "recorded step {t} ended with {} inverted cubature points (det F <= 0): \
+                     the elastic energy is not differentiable there; take a smaller time step",
+                    adj.inverted
+                )));
+            }
+            // z_pred = z_{t-1} + h zdot_{t-1}; zdot_t = (z_t - z_{t-1}) / h.
+            for i in 0..n {
+                zbar[i] = adj.zpred[i] - vbar[i] / h;
+                vbar[i] = h * adj.zpred[i];
+            }
+        }
+        add(&mut zbar, &dl_dz[0]);
+        Ok(Gradients::new(
+            adj,
+            (zbar, vbar),
+            (&cub.lambda, &cub.mu, &cub.source),
+            steps,
+            sw.elapsed(),
+        ))
+    }
+
+    /// T + 1 entries, each empty or 12 (m + 1) finite values.
+    fn check_loss(&self, dl_dz: &[Vec<f64>]) -> Result<()> {
+        let frames = self.steps() + 1;
+        if dl_dz.len() != frames {
+            return Err(Error::Gradient(format!(
+                "the loss gradient has {} frames; the recording has {frames} (the start and \
+                 {} steps)",
+                dl_dz.len(),
+                self.steps()
+            )));
+        }
+        for (t, g) in dl_dz.iter().enumerate() {
+            if !g.is_empty() && g.len() != self.dofs {
+                return Err(Error::Gradient(format!(
+                    "the loss gradient of frame {t} has {} values; z has {} (12 (m + 1)), or \
+                     leave it empty",
+                    g.len(),
+                    self.dofs
+                )));
+            }
+            if let Some(i) = g.iter().position(|v| !v.is_finite()) {
+                return Err(Error::Gradient(format!(
+                    "the loss gradient of frame {t} is not finite at index {i}"
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// The start of recorded step t (1-based) as the object began it: z_pred from z_{t-1}
+    /// and zdot_{t-1} (zdot_0 recorded, later ones as the step computed them).
+    fn step_start(&self, t: usize) -> StepStart {
+        let prev = self.state(t - 1).unwrap_or_default();
+        let zpred = if t == 1 {
+            prev.iter()
+                .zip(&self.zdot0)
+                .map(|(z, v)| z + self.dt * v)
+                .collect()
+        } else {
+            let before = self.state(t - 2).unwrap_or_default();
+            prev.iter()
+                .zip(before)
+                .map(|(z, b)| z + self.dt * ((z - b) / self.dt))
+                .collect()
+        };
+        StepStart {
+            guess: Vec::new(),
+            zpred,
+            t: self.times[t - 1],
+            friction: None,
+        }
+    }
+}
+
+/// a += b (b empty: nothing).
+fn add(a: &mut [f64], b: &[f64]) {
+    a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+}
+
+/// Solve H x = rhs with the exact Hessian H of `pot` at `z` (the end of recorded step `t`).
+fn solve_exact(pot: &impl Potential, z: &[f64], rhs: &[f64], t: usize) -> Result<Vec<f64>> {
+    let h = pot
+        .exact_hessian(z)
+        .ok_or_else(|| Error::Gradient("the potential has no exact Hessian".into()))?;
+    let factor = Llt::new(h.as_ref(), Side::Lower).map_err(|_| {
+        Error::Gradient(format!(
+            "the exact Hessian at the end of recorded step {t} is not positive definite: the \
+             step did not end at a strict minimum (tighten the solver's tol)"
+        ))
+    })?;
+    let mut x = Mat::from_fn(rhs.len(), 1, |i, _| rhs[i]);
+    factor.solve_in_place(x.as_mut());
+    Ok((0..rhs.len()).map(|i| x[(i, 0)]).collect())
+}

@@ -1,0 +1,44 @@
+//! What the terms give the reverse pass of a step ([`ParameterAdjoint`]): the step's
+//! converged state z* minimises the potential, so dL/dp = -lambda^T d(grad E)/dp with
+//! H lambda = dL/dz* (the implicit function theorem; H the exact Hessian at z*). Each term adds
+//! -lambda^T d(its gradient)/dp for the parameters it depends on.
+
+use faer::Mat;
+
+/// The parameter adjoints of a run, summed over its steps by the terms
+/// ([`super::Term::add_parameter_adjoint`]).
+#[derive(Debug, Clone)]
+pub struct ParameterAdjoint {
+    /// dL/dz_pred of the step being reversed, 12 (m + 1) (set to zero before each step).
+    pub zpred: Vec<f64>,
+    /// dL/dmu per cubature point, 1/Pa times the loss's unit.
+    pub mu: Vec<f64>,
+    /// dL/dlambda per cubature point, 1/Pa times the loss's unit.
+    pub lambda: Vec<f64>,
+    /// The density's bilinear form Q, 4 (m + 1) square: dL/drho_i = v_i (b_i^T Q b_i + q . b_i)
+    /// for an integration point with volume v_i and map row b_i (the mass moments' b).
+    pub density_quadratic: Mat<f64>,
+    /// The density's linear form q, 4 (m + 1) (see `density_quadratic`).
+    pub density_linear: Vec<f64>,
+    /// dL/dg, (m/s^2)^-1 times the loss's unit (None until a gravity term adds it).
+    pub gravity: Option<[f64; 3]>,
+    /// Cubature points with det F <= 0 at the step being reversed (the elastic term counts
+    /// them; set to zero before each step).
+    pub inverted: usize,
+}
+
+impl ParameterAdjoint {
+    /// Zero adjoints for `dofs` = 12 (m + 1) coordinates and `cubature` points.
+    pub fn new(dofs: usize, cubature: usize) -> ParameterAdjoint {
+        let n4 = dofs / 3;
+        ParameterAdjoint {
+            zpred: vec![0.0; dofs],
+            mu: vec![0.0; cubature],
+            lambda: vec![0.0; cubature],
+            density_quadratic: Mat::zeros(n4, n4),
+            density_linear: vec![0.0; n4],
+            gravity: None,
+            inverted: 0,
+        }
+    }
+}

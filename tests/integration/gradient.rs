@@ -1,0 +1,429 @@
+//! Gradients through a recorded run (sim::gradient) against central finite differences of
+//! the same discrete model, re-simulated with each parameter moved; the refusals of
+//! recordings that cannot give a gradient.
+
+use crate::common::held_left;
+use freeform::geometry::ShapeOptions;
+use freeform::io::read_shape;
+use freeform::material::{Material, MaterialField};
+use freeform::precompute::sampling::Resolution;
+use freeform::precompute::{build_basis, BasisOptions, BasisRun, SolverConfig};
+use freeform::progress::Silent;
+use freeform::random::SplitMix64;
+use freeform::sim::gradient::{positions_adjoint, Gradients, Recording};
+use freeform::sim::{Boundary, Collider, HessianStrategy, NewtonOptions, ReducedSim, SimOptions};
+use freeform::{Error, Point3};
+
+const STEPS: usize = 6;
+
+/// A 1 x 0.2 x 0.2 m bar, E = 1e5 Pa, nu = 0.4, rho = 1000 kg/m^3.
+fn bar() -> BasisRun {
+    let shape = read_shape("box:1,0.2,0.2", &ShapeOptions::default()).unwrap();
+    let opts = BasisOptions {
+        kernels: 40,
+        modes: 5,
+        resolution: Some(Resolution::Count(1500)),
+        solver: SolverConfig::Dense,
+        material: Material {
+            youngs: 1e5,
+            poisson: 0.4,
+            density: 1000.0,
+        },
+        ..BasisOptions::default()
+    };
+    build_basis(&shape, &opts, &Silent).unwrap()
+}
+
+/// Held at its left end with a fixed penalty stiffness (the default one scales with E and
+/// rho, which would make it a parameter too), under gravity, each step solved by Newton far
+/// below the default tolerance so that the finite differences see the minimiser.
+fn options(gravity: [f64; 3]) -> SimOptions {
+    SimOptions {
+        dt: 0.02,
+        gravity: Some(gravity),
+        cubature: 200,
+        boundaries: vec![Boundary {
+            stiffness: Some(1e8),
+            ..held_left()
+        }],
+        newton: NewtonOptions {
+            hessian: HessianStrategy::Newton,
+            tol: 1e-12,
+            max_iter: 200,
+            ..NewtonOptions::default()
+        },
+        ..SimOptions::default()
+    }
+}
+
+/// Per point: the left half (x < 0.5 m) is region 0, the right half region 1.
+fn regions(run: &BasisRun) -> Vec<usize> {
+    run.points
+        .points
+        .iter()
+        .map(|p| usize::from(p[0] >= 0.5))
+        .collect()
+}
+
+/// A material with E, nu, rho per region.
+fn material(run: &BasisRun, e: [f64; 2], nu: [f64; 2], rho: [f64; 2]) -> MaterialField {
+    let r = regions(run);
+    MaterialField::from_arrays(
+        r.iter().map(|&i| e[i]).collect(),
+        r.iter().map(|&i| nu[i]).collect(),
+        r.iter().map(|&i| rho[i]).collect(),
+    )
+    .unwrap()
+}
+
+const E: [f64; 2] = [1e5, 3e5];
+const NU: [f64; 2] = [0.4, 0.3];
+const RHO: [f64; 2] = [1000.0, 1500.0];
+const G: [f64; 3] = [0.0, -9.81, 0.0];
+
+/// The loss's coefficients: L = sum_t c_t . z_t, from dL/dx at 20 integration points drawn
+/// at random, on every second frame (so frames without a loss are covered too).
+fn loss_coefficients(run: &BasisRun, dofs: usize) -> Vec<Vec<f64>> {
+    let mut rng = SplitMix64::new(7);
+    let picks: Vec<usize> = (0..20)
+        .map(|_| (rng.next_f64() * run.points.len() as f64) as usize)
+        .collect();
+    let rest: Vec<Point3> = picks.iter().map(|&i| run.points.points[i]).collect();
+    let w = run.basis.weights(&rest).unwrap();
+    let layout = freeform::sim::elastic::Layout { handles: dofs / 12 };
+    (0..=STEPS)
+        .map(|t| {
+            if t % 2 == 1 {
+                return Vec::new();
+            }
+            let dl_dx: Vec<Point3> = (0..rest.len())
+                .map(|_| {
+                    [
+                        rng.next_f64() - 0.5,
+                        rng.next_f64() - 0.5,
+                        rng.next_f64() - 0.5,
+                    ]
+                })
+                .collect();
+            positions_adjoint(layout, &rest, &w, &dl_dx).unwrap()
+        })
+        .collect()
+}
+
+fn loss(states: &[Vec<f64>], c: &[Vec<f64>]) -> f64 {
+    states
+        .iter()
+        .zip(c)
+        .map(|(z, ct)| z.iter().zip(ct).map(|(a, b)| a * b).sum::<f64>())
+        .sum()
+}
+
+/// What a forward run starts from and how it is built.
+struct Case {
+    e: [f64; 2],
+    nu: [f64; 2],
+    rho: [f64; 2],
+    g: [f64; 3],
+    zdot0: Vec<f64>,
+}
+
+impl Case {
+    fn sim(&self, run: &BasisRun) -> ReducedSim {
+        let m = material(run, self.e, self.nu, self.rho);
+        let mut s = ReducedSim::new(&run.basis, &run.points, &m, &options(self.g)).unwrap();
+        if !self.zdot0.is_empty() {
+            let z0 = s.z().to_vec();
+            s.set_state(&z0, &self.zdot0).unwrap();
+        }
+        s
+    }
+
+    /// The loss of a plain run (no recording).
+    fn loss(&self, run: &BasisRun, c: &[Vec<f64>]) -> f64 {
+        let mut s = self.sim(run);
+        let mut states = vec![s.z().to_vec()];
+        for _ in 0..STEPS {
+            assert!(s.step().solve.converged);
+            states.push(s.z().to_vec());
+        }
+        loss(&states, c)
+    }
+
+    fn gradients(&self, run: &BasisRun, c: &[Vec<f64>]) -> Gradients {
+        let mut s = self.sim(run);
+        let mut rec = Recording::start(&s, STEPS).unwrap();
+        for _ in 0..STEPS {
+            rec.step(&mut s).unwrap();
+        }
+        rec.backward(&s, c).unwrap()
+    }
+}
+
+fn base_case(dofs: usize) -> Case {
+    let mut rng = SplitMix64::new(3);
+    Case {
+        e: E,
+        nu: NU,
+        rho: RHO,
+        g: G,
+        zdot0: (0..dofs).map(|_| 0.2 * (rng.next_f64() - 0.5)).collect(),
+    }
+}
+
+/// Central differences of the loss along each of `moves` (each builds a case moved by +h
+/// or -h of its parameter), step `h`.
+fn central(run: &BasisRun, c: &[Vec<f64>], moves: &[&dyn Fn(f64) -> Case], h: f64) -> Vec<f64> {
+    moves
+        .iter()
+        .map(|m| (m(h).loss(run, c) - m(-h).loss(run, c)) / (2.0 * h))
+        .collect()
+}
+
+/// |a - b| / |b| in the 2-norm.
+fn relative_error(a: &[f64], b: &[f64]) -> f64 {
+    let d: f64 = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum();
+    let n: f64 = b.iter().map(|y| y * y).sum();
+    (d / n).sqrt()
+}
+
+/// Each step is solved to 1e-12 D, so the losses carry errors of about 1e-12 of their size;
+/// central differences with relative steps of 1e-4 then err by about 1e-8 from that and
+/// O(h^2) = 1e-8 from truncation: 1e-5 (the bound) leaves a factor 100.
+const TOLERANCE: f64 = 1e-5;
+
+#[test]
+fn material_gradients_per_region_match_finite_differences() {
+    let run = bar();
+    let probe = base_case(0).sim(&run);
+    let dofs = probe.z().len();
+    let c = loss_coefficients(&run, dofs);
+    let base = base_case(dofs);
+    let grads = base.gradients(&run, &c);
+    let reg = regions(&run);
+    let n = run.points.len();
+    let sum_region = |per_point: &[f64], r: usize| -> f64 {
+        per_point
+            .iter()
+            .zip(&reg)
+            .filter(|(_, k)| **k == r)
+            .map(|(v, _)| v)
+            .sum()
+    };
+    let ye = grads.youngs_at_points(n).unwrap();
+    let pn = grads.poisson_at_points(n).unwrap();
+    let w = run.basis.weights(&run.points.points).unwrap();
+    let rh = grads.density(&run.points, &w).unwrap();
+    let got = [
+        sum_region(&ye, 0) * E[0],
+        sum_region(&ye, 1) * E[1],
+        sum_region(&pn, 0),
+        sum_region(&pn, 1),
+        sum_region(&rh, 0) * RHO[0],
+        sum_region(&rh, 1) * RHO[1],
+    ];
+    // Relative moves for E and rho (gradients scaled by the value), absolute for nu.
+    let moves: [&dyn Fn(f64) -> Case; 6] = [
+        &|h| Case {
+            e: [E[0] * (1.0 + h), E[1]],
+            ..base_case(dofs)
+        },
+        &|h| Case {
+            e: [E[0], E[1] * (1.0 + h)],
+            ..base_case(dofs)
+        },
+        &|h| Case {
+            nu: [NU[0] + h, NU[1]],
+            ..base_case(dofs)
+        },
+        &|h| Case {
+            nu: [NU[0], NU[1] + h],
+            ..base_case(dofs)
+        },
+        &|h| Case {
+            rho: [RHO[0] * (1.0 + h), RHO[1]],
+            ..base_case(dofs)
+        },
+        &|h| Case {
+            rho: [RHO[0], RHO[1] * (1.0 + h)],
+            ..base_case(dofs)
+        },
+    ];
+    let fd = central(&run, &c, &moves, 1e-4);
+    for (k, (a, b)) in got.iter().zip(&fd).enumerate() {
+        let rel = (a - b).abs() / b.abs().max(1e-30);
+        println!(
+            "parameter {k}: adjoint {a:.10e}, central differences {b:.10e}, relative {rel:.2e}"
+        );
+    }
+    let rel = relative_error(&got, &fd);
+    assert!(rel < TOLERANCE, "materials: relative error {rel:e}");
+    // Every gradient is a real signal (a zero one would pass the norm check trivially).
+    assert!(fd.iter().all(|v| v.abs() > 1e-12), "{fd:?}");
+}
+
+#[test]
+fn gravity_and_initial_state_gradients_match_finite_differences() {
+    let run = bar();
+    let dofs = base_case(0).sim(&run).z().len();
+    let c = loss_coefficients(&run, dofs);
+    let grads = base_case(dofs).gradients(&run, &c);
+    let gravity = grads.gravity.expect("the run has gravity");
+    let moves: [&dyn Fn(f64) -> Case; 3] = [
+        &|h| Case {
+            g: [G[0] + h, G[1], G[2]],
+            ..base_case(dofs)
+        },
+        &|h| Case {
+            g: [G[0], G[1] + h, G[2]],
+            ..base_case(dofs)
+        },
+        &|h| Case {
+            g: [G[0], G[1], G[2] + h],
+            ..base_case(dofs)
+        },
+    ];
+    let fd = central(&run, &c, &moves, 1e-3);
+    let rel = relative_error(&gravity, &fd);
+    println!("gravity: adjoint {gravity:?}, central differences {fd:?}");
+    assert!(rel < TOLERANCE, "gravity: relative error {rel:e}");
+
+    // The initial velocity along a random direction, and the initial state along another
+    // (set through set_state before the run).
+    let mut rng = SplitMix64::new(11);
+    let dv: Vec<f64> = (0..dofs).map(|_| rng.next_f64() - 0.5).collect();
+    let dz: Vec<f64> = (0..dofs).map(|_| 1e-2 * (rng.next_f64() - 0.5)).collect();
+    let along_v = |h: f64| {
+        let mut case = base_case(dofs);
+        case.zdot0
+            .iter_mut()
+            .zip(&dv)
+            .for_each(|(v, d)| *v += h * d);
+        case.loss(&run, &c)
+    };
+    let along_z = |h: f64| {
+        let case = base_case(dofs);
+        let mut s = case.sim(&run);
+        let z0: Vec<f64> = s.z().iter().zip(&dz).map(|(z, d)| z + h * d).collect();
+        s.set_state(&z0, &case.zdot0).unwrap();
+        let mut states = vec![s.z().to_vec()];
+        for _ in 0..STEPS {
+            assert!(s.step().solve.converged);
+            states.push(s.z().to_vec());
+        }
+        loss(&states, &c)
+    };
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let h = 1e-3;
+    let fd = [
+        (along_v(h) - along_v(-h)) / (2.0 * h),
+        (along_z(h) - along_z(-h)) / (2.0 * h),
+    ];
+    let got = [dot(&grads.zdot0, &dv), dot(&grads.z0, &dz)];
+    println!("initial state: adjoint {got:?}, central differences {fd:?}");
+    let rel = relative_error(&got, &fd);
+    assert!(rel < TOLERANCE, "initial state: relative error {rel:e}");
+}
+
+#[test]
+fn positions_adjoint_is_the_transpose_of_the_map() {
+    let run = bar();
+    let s = base_case(0).sim(&run);
+    let layout = s.layout();
+    let mut rng = SplitMix64::new(5);
+    let rest: Vec<Point3> = run.points.points.iter().step_by(37).copied().collect();
+    let w = run.basis.weights(&rest).unwrap();
+    let z: Vec<f64> = (0..layout.dofs()).map(|_| rng.next_f64() - 0.5).collect();
+    let g: Vec<Point3> = rest
+        .iter()
+        .map(|_| [rng.next_f64(), rng.next_f64(), rng.next_f64()])
+        .collect();
+    let x = freeform::sim::object::map_points(layout, &z, &rest, &w);
+    // <g, x(z) - X> = <B^T g, z>: the same bilinear form summed two ways (rounding only).
+    let lhs: f64 = x
+        .iter()
+        .zip(&rest)
+        .zip(&g)
+        .map(|((xi, xr), gi)| (0..3).map(|r| gi[r] * (xi[r] - xr[r])).sum::<f64>())
+        .sum();
+    let bt = positions_adjoint(layout, &rest, &w, &g).unwrap();
+    let rhs: f64 = bt.iter().zip(&z).map(|(a, b)| a * b).sum();
+    assert!(
+        (lhs - rhs).abs() <= 1e-12 * lhs.abs().max(1.0),
+        "{lhs} vs {rhs}"
+    );
+    // Bad shapes and NaN are refused.
+    assert!(positions_adjoint(layout, &rest, &w, &g[1..]).is_err());
+    let mut bad = g.clone();
+    bad[3][1] = f64::NAN;
+    let e = positions_adjoint(layout, &rest, &w, &bad).unwrap_err();
+    assert!(e.to_string().contains("point 3"), "{e}");
+}
+
+#[test]
+fn recordings_that_cannot_give_a_gradient_are_refused() {
+    let run = bar();
+    let case = base_case(0);
+    let mut s = case.sim(&run);
+    let dofs = s.z().len();
+    let frames = |n: usize| vec![vec![1.0; dofs]; n];
+
+    // A loss of the wrong shape or with NaN.
+    let mut rec = Recording::start(&s, 2).unwrap();
+    rec.step(&mut s).unwrap();
+    rec.step(&mut s).unwrap();
+    let e = rec.clone().backward(&s, &frames(2)).unwrap_err();
+    assert!(
+        e.to_string().contains("has 2 frames; the recording has 3"),
+        "{e}"
+    );
+    let mut f = frames(3);
+    f[1] = vec![1.0; dofs - 1];
+    let e = rec.clone().backward(&s, &f).unwrap_err();
+    assert!(e.to_string().contains("frame 1 has"), "{e}");
+    f[1] = vec![f64::NAN; dofs];
+    let e = rec.clone().backward(&s, &f).unwrap_err();
+    assert!(e.to_string().contains("frame 1 is not finite"), "{e}");
+
+    // The object changed between forward and backward: a setter, or a step outside it.
+    let mut changed = case.sim(&run);
+    let mut rec2 = Recording::start(&changed, 1).unwrap();
+    rec2.step(&mut changed).unwrap();
+    changed.set_gravity(Some([0.0, -1.0, 0.0])).unwrap();
+    let e = rec2.backward(&changed, &frames(2)).unwrap_err();
+    assert!(e.to_string().contains("changed since"), "{e}");
+    s.step();
+    let e = rec.clone().backward(&s, &frames(3)).unwrap_err();
+    assert!(matches!(e, Error::Gradient(_)), "{e}");
+    let e = rec.step(&mut s).unwrap_err();
+    assert!(e.to_string().contains("changed since"), "{e}");
+
+    // An unconverged step is named.
+    let mut opts = options(G);
+    opts.newton.max_iter = 1;
+    let m = material(&run, E, NU, RHO);
+    let mut tight = ReducedSim::new(&run.basis, &run.points, &m, &opts).unwrap();
+    let mut rec3 = Recording::start(&tight, 1).unwrap();
+    assert!(!rec3.step(&mut tight).unwrap().solve.converged);
+    let e = rec3.backward(&tight, &frames(2)).unwrap_err();
+    assert!(
+        e.to_string().contains("recorded step 1 did not converge"),
+        "{e}"
+    );
+
+    // Collider friction is not differentiated yet: refused at the start.
+    let mut with_friction = options(G);
+    with_friction.colliders = vec![Collider {
+        shape: freeform::sim::terms::ColliderShape::Plane {
+            point: [0.0, -0.5, 0.0],
+            normal: [0.0, 1.0, 0.0],
+        },
+        stiffness: Some(1e7),
+        name: None,
+        motion: freeform::sim::motion::Motion::Fixed,
+        parent: None,
+    }];
+    let mut fr = ReducedSim::new(&run.basis, &run.points, &m, &with_friction).unwrap();
+    fr.set_collider_friction(&[0.5], 0.01).unwrap();
+    let e = Recording::start(&fr, 1).unwrap_err();
+    assert!(e.to_string().contains("friction"), "{e}");
+}
