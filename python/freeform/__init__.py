@@ -13,6 +13,11 @@ eigenmodes, from Python.
 - ``Scene.from_file("scene.toml")`` / ``Scene.from_dict({...})`` and ``World(scene)``: the
   live simulation (``world.step()``, ``world.positions(i)``, targets and poses between
   steps).
+- ``Recording(world, steps)``, ``rec.step(world)``, ``rec.backward(world, dl_dz)``:
+  gradients of a loss over a run with respect to materials, gravity and the initial state;
+  ``map_points`` and ``positions_adjoint`` carry a loss on positions to z
+  (docs/gradients.md).
+- ``beam_reference("bend", cache_dir=...)``: the beam benchmark's FEM reference as arrays.
 
 Units are SI (metres, Pa, kg/m^3, s). Arrays in: any real dtype and layout (converted once
 to float64); arrays out: new float64 NumPy arrays. Guide: docs/python.md.
@@ -26,12 +31,28 @@ from ._errors import (
     NotConvergedError,
     StrictModeError,
 )
-from ._native import Basis, Scene, World, __version__, eigsh, read_usd_kaolin, sample
+from ._native import (
+    Basis,
+    Recording,
+    Scene,
+    World,
+    __version__,
+    beam_reference,
+    eigsh,
+    map_points,
+    positions_adjoint,
+    read_usd_kaolin,
+    sample,
+)
 
 __all__ = [
     "Basis",
     "Scene",
     "World",
+    "Recording",
+    "map_points",
+    "beam_reference",
+    "positions_adjoint",
     "read_usd_kaolin",
     "sample",
     "eigsh",

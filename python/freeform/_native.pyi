@@ -248,3 +248,34 @@ class World:
         step_ms_mean (ms), samples and thickness (metres) per object, stiffness (Pa/m^2,
         objects x objects, row-major)."""
     def summaries(self) -> list[dict[str, Any]]: ...
+
+class Recording:
+    """A world's run recorded for gradients (docs/gradients.md)."""
+
+    def __init__(self, world: World, steps: int) -> None: ...
+    def steps(self) -> int: ...
+    def tape_bytes(self) -> int: ...
+    def step(self, world: World) -> list[dict[str, Any]]:
+        """One step of the world, recorded; the step reports."""
+    def backward(
+        self, world: World, dl_dz: dict[str, npt.NDArray[np.float64]]
+    ) -> dict[str, dict[str, Any]]:
+        """The reverse pass: dL/dz per object, (steps + 1, 12 (m + 1)); per object the
+        gradients (youngs, poisson, density, their per-point arrays, gravity, z0, zdot0)."""
+
+def map_points(world: World, object: ObjectRef, points: ArrayLike) -> npt.NDArray[np.float64]:
+    """Positions (N, 3) of rest points under the object's current state, metres."""
+
+def positions_adjoint(
+    world: World, object: ObjectRef, points: ArrayLike, dl_dx: ArrayLike
+) -> npt.NDArray[np.float64]:
+    """dL/dz (12 (m + 1)) from dL/dx (N, 3) at rest points."""
+
+def beam_reference(
+    test: Literal["bend", "twist"] = "bend",
+    *,
+    cache_dir: Optional[Union[str, PathLike[str]]] = None,
+    progress: bool = False,
+) -> dict[str, Any]:
+    """The beam benchmark's FEM reference: rest (N, 3), frames (steps, N, 3), the material,
+    dt, steps, size, gravity and the held length."""

@@ -297,11 +297,15 @@ impl PyScene {
 /// A scene being simulated: step it, read and change it between steps.
 #[pyclass(module = "freeform", name = "World")]
 pub struct PyWorld {
-    world: World,
+    pub(crate) world: World,
 }
 
 /// An object given by index or name (the library checks both).
-fn object_index(py: Python<'_>, world: &World, object: &Bound<'_, PyAny>) -> PyResult<usize> {
+pub(crate) fn object_index(
+    py: Python<'_>,
+    world: &World,
+    object: &Bound<'_, PyAny>,
+) -> PyResult<usize> {
     if let Ok(name) = object.extract::<String>() {
         return world.object_named(&name).map_err(|e| scene_to_py(py, &e));
     }
@@ -316,7 +320,11 @@ fn object_index(py: Python<'_>, world: &World, object: &Bound<'_, PyAny>) -> PyR
 
 /// A step report as a dict: the JSON report's step row (serde), with the object's name, the
 /// time and the boundary deviation always present (None without boundaries).
-fn step_dict<'py>(py: Python<'py>, name: &str, r: &StepReport) -> PyResult<Bound<'py, PyDict>> {
+pub(crate) fn step_dict<'py>(
+    py: Python<'py>,
+    name: &str,
+    r: &StepReport,
+) -> PyResult<Bound<'py, PyDict>> {
     let row = StepRow::from(r);
     let d = report(py, &row)?.cast_into::<PyDict>()?;
     d.set_item("object", name)?;

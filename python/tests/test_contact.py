@@ -90,3 +90,12 @@ def test_no_contact_section_no_contact_report(tmp_path):
     world.step()
     assert world.contact is None
     assert world.contact_summary() is None
+
+
+def test_gradients_of_a_contact_scene_are_refused():
+    # The reverse pass does not differentiate the island solves yet (docs/gradients.md).
+    import pytest
+
+    world = ff.World(ff.Scene.from_toml(SCENE))
+    with pytest.raises(ff.InvalidInputError, match=r"object-object contact \(\[contact\]\)"):
+        ff.Recording(world, STEPS)

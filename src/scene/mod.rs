@@ -9,7 +9,8 @@
 //!   writes; `report`: the rows and summaries a run reports; `setup`: an object's shape and
 //!   basis (through the `cache`); `render_set`: extra render inputs; `object`: one live
 //!   object; `contact`: object-object contact between objects; `world`: the live simulation;
-//!   `frames`: frame output; `run`: the batch loop.
+//!   `gradient`: a world's run recorded for gradients; `frames`: frame output; `run`: the
+//!   batch loop.
 //!
 //! ```no_run
 //! use freeform::material::Region;
@@ -31,6 +32,7 @@
 mod cache;
 mod contact;
 mod frames;
+mod gradient;
 mod numbers;
 mod object;
 mod render_set;
@@ -45,6 +47,7 @@ mod usd_frames;
 mod world;
 
 pub use frames::{FrameObserver, FrameWriter};
+pub use gradient::WorldRecording;
 pub use object::{PreparedObject, SceneObject};
 pub use render_set::RenderSet;
 pub use report::{ContactStepRow, ContactSummary, ObjectSummary, RunSummary, StepRow};

@@ -124,8 +124,12 @@ impl Recording {
         self.states.get(t * self.dofs..(t + 1) * self.dofs)
     }
 
-    /// The object is the one recorded, unchanged since: same revision, step count and state.
-    fn check_object(&self, sim: &ReducedSim) -> Result<()> {
+    /// Whether `sim` is the object recorded, unchanged since (same revision, step count,
+    /// state and time step): the check [`Recording::step`] and [`Recording::backward`] make.
+    ///
+    /// # Errors
+    /// [`Error::Gradient`] naming what differs.
+    pub fn check_object(&self, sim: &ReducedSim) -> Result<()> {
         let t = self.steps();
         let last = self.state(t).unwrap_or_default();
         if sim.revision() != self.revision
@@ -138,6 +142,9 @@ impl Recording {
                  or a step outside the recording after {t} recorded steps); start a new recording"
             )));
         }
+        if sim.has_collider_friction() {
+            return Err(Error::Gradient("collider friction was switched on".into()));
+        }
         Ok(())
     }
 
@@ -148,18 +155,35 @@ impl Recording {
     /// nothing is stepped).
     pub fn step(&mut self, sim: &mut ReducedSim) -> Result<StepReport> {
         self.check_object(sim)?;
-        if sim.has_collider_friction() {
-            return Err(Error::Gradient("collider friction was switched on".into()));
-        }
         let report = sim.step();
+        self.push(sim, &report);
+        Ok(report)
+    }
+
+    /// Record the step `report` that `sim` just took, stepped by its owner (a world): `sim`
+    /// passed [`Recording::check_object`] right before that step.
+    ///
+    /// # Errors
+    /// [`Error::Gradient`] when `sim` took anything but one step since.
+    pub fn record_step(&mut self, sim: &ReducedSim, report: &StepReport) -> Result<()> {
+        if sim.revision() != self.revision || sim.steps() != self.first_step + self.steps() + 1 {
+            return Err(Error::Gradient(
+                "the object did more than one step since the last recorded one; start a new \
+                 recording"
+                    .into(),
+            ));
+        }
+        self.push(sim, report);
+        Ok(())
+    }
+
+    fn push(&mut self, sim: &ReducedSim, report: &StepReport) {
         self.forward_s += report.wall_s;
         self.states.extend_from_slice(sim.z());
         self.times.push(report.time);
         if !report.solve.converged && self.unconverged.is_none() {
             self.unconverged = Some((self.steps(), report.solve.residual));
         }
-        // A step's report does not carry the setter count: the step itself moved nothing.
-        Ok(report)
     }
 
     /// The reverse pass for a loss L(z_0, ..., z_T): `dl_dz[t]` is dL/dz after recorded step t

@@ -1,0 +1,95 @@
+//! What a reverse pass costs against the forward run it reverses (docs/gradients.md): the
+//! standard beam's bend, m = 16, K = 1,000, 200 steps, recorded, then the gradient of the
+//! mean squared tip displacement with respect to E, nu, rho, gravity and the initial state.
+//!
+//!   cargo run --release --example gradient_cost [-- --steps 200 --modes 16 --kernels 1000]
+//!
+//! Prints the forward and backward wall times, the tape's bytes and the peak memory, as one
+//! JSON line at the end.
+
+use freeform::benchmark::{beam_basis, beam_sim_options, ReducedBeamOptions};
+use freeform::fem::beam::{BeamTest, FemBeamConfig};
+use freeform::progress::Silent;
+use freeform::report::peak_memory_bytes;
+use freeform::sim::gradient::{positions_adjoint, Recording};
+use freeform::sim::{NewtonOptions, ReducedSim};
+
+fn arg(name: &str, default: usize) -> usize {
+    let args: Vec<String> = std::env::args().collect();
+    args.iter()
+        .position(|a| a == name)
+        .and_then(|i| args.get(i + 1))
+        .map_or(default, |v| v.parse().expect("a count"))
+}
+
+fn main() -> freeform::Result<()> {
+    let steps = arg("--steps", 200);
+    let fem = FemBeamConfig::reference(BeamTest::Bend);
+    let opts = ReducedBeamOptions {
+        modes: arg("--modes", 16),
+        kernels: arg("--kernels", 1000),
+        boundaries: freeform::precompute::BoundaryModes::Aware,
+        ..ReducedBeamOptions::default()
+    };
+    let basis = beam_basis(&fem, &opts, &Silent)?;
+    let run = &basis.run;
+    let sim_opts = beam_sim_options(&fem, opts.cubature, NewtonOptions::default(), None);
+    let mut sim = ReducedSim::new(&run.basis, &run.points, &run.material, &sim_opts)?;
+    // The loss: mean squared displacement of the free end's corner points.
+    let tip: Vec<[f64; 3]> = vec![
+        [5.0, 0.0, 0.0],
+        [5.0, 1.0, 0.0],
+        [5.0, 0.0, 1.0],
+        [5.0, 1.0, 1.0],
+    ];
+    let w = run.basis.weights(&tip)?;
+    let mut rec = Recording::start(&sim, steps)?;
+    for _ in 0..steps {
+        rec.step(&mut sim)?;
+    }
+    let forward_s = rec.forward_s();
+    let tape_bytes = rec.tape_bytes();
+    let mut dl_dz = vec![Vec::new(); steps + 1];
+    for (t, slot) in dl_dz.iter_mut().enumerate().skip(1) {
+        let z = rec.state(t).unwrap_or_default();
+        let x = freeform::sim::object::map_points(sim.layout(), z, &tip, &w);
+        let g: Vec<[f64; 3]> = x
+            .iter()
+            .zip(&tip)
+            .map(|(xi, xr)| {
+                let s = 2.0 / (steps * tip.len()) as f64;
+                [
+                    s * (xi[0] - xr[0]),
+                    s * (xi[1] - xr[1]),
+                    s * (xi[2] - xr[2]),
+                ]
+            })
+            .collect();
+        *slot = positions_adjoint(sim.layout(), &tip, &w, &g)?;
+    }
+    let grads = rec.backward(&sim, &dl_dz)?;
+    let density = grads.density(&run.points, &run.basis.weights(&run.points.points)?)?;
+    println!(
+        "dL/dE {:.6e} per Pa, dL/dnu {:.6e}, dL/drho {:.6e}, dL/dg {:?}",
+        grads.youngs_total(),
+        grads.poisson_total(),
+        density.iter().sum::<f64>(),
+        grads.gravity
+    );
+    println!(
+        "forward {forward_s:.3} s ({steps} steps), backward {:.3} s: {:.2}x; tape {tape_bytes} bytes",
+        grads.backward_s,
+        grads.backward_s / forward_s
+    );
+    println!(
+        "{{\"steps\": {steps}, \"modes\": {}, \"kernels\": {}, \"forward_s\": {forward_s:.4}, \
+         \"backward_s\": {:.4}, \"ratio\": {:.3}, \"tape_bytes\": {tape_bytes}, \
+         \"peak_memory_bytes\": {}}}",
+        opts.modes,
+        opts.kernels,
+        grads.backward_s,
+        grads.backward_s / forward_s,
+        peak_memory_bytes().unwrap_or(0)
+    );
+    Ok(())
+}

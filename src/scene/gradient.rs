@@ -1,0 +1,119 @@
+//! A world's run recorded for gradients: one [`Recording`] per object
+//! (docs/gradients.md). Objects that step alone are recorded; object-object contact is not
+//! differentiated yet and is refused.
+
+use crate::sim::gradient::{Gradients, Recording};
+use crate::sim::StepReport;
+use crate::{Error, Result};
+
+use super::world::World;
+
+/// The tapes of a world's objects, in object order ([`World::record`]).
+#[derive(Debug, Clone)]
+pub struct WorldRecording {
+    objects: Vec<Recording>,
+}
+
+impl World {
+    /// Start recording every object from its current state for about `steps` steps (the
+    /// tapes' memory is checked first, [`Recording::start`]).
+    ///
+    /// # Errors
+    /// [`Error::Gradient`]: a scene with object-object contact, an object with collider
+    /// friction, or tapes that would not fit in memory.
+    pub fn record(&self, steps: usize) -> Result<WorldRecording> {
+        if self.contact_summary().is_some() {
+            return Err(Error::Gradient(
+                "the scene has object-object contact ([contact]), whose island solves the \
+                 reverse pass does not differentiate yet; record a scene without it"
+                    .into(),
+            ));
+        }
+        let objects = self
+            .objects()
+            .iter()
+            .enumerate()
+            .map(|(i, o)| Recording::start(o.sim(), steps).map_err(|e| self.object_error(i, e)))
+            .collect::<Result<Vec<_>>>()?;
+        Ok(WorldRecording { objects })
+    }
+
+    /// One [`World::step`], recorded in `rec`: every object is checked against its tape
+    /// before the step (nothing moves when one was changed).
+    ///
+    /// # Errors
+    /// [`Error::Gradient`] for a recording of another world or of objects changed since;
+    /// [`World::step`]'s errors.
+    pub fn step_recorded(&mut self, rec: &mut WorldRecording) -> Result<Vec<StepReport>> {
+        if rec.objects.len() != self.objects().len() {
+            return Err(Error::Gradient(format!(
+                "the recording has {} objects, the world {}",
+                rec.objects.len(),
+                self.objects().len()
+            )));
+        }
+        for (i, (r, o)) in rec.objects.iter().zip(self.objects()).enumerate() {
+            r.check_object(o.sim())
+                .map_err(|e| self.object_error(i, e))?;
+        }
+        let reports = self.step()?;
+        for (i, (r, rep)) in rec.objects.iter_mut().zip(&reports).enumerate() {
+            r.record_step(self.objects()[i].sim(), rep)
+                .map_err(|e| self.object_error(i, e))?;
+        }
+        Ok(reports)
+    }
+
+    fn object_error(&self, index: usize, e: Error) -> Error {
+        Error::Object {
+            index,
+            name: self.objects()[index].name().to_string(),
+            source: Box::new(e),
+        }
+    }
+}
+
+impl WorldRecording {
+    /// Steps recorded.
+    pub fn steps(&self) -> usize {
+        self.objects.first().map_or(0, Recording::steps)
+    }
+
+    /// Each object's tape, in object order.
+    pub fn objects(&self) -> &[Recording] {
+        &self.objects
+    }
+
+    /// Bytes the tapes hold.
+    pub fn tape_bytes(&self) -> u64 {
+        self.objects.iter().map(Recording::tape_bytes).sum()
+    }
+
+    /// The reverse pass of every object: `dl_dz[i]` is object i's loss gradient as
+    /// [`Recording::backward`] takes it (steps + 1 frames, each empty or 12 (m + 1) values);
+    /// an empty list for an object the loss does not see. Consumes the recording.
+    ///
+    /// # Errors
+    /// [`Recording::backward`]'s, naming the object; a list of the wrong length.
+    pub fn backward(self, world: &World, dl_dz: &[Vec<Vec<f64>>]) -> Result<Vec<Gradients>> {
+        if dl_dz.len() != self.objects.len() {
+            return Err(Error::Gradient(format!(
+                "the loss gradient has {} objects, the world {}",
+                dl_dz.len(),
+                self.objects.len()
+            )));
+        }
+        let frames = self.steps() + 1;
+        self.objects
+            .into_iter()
+            .zip(dl_dz)
+            .enumerate()
+            .map(|(i, (r, g))| {
+                let none = vec![Vec::new(); frames];
+                let g = if g.is_empty() { &none } else { g };
+                r.backward(world.objects()[i].sim(), g)
+                    .map_err(|e| world.object_error(i, e))
+            })
+            .collect()
+    }
+}
