@@ -67,6 +67,16 @@ fn main() -> freeform::Result<()> {
             .collect();
         *slot = positions_adjoint(sim.layout(), &tip, &w, &g)?;
     }
+    // What one step's exact Hessian costs (the reverse pass builds one per step).
+    let clock = std::time::Instant::now();
+    let builds = 20;
+    for _ in 0..builds {
+        let h = sim
+            .elastic()
+            .hessian(sim.z(), freeform::sim::elastic::Projection::None);
+        std::hint::black_box(h);
+    }
+    let hessian_s = clock.elapsed().as_secs_f64() / builds as f64;
     let grads = rec.backward(&sim, &dl_dz)?;
     let density = grads.density(&run.points, &run.basis.weights(&run.points.points)?)?;
     println!(
@@ -82,13 +92,19 @@ fn main() -> freeform::Result<()> {
         grads.backward_s / forward_s
     );
     println!(
+        "the elastic term's exact Hessian: {:.2} ms per build, {:.0}% of the backward",
+        1e3 * hessian_s,
+        100.0 * hessian_s * steps as f64 / grads.backward_s
+    );
+    println!(
         "{{\"steps\": {steps}, \"modes\": {}, \"kernels\": {}, \"forward_s\": {forward_s:.4}, \
-         \"backward_s\": {:.4}, \"ratio\": {:.3}, \"tape_bytes\": {tape_bytes}, \
+         \"backward_s\": {:.4}, \"ratio\": {:.3}, \"hessian_ms\": {:.3}, \"tape_bytes\": {tape_bytes}, \
          \"peak_memory_bytes\": {}}}",
         opts.modes,
         opts.kernels,
         grads.backward_s,
         grads.backward_s / forward_s,
+        1e3 * hessian_s,
         peak_memory_bytes().unwrap_or(0)
     );
     Ok(())

@@ -37,7 +37,15 @@ def parse():
     p.add_argument("--tol", type=float, default=1e-8, help="each step's solver tolerance (x D)")
     p.add_argument("--max-iter", type=int, default=30, help="L-BFGS-B iterations at most")
     p.add_argument("--scan", action="store_true", help="also scan the loss over E")
-    p.add_argument("--csv", default=None, help="write the loss per iteration here")
+    p.add_argument("--csv", default=None, help="write the loss per evaluation here")
+    p.add_argument("--plot", default=None, help="draw the loss per iteration to this PNG (matplotlib)")
+    p.add_argument(
+        "--observe",
+        choices=["fem", "reduced"],
+        default="fem",
+        help="observe the FEM reference, or the reduced model's own run at the FEM's E (which "
+        "separates the optimiser's error from the reduced model's bias)",
+    )
     return p.parse_args()
 
 
@@ -65,7 +73,7 @@ class Beam:
             volumes=self.volumes,
             kernels=args.kernels,
             modes=args.modes,
-            regions=[held],
+            regions=[f"halfspace:{ref['held_length']},0,0,-1,0,0"],
         )
         # The held end's penalty stiffness, fixed at the starting guess's default (it would
         # otherwise move with E and be a second parameter).
@@ -97,6 +105,16 @@ class Beam:
         )
         return ff.World(scene)
 
+    def observe(self, youngs):
+        """The reduced model's own positions at the FEM nodes, frame by frame, at E."""
+        w = self.world(youngs)
+        frames = []
+        for _ in range(len(self.frames)):
+            w.step()
+            z, _ = w.state("beam")
+            frames.append(self.rest + self.b @ z.reshape(3, -1).T)
+        return np.array(frames)
+
     def loss(self, youngs, gradient=True):
         """(L, dL/dE): L = mean over frames and nodes of |x_reduced - x_fem|^2 / D^2."""
         self.evaluations += 1
@@ -122,28 +140,68 @@ class Beam:
         return total, g["youngs"]
 
 
+def plot(path, iterates, e_fem, scan):
+    """The loss against the L-BFGS-B iterations, and the scan of the loss over E beside it."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print(f"matplotlib is not installed: no plot written to {path}")
+        return
+    fig, axes = plt.subplots(1, 2 if scan else 1, figsize=(10 if scan else 5, 3.6), squeeze=False)
+    ax = axes[0][0]
+    ax.semilogy(range(len(iterates)), [loss for _, loss in iterates], "o-")
+    ax.set_xlabel("L-BFGS-B iteration")
+    ax.set_ylabel("loss (mean squared distance / D^2)")
+    ax.set_title("E from 10x the FEM's")
+    for i, (e, _) in enumerate(iterates):
+        ax.annotate(f"{e / e_fem:.3f}", (i, iterates[i][1]), fontsize=7, xytext=(3, 3), textcoords="offset points")
+    if scan:
+        ax = axes[0][1]
+        ax.semilogy([s["youngs"] / e_fem for s in scan], [s["loss"] for s in scan], "s-")
+        ax.axvline(iterates[-1][0] / e_fem, color="gray", linestyle="--", label="recovered")
+        ax.set_xlabel("E / E_fem")
+        ax.set_title("loss over E (the reduced model's bias)")
+        ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    print(f"wrote {path}")
+
+
 def main():
     args = parse()
     clock = time.perf_counter()
     ref = ff.beam_reference("bend", cache_dir=args.cache, progress=True)
     e_fem = ref["youngs"]
     beam = Beam(ref, args)
+    if args.observe == "reduced":
+        beam.frames = beam.observe(e_fem)
     history = []
+    iterates = []
+    seen = {}
+    loss0 = beam.loss(beam.e_start, gradient=False)[0]
 
     def objective(p):
         e = beam.e_start * np.exp(p[0])
         loss, de = beam.loss(e)
         history.append((e, loss))
+        seen[float(p[0])] = (e, loss)
         print(f"  E = {e:.6e} Pa: loss {loss:.6e}, dL/dE {de:.3e}", flush=True)
-        return loss, np.array([de * e])
+        # Scaled by the starting loss, so that the tolerances are relative.
+        return loss / loss0, np.array([de * e / loss0])
 
+    # gtol: the steps are solved to tol x D, so the loss carries noise of about 1e-10 of its
+    # size and its gradient about 1e-6 of the starting loss near the minimum; stop there.
     result = minimize(
         objective,
         x0=np.array([0.0]),
         jac=True,
         method="L-BFGS-B",
         bounds=[(-12.0, 12.0)],
-        options={"maxiter": args.max_iter, "ftol": 1e-15, "gtol": 1e-14},
+        options={"maxiter": args.max_iter, "maxfun": 4 * args.max_iter, "ftol": 1e-14, "gtol": 1e-7},
+        callback=lambda p: iterates.append(seen.get(float(p[0]), history[-1])),
     )
     e_best = beam.e_start * float(np.exp(result.x[0]))
     scan = []
@@ -157,6 +215,8 @@ def main():
             f.write("evaluation,youngs,loss\n")
             for i, (e, loss) in enumerate(history):
                 f.write(f"{i},{e!r},{loss!r}\n")
+    if args.plot:
+        plot(args.plot, [(beam.e_start, loss0)] + iterates, e_fem, scan)
     summary = {
         "youngs": e_best,
         "youngs_fem": e_fem,
@@ -164,12 +224,14 @@ def main():
         "relative_error": abs(e_best - e_fem) / e_fem,
         "iterations": int(result.nit),
         "evaluations": beam.evaluations,
-        "loss": float(result.fun),
+        "loss": float(result.fun) * loss0,
+        "observed": args.observe,
         "converged": bool(result.success),
         "message": str(result.message),
         "frames": len(beam.frames),
         "seconds": time.perf_counter() - clock,
         "scan": scan,
+        "per_iteration": [{"youngs": e, "loss": loss} for e, loss in iterates],
     }
     print(json.dumps(summary))
 

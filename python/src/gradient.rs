@@ -85,7 +85,8 @@ impl PyRecording {
     /// dL/drho of a homogeneous object), ``youngs_per_point``, ``poisson_per_point``,
     /// ``density_per_point`` (per integration point: a region's gradient is the sum over its
     /// points), ``gravity`` (3 values, or None without gravity), ``z0``, ``zdot0``,
-    /// ``forward_s``, ``backward_s``, ``tape_bytes``. Consumes the recording.
+    /// ``forward_s``, ``backward_s``, ``tape_bytes``. Consumes the recording once it succeeds
+    /// (a refused loss leaves it for a corrected call).
     fn backward<'py>(
         &mut self,
         py: Python<'py>,
@@ -123,7 +124,10 @@ impl PyRecording {
             let v = a.as_array();
             per_object[i] = (0..frames).map(|t| v.row(t).to_vec()).collect();
         }
-        let rec = self.rec.take().ok_or_else(|| used(py))?;
+        // A refused loss (a bad frame, NaN) leaves the tape for a corrected call: the
+        // reverse pass runs on a copy (12 (m + 1) values per step), and the tape is dropped
+        // only once it succeeded.
+        let rec = self.rec.clone().ok_or_else(|| used(py))?;
         let tapes: Vec<(f64, u64)> = rec
             .objects()
             .iter()
@@ -133,6 +137,7 @@ impl PyRecording {
         let grads = py
             .detach(|| rec.backward(w, &per_object))
             .map_err(|e| scene_to_py(py, &e))?;
+        self.rec = None;
         let out = PyDict::new(py);
         for (i, g) in grads.iter().enumerate() {
             let o = w.object(i);
