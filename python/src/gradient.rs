@@ -5,9 +5,11 @@
 use crate::convert::{array1, points_array};
 use crate::errors::{invalid, scene_to_py};
 use crate::world::{object_index, step_dict, PyWorld};
+use freeform::precompute::skinning::SkinningWeights;
 use freeform::scene::WorldRecording;
 use freeform::sim::gradient::positions_adjoint as adjoint_of_positions;
 use freeform::sim::object::map_points as map_rest_points;
+use freeform::sim::ReducedSim;
 use numpy::{PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
@@ -184,6 +186,20 @@ impl PyRecording {
     }
 }
 
+/// An object's model, rest points ``points`` (N x 3) and their skinning weights.
+fn object_points<'w>(
+    py: Python<'_>,
+    world: &'w PyWorld,
+    object: &Bound<'_, PyAny>,
+    points: &Bound<'_, PyAny>,
+) -> PyResult<(&'w ReducedSim, Vec<[f64; 3]>, SkinningWeights)> {
+    let i = object_index(py, &world.world, object)?;
+    let rest = crate::convert::points(py, points, "points")?;
+    let o = world.world.object(i);
+    let w = o.basis().weights(&rest).map_err(|e| scene_to_py(py, &e))?;
+    Ok((o.sim(), rest, w))
+}
+
 /// Positions of rest points ``points`` (N x 3, metres; inside or near the object) under the
 /// object's current state: x = X + sum_j W_j(X) Z_j [X; 1], (N, 3) metres.
 #[pyfunction]
@@ -193,11 +209,8 @@ pub fn map_points<'py>(
     object: &Bound<'py, PyAny>,
     points: &Bound<'py, PyAny>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let i = object_index(py, &world.world, object)?;
-    let rest = crate::convert::points(py, points, "points")?;
-    let o = world.world.object(i);
-    let w = o.basis().weights(&rest).map_err(|e| scene_to_py(py, &e))?;
-    let x = map_rest_points(o.sim().layout(), o.sim().z(), &rest, &w);
+    let (sim, rest, w) = object_points(py, &world, object, points)?;
+    let x = map_rest_points(sim.layout(), sim.z(), &rest, &w);
     Ok(points_array(py, &x).into_any())
 }
 
@@ -211,12 +224,8 @@ pub fn positions_adjoint<'py>(
     points: &Bound<'py, PyAny>,
     dl_dx: &Bound<'py, PyAny>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let i = object_index(py, &world.world, object)?;
-    let rest = crate::convert::points(py, points, "points")?;
+    let (sim, rest, w) = object_points(py, &world, object, points)?;
     let g = crate::convert::points(py, dl_dx, "dl_dx")?;
-    let o = world.world.object(i);
-    let w = o.basis().weights(&rest).map_err(|e| scene_to_py(py, &e))?;
-    let dz =
-        adjoint_of_positions(o.sim().layout(), &rest, &w, &g).map_err(|e| scene_to_py(py, &e))?;
+    let dz = adjoint_of_positions(sim.layout(), &rest, &w, &g).map_err(|e| scene_to_py(py, &e))?;
     Ok(array1(py, dz).into_any())
 }

@@ -7,12 +7,9 @@ use crate::common;
 use common::{no_cache, small_bar};
 use freeform::error::GeometryError;
 use freeform::geometry::generate::{icosphere, torus};
-use freeform::geometry::ShapeOptions;
 use freeform::io::obj::write_obj;
-use freeform::io::read_shape;
 use freeform::material::Material;
-use freeform::precompute::sampling::Resolution;
-use freeform::precompute::{build_basis, BasisOptions, BasisRun, SolverConfig};
+use freeform::precompute::BasisRun;
 use freeform::progress::Silent;
 use freeform::random::SplitMix64;
 use freeform::scene::{ObjectSpec, RunSettings, Scene, SceneBuilder, World};
@@ -25,20 +22,7 @@ use std::path::{Path, PathBuf};
 
 /// Basis of a 1 x 0.2 x 0.2 m bar (as tests/integration/sim.rs).
 fn bar() -> BasisRun {
-    let shape = read_shape("box:1,0.2,0.2", &ShapeOptions::default()).unwrap();
-    let opts = BasisOptions {
-        kernels: 40,
-        modes: 4,
-        resolution: Some(Resolution::Count(2000)),
-        solver: SolverConfig::Dense,
-        material: Material {
-            youngs: 1e5,
-            poisson: 0.4,
-            density: 1000.0,
-        },
-        ..BasisOptions::default()
-    };
-    build_basis(&shape, &opts, &Silent).unwrap()
+    crate::common::bar_basis(40, 4, 2000, crate::common::rubber())
 }
 
 fn random(n: usize, scale: f64, seed: u64) -> Vec<f64> {

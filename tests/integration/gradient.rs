@@ -2,13 +2,9 @@
 //! the same discrete model, re-simulated with each parameter moved; the refusals of
 //! recordings that cannot give a gradient.
 
-use crate::common::held_left;
-use freeform::geometry::ShapeOptions;
-use freeform::io::read_shape;
+use crate::common::{bar_basis, held_left, rubber};
 use freeform::material::{Material, MaterialField};
-use freeform::precompute::sampling::Resolution;
-use freeform::precompute::{build_basis, BasisOptions, BasisRun, SolverConfig};
-use freeform::progress::Silent;
+use freeform::precompute::BasisRun;
 use freeform::random::SplitMix64;
 use freeform::sim::gradient::{positions_adjoint, Gradients, Recording};
 use freeform::sim::{Boundary, Collider, HessianStrategy, NewtonOptions, ReducedSim, SimOptions};
@@ -18,20 +14,7 @@ const STEPS: usize = 6;
 
 /// A 1 x 0.2 x 0.2 m bar, E = 1e5 Pa, nu = 0.4, rho = 1000 kg/m^3.
 fn bar() -> BasisRun {
-    let shape = read_shape("box:1,0.2,0.2", &ShapeOptions::default()).unwrap();
-    let opts = BasisOptions {
-        kernels: 40,
-        modes: 5,
-        resolution: Some(Resolution::Count(1500)),
-        solver: SolverConfig::Dense,
-        material: Material {
-            youngs: 1e5,
-            poisson: 0.4,
-            density: 1000.0,
-        },
-        ..BasisOptions::default()
-    };
-    build_basis(&shape, &opts, &Silent).unwrap()
+    bar_basis(40, 5, 1500, rubber())
 }
 
 /// Held at its left end with a fixed penalty stiffness (the default one scales with E and
@@ -110,6 +93,16 @@ fn loss_coefficients(run: &BasisRun, dofs: usize) -> Vec<Vec<f64>> {
         .collect()
 }
 
+/// The loss of `STEPS` plain steps of `s` from its current state.
+fn run_loss(s: &mut ReducedSim, c: &[Vec<f64>]) -> f64 {
+    let mut states = vec![s.z().to_vec()];
+    for _ in 0..STEPS {
+        assert!(s.step().solve.converged);
+        states.push(s.z().to_vec());
+    }
+    loss(&states, c)
+}
+
 fn loss(states: &[Vec<f64>], c: &[Vec<f64>]) -> f64 {
     states
         .iter()
@@ -140,13 +133,7 @@ impl Case {
 
     /// The loss of a plain run (no recording).
     fn loss(&self, run: &BasisRun, c: &[Vec<f64>]) -> f64 {
-        let mut s = self.sim(run);
-        let mut states = vec![s.z().to_vec()];
-        for _ in 0..STEPS {
-            assert!(s.step().solve.converged);
-            states.push(s.z().to_vec());
-        }
-        loss(&states, c)
+        run_loss(&mut self.sim(run), c)
     }
 
     fn gradients(&self, run: &BasisRun, c: &[Vec<f64>]) -> Gradients {
@@ -434,21 +421,17 @@ fn recordings_that_cannot_give_a_gradient_are_refused() {
 /// exact for a homogeneous object's material gradients.
 #[test]
 fn homogeneous_modes_do_not_depend_on_the_material() {
-    let shape = read_shape("box:1,0.2,0.2", &ShapeOptions::default()).unwrap();
     let basis = |youngs: f64, poisson: f64| {
-        let opts = BasisOptions {
-            kernels: 40,
-            modes: 5,
-            resolution: Some(Resolution::Count(1500)),
-            solver: SolverConfig::Dense,
-            material: Material {
+        bar_basis(
+            40,
+            5,
+            1500,
+            Material {
                 youngs,
                 poisson,
                 density: 1000.0,
             },
-            ..BasisOptions::default()
-        };
-        build_basis(&shape, &opts, &Silent).unwrap()
+        )
     };
     let a = basis(1e5, 0.4);
     let b = basis(7e6, 0.25);

@@ -4,12 +4,8 @@
 use crate::common;
 
 use common::held_left;
-use freeform::geometry::ShapeOptions;
-use freeform::io::read_shape;
-use freeform::material::{Material, Region};
-use freeform::precompute::sampling::Resolution;
-use freeform::precompute::{build_basis, BasisOptions, BasisRun, SolverConfig};
-use freeform::progress::Silent;
+use freeform::material::Region;
+use freeform::precompute::BasisRun;
 use freeform::random::SplitMix64;
 use freeform::sim::elastic::{Precision, Projection};
 use freeform::sim::motion::{AxisAngle, Motion};
@@ -24,20 +20,7 @@ use freeform::sim::{
 
 /// Basis of a 1 x 0.2 x 0.2 m bar (soft rubber-like default material).
 fn bar(kernels: usize, modes: usize, points: usize) -> BasisRun {
-    let shape = read_shape("box:1,0.2,0.2", &ShapeOptions::default()).unwrap();
-    let opts = BasisOptions {
-        kernels,
-        modes,
-        resolution: Some(Resolution::Count(points)),
-        solver: SolverConfig::Dense,
-        material: Material {
-            youngs: 1e5,
-            poisson: 0.4,
-            density: 1000.0,
-        },
-        ..BasisOptions::default()
-    };
-    build_basis(&shape, &opts, &Silent).unwrap()
+    common::bar_basis(kernels, modes, points, common::rubber())
 }
 
 fn sim(run: &BasisRun, opts: &SimOptions) -> ReducedSim {

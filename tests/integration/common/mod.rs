@@ -5,7 +5,9 @@ use freeform::geometry::Aabb;
 use freeform::material::Material;
 use freeform::precompute::centers::farthest_point_sampling;
 use freeform::precompute::rkpm::{support_radii, KernelType, Kernels, SupportOptions};
+use freeform::precompute::sampling::Resolution;
 use freeform::precompute::sampling::{grid_points, IntegrationPoints};
+use freeform::precompute::{build_basis, BasisOptions, BasisRun, SolverConfig};
 use freeform::scene::{CacheSettings, ObjectSpec};
 use freeform::Point3;
 
@@ -69,5 +71,33 @@ pub fn no_cache() -> CacheSettings {
     CacheSettings {
         enabled: false,
         ..CacheSettings::default()
+    }
+}
+
+/// The basis of the 1 x 0.2 x 0.2 m bar of the simulation tests (dense eigensolver) with
+/// `kernels`, `modes`, `points` integration points and a homogeneous `material`.
+pub fn bar_basis(kernels: usize, modes: usize, points: usize, material: Material) -> BasisRun {
+    let shape = freeform::io::read_shape(
+        "box:1,0.2,0.2",
+        &freeform::geometry::ShapeOptions::default(),
+    )
+    .unwrap();
+    let opts = BasisOptions {
+        kernels,
+        modes,
+        resolution: Some(Resolution::Count(points)),
+        solver: SolverConfig::Dense,
+        material,
+        ..BasisOptions::default()
+    };
+    build_basis(&shape, &opts, &freeform::progress::Silent).unwrap()
+}
+
+/// The simulation tests' rubber-like material: E = 1e5 Pa, nu = 0.4, rho = 1000 kg/m^3.
+pub fn rubber() -> Material {
+    Material {
+        youngs: 1e5,
+        poisson: 0.4,
+        density: 1000.0,
     }
 }
