@@ -37,7 +37,8 @@ impl PyRecording {
     /// steps. Refused (InvalidInputError): object-object contact, collider friction, tapes
     /// that would not fit in memory.
     #[new]
-    fn new(py: Python<'_>, world: PyRef<'_, PyWorld>, steps: usize) -> PyResult<PyRecording> {
+    fn new(py: Python<'_>, world: PyRef<'_, PyWorld>, steps: i128) -> PyResult<PyRecording> {
+        let steps = crate::convert::count(py, steps, "steps", usize::MAX)?;
         let rec = world.world.record(steps).map_err(|e| scene_to_py(py, &e))?;
         let names = world
             .world

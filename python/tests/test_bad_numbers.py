@@ -58,6 +58,7 @@ NOT_NUMBERS = {
     "self", "shape", "path", "text", "base_dir", "name", "basis", "scene", "motion",
     "placement", "boundaries", "preconditioner", "check_symmetry", "progress", "gradients",
     "allow_open_mesh", "strict", "cache", "h", "m", "out", "options", "prim", "instance",
+    "world", "dl_dz", "test", "cache_dir",
 }
 
 
@@ -181,6 +182,19 @@ def Points "P" (
 CASES["read_usd_kaolin"] = (lambda **a: ff.read_usd_kaolin(KAOLIN_STAGE, "/P", **a),
                             dict(time=None), {"time": "float"})
 
+# Gradients (docs/gradients.md): the recording's step count, and the positions maps. The
+# loss's dL/dz (a dict of arrays) is checked in test_gradient.py.
+CASES["Recording"] = (lambda **a: ff.Recording(world(), **a), dict(steps=2), {"steps": "count"})
+CASES["map_points"] = (lambda **a: ff.map_points(world(), **a),
+                       dict(object=0, points=np.full((3, 3), 0.1)),
+                       {"object": "index", "points": "array"})
+CASES["positions_adjoint"] = (lambda **a: ff.positions_adjoint(world(), **a),
+                              dict(object=0, points=np.full((3, 3), 0.1), dl_dx=np.ones((3, 3))),
+                              {"object": "index", "points": "array", "dl_dx": "array"})
+for name in ["Recording.step", "Recording.backward", "Recording.steps", "Recording.tape_bytes",
+             "beam_reference"]:
+    CASES[name] = (None, None, {})
+
 # Meaningful values, by (call, argument): the cases and why.
 ACCEPTED = {
     ("sample", "points"): ({"0"}, None),  # refused below, listed for the reason only
@@ -201,6 +215,12 @@ ACCEPTED = {
     ("eigsh", "max_iter"): ({"2**63"}, "an iteration cap: the solve stops when it converges"),
     ("World.set_state", "z"): ({"0", "-1", "1e300", "1e-300"}, "any finite state"),
     ("World.set_state", "zdot"): ({"0", "-1", "1e300", "1e-300"}, "any finite velocity"),
+    ("Recording", "steps"): ({"0"}, "a hint for the tape's memory check: zero steps is fine"),
+    ("map_points", "points"): ({"0", "-1", "1e-300"}, "a coordinate (outside the object: "
+                               "refused by coverage, which names the points)"),
+    ("positions_adjoint", "points"): ({"0", "-1", "1e-300"}, "a coordinate, as map_points"),
+    ("positions_adjoint", "dl_dx"): ({"0", "-1", "1e300", "1e-300"},
+                                     "any finite loss gradient: the map is linear"),
     ("read_usd_kaolin", "time"): ({"0", "-1", "1e300", "1e-300"},
                                   "any finite time code: USD resolves a value at every time"),
 }

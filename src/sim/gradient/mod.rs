@@ -56,6 +56,9 @@ pub struct Recording {
     forward_s: f64,
 }
 
+/// Steps of tape reserved up front at most.
+const RESERVE_STEPS: usize = 1 << 16;
+
 /// Bytes of one recorded step: one state of 12 (m + 1) f64.
 fn step_bytes(dofs: usize) -> u64 {
     8 * dofs as u64
@@ -77,7 +80,10 @@ impl Recording {
             ));
         }
         let dofs = sim.z().len();
-        let estimate = (steps as u64 + 1) * step_bytes(dofs) + 2 * step_bytes(dofs * dofs);
+        let estimate = (steps as u64)
+            .saturating_add(1)
+            .saturating_mul(step_bytes(dofs))
+            .saturating_add(2 * step_bytes(dofs * dofs));
         if let Some((available, source)) = available_memory()? {
             if estimate > available {
                 return Err(Error::Gradient(format!(
@@ -89,7 +95,10 @@ impl Recording {
                 )));
             }
         }
-        let mut states = Vec::with_capacity((steps + 1).saturating_mul(dofs));
+        // The tape grows as it records; the reservation is only a hint (capped, so that a
+        // count nobody will record does not allocate where the memory check cannot run).
+        let reserve = steps.min(RESERVE_STEPS);
+        let mut states = Vec::with_capacity((reserve + 1) * dofs);
         states.extend_from_slice(sim.z());
         Ok(Recording {
             dofs,
@@ -98,7 +107,7 @@ impl Recording {
             first_step: sim.steps(),
             zdot0: sim.zdot().to_vec(),
             states,
-            times: Vec::with_capacity(steps),
+            times: Vec::with_capacity(reserve),
             unconverged: None,
             forward_s: 0.0,
         })
