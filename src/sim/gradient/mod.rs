@@ -232,7 +232,8 @@ impl Recording {
             if adj.inverted > 0 {
                 return Err(Error::Gradient(format!(
                     "recorded step {t} ended with {} inverted cubature points (det F <= 0): \
-                     the elastic energy is not differentiable there; take a smaller time step",
+                     the motion went through a non-physical state, and a gradient would fit \
+                     parameters to it; take a smaller time step or check the material",
                     adj.inverted
                 )));
             }
