@@ -463,3 +463,71 @@ fn homogeneous_modes_do_not_depend_on_the_material() {
     // far below anything a material gradient would notice.
     assert!(worst < 1e-8, "mode subspaces differ by {worst:e}");
 }
+
+/// With a frictionless plane collider pressing into the bar's underside, the collider's
+/// penalty is part of the exact Hessian: E and gravity gradients still match central
+/// differences. Contact sets can switch between the perturbed runs (a point crossing the
+/// plane), where the loss is only C1; the bound with contact away from switches is
+/// 1e-3.
+#[test]
+fn gradients_with_a_frictionless_collider_match_finite_differences() {
+    let run = bar();
+    let dofs = base_case(0).sim(&run).z().len();
+    let c = loss_coefficients(&run, dofs);
+    let with_plane = |case: &Case| {
+        let m = material(&run, case.e, case.nu, case.rho);
+        let mut opts = options(case.g);
+        opts.colliders = vec![Collider {
+            shape: freeform::sim::terms::ColliderShape::Plane {
+                point: [0.0, 0.03, 0.0],
+                normal: [0.0, 1.0, 0.0],
+            },
+            stiffness: Some(1e7),
+            name: None,
+            motion: freeform::sim::motion::Motion::Fixed,
+            parent: None,
+        }];
+        let mut s = ReducedSim::new(&run.basis, &run.points, &m, &opts).unwrap();
+        let z0 = s.z().to_vec();
+        s.set_state(&z0, &case.zdot0).unwrap();
+        s
+    };
+    let base = base_case(dofs);
+    let mut s = with_plane(&base);
+    assert!(s.contacts().is_some());
+    let mut rec = Recording::start(&s, STEPS).unwrap();
+    for _ in 0..STEPS {
+        assert!(rec.step(&mut s).unwrap().solve.converged);
+    }
+    let g = rec.backward(&s, &c).unwrap();
+    // Both regions' E scaled together: the sum of dL/dE_i E_i.
+    let scaled: f64 = g
+        .youngs_at_points(run.points.len())
+        .unwrap()
+        .iter()
+        .zip(regions(&run))
+        .map(|(d, r)| d * E[r])
+        .sum();
+    let got = [scaled, g.gravity.unwrap()[1]];
+    let loss_of = |case: Case| run_loss(&mut with_plane(&case), &c);
+    let h = 1e-4;
+    let fd = [
+        (loss_of(Case {
+            e: [E[0] * (1.0 + h), E[1] * (1.0 + h)],
+            ..base_case(dofs)
+        }) - loss_of(Case {
+            e: [E[0] * (1.0 - h), E[1] * (1.0 - h)],
+            ..base_case(dofs)
+        })) / (2.0 * h),
+        (loss_of(Case {
+            g: [G[0], G[1] + 1e-3, G[2]],
+            ..base_case(dofs)
+        }) - loss_of(Case {
+            g: [G[0], G[1] - 1e-3, G[2]],
+            ..base_case(dofs)
+        })) / 2e-3,
+    ];
+    println!("with a plane: adjoint {got:?}, central differences {fd:?}");
+    let rel = relative_error(&got, &fd);
+    assert!(rel < 1e-3, "with a collider: relative error {rel:e}");
+}
