@@ -145,11 +145,9 @@ impl PyRecording {
         for (i, g) in grads.iter().enumerate() {
             let o = w.object(i);
             let pts = o.rest_points();
-            let weights = o
-                .basis()
-                .weights(&pts.points)
-                .map_err(|e| scene_to_py(py, &e))?;
-            let density = g.density(pts, &weights).map_err(|e| scene_to_py(py, &e))?;
+            // The object's own weights at its integration points (kept by the object).
+            let weights = o.integration_weights().map_err(|e| scene_to_py(py, &e))?;
+            let density = g.density(pts, weights).map_err(|e| scene_to_py(py, &e))?;
             let youngs = g
                 .youngs_at_points(pts.len())
                 .map_err(|e| scene_to_py(py, &e))?;

@@ -356,7 +356,10 @@ impl SceneObject {
         &self.points
     }
 
-    fn ip_weights(&self) -> Result<&SkinningWeights> {
+    /// Skinning weights at the integration points ([`Self::rest_points`]), evaluated once:
+    /// the render weights when the object is drawn at its integration points, else computed on
+    /// first use and kept.
+    pub fn integration_weights(&self) -> Result<&SkinningWeights> {
         if self.render.rest.is_none() {
             return Ok(&self.render.weights);
         }
@@ -371,7 +374,7 @@ impl SceneObject {
     /// Deformed positions of the integration points, N x 3, metres. For a mesh or a point
     /// cloud their skinning weights are evaluated on the first call and kept.
     pub fn integration_positions(&self) -> Result<Vec<Point3>> {
-        let w = self.ip_weights()?;
+        let w = self.integration_weights()?;
         Ok(self.sim.positions(&self.points.points, w))
     }
 
