@@ -16,6 +16,7 @@
 mod axis;
 pub mod generate;
 mod mesh;
+mod occupied;
 mod pointcloud;
 mod shape;
 mod spec;
@@ -25,6 +26,7 @@ pub mod winding;
 
 pub use axis::UpAxis;
 pub use mesh::TriMesh;
+pub use occupied::{OccupancyGrid, ISO_LEVEL};
 pub use pointcloud::PointCloud;
 pub use shape::Shape;
 pub use spec::{ShapeFileFormat, ShapeSpec};

@@ -352,7 +352,12 @@ pub fn cloud_volumes(points: &[Point3], opts: &CloudVolumeOptions) -> Result<(Ve
     Ok((vols, voxel))
 }
 
-fn median_nn_distance(points: &[Point3]) -> Result<f64> {
+/// The median distance from a point of `points` (N x 3, metres) to its nearest other point,
+/// metres (over at most about 20,000 of them).
+///
+/// # Errors
+/// [`Error::InvalidParameter`] when every point has a duplicate or the points coincide.
+pub fn median_nn_distance(points: &[Point3]) -> Result<f64> {
     use kiddo::{ImmutableKdTree, SquaredEuclidean};
     let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(points)
         .map_err(|e| Error::param("points", points.len(), format!("k-d tree: {e:?}")))?;

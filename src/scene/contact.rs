@@ -10,6 +10,7 @@ use crate::report::{Stopwatch, Warning};
 use crate::sim::contact::pairs::candidates;
 use crate::sim::contact::samples::default_count;
 use crate::sim::contact::step::ContactWorld;
+use crate::sim::contact::surface::derived_surface;
 use crate::sim::contact::{ContactSamples, ContactSettings};
 use crate::sim::motion::rotation_matrix;
 use crate::sim::{ReducedSim, StepReport};
@@ -24,7 +25,8 @@ pub(super) struct WorldContact {
 }
 
 impl WorldContact {
-    /// Contact samples for every object (`shapes[i]` None: a prepared object, refused), the
+    /// Contact samples for every object (`shapes[i]` None: a prepared object, refused; a
+    /// point cloud or image: on its derived surface, added to the object's render sets), the
     /// pair stiffnesses, and the check that no two objects start interpenetrating.
     pub(super) fn new(
         settings: &ContactSettings,
@@ -48,23 +50,49 @@ impl WorldContact {
                     source: Box::new(e),
                 })?;
         }
+        // Point clouds, splats and images have no surface of their own: their samples are
+        // spread over the surface of the volume they occupy, drawn beside their frames.
+        let mut derived: Vec<Option<Shape>> = Vec::with_capacity(objects.len());
+        let mut surface_triangles = Vec::with_capacity(objects.len());
+        for (index, (o, shape)) in objects.iter_mut().zip(shapes).enumerate() {
+            let name = o.name().to_string();
+            let ctx = |e: Error| Error::Object {
+                index,
+                name: name.clone(),
+                source: Box::new(e),
+            };
+            let mesh = match shape {
+                Some(s) => derived_surface(s).map_err(ctx)?,
+                None => None,
+            };
+            surface_triangles.push(mesh.as_ref().map(|m| m.triangles().len()));
+            if let Some(m) = &mesh {
+                o.add_contact_surface(m).map_err(ctx)?;
+            }
+            derived.push(mesh.map(Shape::Mesh));
+        }
+        let shapes: Vec<Option<&Shape>> = derived
+            .iter()
+            .zip(shapes)
+            .map(|(d, s)| d.as_ref().or(s.as_ref()))
+            .collect();
         let objects: &[SceneObject] = objects;
         // Each object's sample count (None without a shape, refused below), checked for
         // memory all together before any sample is made.
         let counts: Vec<Option<usize>> = objects
             .iter()
-            .zip(shapes)
-            .map(|(o, shape)| shape.as_ref().map(|s| sample_count(o, s, settings)))
+            .zip(&shapes)
+            .map(|(o, shape)| shape.map(|s| sample_count(o, s, settings)))
             .collect();
         check_sample_memory(objects, &counts)?;
         let mut samples = Vec::with_capacity(objects.len());
-        for (index, (o, shape)) in objects.iter().zip(shapes).enumerate() {
+        for (index, (o, shape)) in objects.iter().zip(&shapes).enumerate() {
             let ctx = |e: Error| Error::Object {
                 index,
                 name: o.name().to_string(),
                 source: Box::new(e),
             };
-            let shape = shape.as_ref().ok_or_else(|| {
+            let shape = shape.ok_or_else(|| {
                 ctx(Error::Scene {
                     message: "object-object contact needs the object's shape for its contact \
                               samples; an object made from arrays (World::with_objects) has \
@@ -118,6 +146,7 @@ impl WorldContact {
         let summary = ContactSummary {
             penetration_tolerance: settings.penetration_tolerance,
             samples: samples.iter().map(ContactSamples::len).collect(),
+            derived_surface_triangles: surface_triangles,
             thickness: samples.iter().map(|s| s.thickness).collect(),
             self_contact: self_exclusion.iter().map(Option::is_some).collect(),
             stiffness: stiffness.clone(),
@@ -143,13 +172,13 @@ impl WorldContact {
             warned: Default::default(),
             summary,
         };
-        contact.check_start(objects, shapes)?;
+        contact.check_start(objects, &shapes)?;
         Ok(contact)
     }
 
     /// Refuse objects that start interpenetrating: a sample of one inside the other's
     /// placed shape, or two samples overlapping by more than the tolerance.
-    fn check_start(&self, objects: &[SceneObject], shapes: &[Option<Shape>]) -> Result<()> {
+    fn check_start(&self, objects: &[SceneObject], shapes: &[Option<&Shape>]) -> Result<()> {
         let n = objects.len();
         for a in 0..n {
             for b in 0..n {
@@ -187,7 +216,7 @@ impl WorldContact {
                     )));
                 }
                 // A sample of a inside b's placed shape (deep inside, no sample of b near).
-                let Some(shape) = &shapes[b] else { continue };
+                let Some(shape) = shapes[b] else { continue };
                 let pl = &ob.spec().placement;
                 let r = match &pl.rotation {
                     Some(aa) => {

@@ -11,6 +11,10 @@ use super::spec::{ObjectSpec, Scene};
 use crate::geometry::{PointCloud, Shape, ShapeOptions, ShapeSpec, UpAxis};
 use crate::io::splat::{MovedSplats, Splats};
 use crate::linalg3::Mat3;
+
+/// The render set name of a point cloud's, splat object's or image object's derived contact
+/// surface in a `[contact]` scene: its frames are `<object>_contact_surface.NNNN.<ext>`.
+pub const CONTACT_SURFACE_SET: &str = "contact_surface";
 use crate::material::MaterialField;
 use crate::precompute::sampling::IntegrationPoints;
 use crate::precompute::skinning::{Basis, SkinningWeights};
@@ -448,6 +452,24 @@ impl SceneObject {
     /// Cauchy stress at the points of render set `set` (see [`SceneObject::render_stress`]).
     pub fn render_set_stress(&self, set: &RenderSet) -> Result<Vec<Mat3>> {
         set.stress(&self.sim, &self.spec, self.image.as_ref())
+    }
+
+    /// Draw `mesh`, the object's derived contact surface, with its frames as the render set
+    /// [`CONTACT_SURFACE_SET`].
+    ///
+    /// # Errors
+    /// A render input of that name already, or vertices the kernels do not cover.
+    pub(super) fn add_contact_surface(&mut self, mesh: &crate::geometry::TriMesh) -> Result<()> {
+        if self.render_sets.iter().any(|s| s.name() == CONTACT_SURFACE_SET) {
+            return Err(Error::param(
+                "render",
+                CONTACT_SURFACE_SET,
+                "the derived contact surface's frames carry this name; rename the render file",
+            ));
+        }
+        let set = RenderSet::derived(CONTACT_SURFACE_SET, &self.basis, mesh)?;
+        self.render_sets.push(set);
+        Ok(())
     }
 
     /// Read the render inputs of the spec (relative to `base_dir`) and evaluate the basis at

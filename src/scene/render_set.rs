@@ -3,7 +3,7 @@
 //! share with the object's own render points (splat frames, stress) lives here too.
 
 use crate::error::GeometryError;
-use crate::geometry::{ShapeSpec, UpAxis};
+use crate::geometry::{ShapeSpec, TriMesh, UpAxis};
 use crate::io::splat::{MovedSplats, Splats};
 use crate::linalg3::Mat3;
 use crate::material::MaterialField;
@@ -107,6 +107,23 @@ impl RenderSet {
             }
         };
         Self::with_points(file, basis, rest, triangles, splats)
+    }
+
+    /// A mesh the library derived (an object's contact surface), named `name` in its frames;
+    /// `basis` evaluated at its vertices.
+    ///
+    /// # Errors
+    /// As [`RenderSet::load`] for vertices the kernels do not cover.
+    pub(super) fn derived(name: &str, basis: &Basis, mesh: &TriMesh) -> Result<RenderSet> {
+        let mut set = Self::with_points(
+            Path::new(name),
+            basis,
+            mesh.vertices().to_vec(),
+            Some(mesh.triangles().to_vec()),
+            None,
+        )?;
+        set.name = name.to_string();
+        Ok(set)
     }
 
     /// The set read from `file`: its rest points, triangles or splats, with `basis` evaluated

@@ -184,6 +184,9 @@ pub struct ContactSummary {
     pub penetration_tolerance: f64,
     /// Contact samples per object, in object order.
     pub samples: Vec<usize>,
+    /// Triangles of each object's derived contact surface (point clouds, splats and images;
+    /// written as its `contact_surface` render set), None for shapes with their own surface.
+    pub derived_surface_triangles: Vec<Option<usize>>,
     /// Contact thickness per object, metres.
     pub thickness: Vec<f64>,
     /// Whether each object has self-contact, in object order.

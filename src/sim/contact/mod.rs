@@ -1,6 +1,7 @@
 //! Object-object contact: the objects of a scene pushing each other (issue 15).
 //!
 //! - [`samples`]: contact samples on each object's surface with their skinning weights.
+//! - [`surface`]: the surface of the volume a point cloud or image occupies, for its samples.
 //! - [`pairs`]: the broad phase (object boxes, then a k-d tree over the samples; an object's
 //!   own samples for self-contact).
 //! - [`energy`]: the pair penalty with its gradient, Hessian and line-search step bound, in
@@ -21,6 +22,7 @@ pub mod island;
 pub mod pairs;
 pub mod samples;
 pub mod step;
+pub mod surface;
 pub mod system;
 
 pub use energy::{Body, ContactStats, PairContact, PairHessian};

@@ -140,9 +140,9 @@ impl ContactSamples {
             Error::param(
                 "shape",
                 shape.kind(),
-                "object-object contact needs a surface: a box, a sphere or a closed mesh \
-                 (point clouds, splats and voxel images have none; leave them out of \
-                 [contact] scenes, or give an image object a mesh shape)",
+                "contact samples need a surface: a box, a sphere or a closed mesh (for a \
+                 point cloud, splats or a voxel image, sample the mesh that \
+                 sim::contact::surface::derived_surface makes of it, as scenes do)",
             )
         })?;
         let t = thickness.unwrap_or((area / count as f64).sqrt());
