@@ -19,7 +19,10 @@ const SPACING: f64 = 0.01;
 
 /// Whether `p` (metres, toy frame) is inside an ellipsoid of `radii` centred at `c`.
 fn in_ellipsoid(p: &Point3, c: Point3, radii: [f64; 3]) -> bool {
-    (0..3).map(|a| ((p[a] - c[a]) / radii[a]).powi(2)).sum::<f64>() <= 1.0
+    (0..3)
+        .map(|a| ((p[a] - c[a]) / radii[a]).powi(2))
+        .sum::<f64>()
+        <= 1.0
 }
 
 /// Whether `p` is inside the box of half-sizes `half` centred at the origin, its edges rounded

@@ -227,7 +227,11 @@ impl OccupancyGrid {
             }
             let c = self.ijk(n);
             for corner in 0..8 {
-                let v = [c[0] + (corner & 1), c[1] + ((corner >> 1) & 1), c[2] + (corner >> 2)];
+                let v = [
+                    c[0] + (corner & 1),
+                    c[1] + ((corner >> 1) & 1),
+                    c[2] + (corner >> 2),
+                ];
                 f[v[0] + nd[0] * (v[1] + nd[1] * v[2])] += 0.125;
             }
         }
@@ -421,7 +425,8 @@ mod tests {
                     let inb = q.iter().all(|&c| (0.0..1.0).contains(&c));
                     let on_wall = q.iter().any(|&c| !(0.1..0.9).contains(&c));
                     // A one-cell hole through the +x wall.
-                    let hole = q[0] > 0.9 && (q[1] - 0.55).abs() < 0.05 && (q[2] - 0.55).abs() < 0.05;
+                    let hole =
+                        q[0] > 0.9 && (q[1] - 0.55).abs() < 0.05 && (q[2] - 0.55).abs() < 0.05;
                     inb && on_wall && !hole
                 })
                 .collect()
@@ -438,7 +443,10 @@ mod tests {
         assert!(solid.is_closed());
         let v = solid.volume().unwrap();
         // The surface lies within a cell of the cells' faces (the unit cube's).
-        assert!(v > (1.0 - 2.0 * h).powi(3) && v < (1.0 + 2.0 * h).powi(3), "{v}");
+        assert!(
+            v > (1.0 - 2.0 * h).powi(3) && v < (1.0 + 2.0 * h).powi(3),
+            "{v}"
+        );
     }
 
     #[test]

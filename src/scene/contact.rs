@@ -11,6 +11,7 @@ use crate::sim::contact::pairs::candidates;
 use crate::sim::contact::samples::default_count;
 use crate::sim::contact::step::ContactWorld;
 use crate::sim::contact::surface::derived_surface;
+use crate::sim::contact::visible::{deepest_visible, SurfacePoints};
 use crate::sim::contact::{ContactSamples, ContactSettings};
 use crate::sim::motion::rotation_matrix;
 use crate::sim::{ReducedSim, StepReport};
@@ -19,6 +20,8 @@ use crate::{Error, Point3, Result};
 /// The contact state of a world.
 pub(super) struct WorldContact {
     world: ContactWorld,
+    /// Each object's own surface points, for the visible penetration (None: not covered).
+    surface: Vec<Option<SurfacePoints>>,
     tolerance: f64,
     warned: std::collections::BTreeSet<(usize, usize)>,
     pub(super) summary: ContactSummary,
@@ -143,6 +146,18 @@ impl WorldContact {
                     .then_some(settings.self_exclusion * 2.0 * s.thickness)
             })
             .collect();
+        // Points on each object's own surface about a sample spacing apart, edges and
+        // corners included (a surface the kernels do not cover is left unmeasured).
+        let surface: Vec<Option<SurfacePoints>> = objects
+            .iter()
+            .zip(&shapes)
+            .zip(&samples)
+            .map(|((o, shape), s)| {
+                let area: f64 = s.area.iter().sum();
+                let spacing = (area / s.len().max(1) as f64).sqrt();
+                shape.and_then(|sh| SurfacePoints::new(sh, o.basis(), spacing).ok())
+            })
+            .collect();
         let summary = ContactSummary {
             penetration_tolerance: settings.penetration_tolerance,
             samples: samples.iter().map(ContactSamples::len).collect(),
@@ -152,6 +167,12 @@ impl WorldContact {
             stiffness: stiffness.clone(),
             worst_penetration: 0.0,
             worst_penetration_fraction: 0.0,
+            worst_visible_penetration: 0.0,
+            worst_visible_penetration_fraction: 0.0,
+            surface_points: surface
+                .iter()
+                .map(|p| p.as_ref().map_or(0, SurfacePoints::len))
+                .collect(),
             steps_over_tolerance: 0,
             step_ms_mean: 0.0,
             steps: Vec::new(),
@@ -168,6 +189,7 @@ impl WorldContact {
                 self_exclusion,
                 settings.solver,
             ),
+            surface,
             tolerance: settings.penetration_tolerance,
             warned: Default::default(),
             summary,
@@ -270,6 +292,7 @@ impl WorldContact {
             .zip(objects.iter_mut())
             .map(|(r, o)| o.record(r, warnings))
             .collect();
+        let (visible, visible_fraction) = self.visible_penetration(objects);
         let mut row = ContactStepRow {
             step: reports.first().map_or(0, |r| r.step),
             wall_ms: 0.0,
@@ -278,6 +301,8 @@ impl WorldContact {
             sample_pairs_active: out.sample_pairs_active,
             penetration: out.penetration,
             penetration_fraction: out.penetration_fraction,
+            visible_penetration: visible,
+            visible_penetration_fraction: visible_fraction,
             islands: out.islands,
             regrouped: out.regrouped,
             stiffened: out.stiffened,
@@ -300,11 +325,38 @@ impl WorldContact {
         let s = &mut self.summary;
         s.worst_penetration = s.worst_penetration.max(row.penetration);
         s.worst_penetration_fraction = s.worst_penetration_fraction.max(row.penetration_fraction);
+        s.worst_visible_penetration = s.worst_visible_penetration.max(row.visible_penetration);
+        s.worst_visible_penetration_fraction = s
+            .worst_visible_penetration_fraction
+            .max(row.visible_penetration_fraction);
         row.wall_ms = sw.elapsed() * 1e3;
         let k = s.steps.len() as f64;
         s.step_ms_mean = (s.step_ms_mean * k + row.wall_ms) / (k + 1.0);
         s.steps.push(row);
         reports
+    }
+}
+
+impl WorldContact {
+    /// The deepest reach of an object's own surface points into another object's sample
+    /// envelope now: (metres, fraction of the smaller rest diagonal of the two).
+    fn visible_penetration(&self, objects: &[SceneObject]) -> (f64, f64) {
+        let surface: Vec<Vec<Point3>> = self
+            .surface
+            .iter()
+            .zip(objects)
+            .map(|(p, o)| p.as_ref().map_or_else(Vec::new, |p| p.positions(o.sim())))
+            .collect();
+        let n = objects.len();
+        let samples: Vec<&[Point3]> = (0..n).map(|i| self.world.positions(i)).collect();
+        let thickness: Vec<f64> = (0..n).map(|i| self.world.samples(i).thickness).collect();
+        match deepest_visible(&surface, &samples, &thickness) {
+            Some((depth, a, b)) if depth > 0.0 => {
+                let diag = objects[a].sim().diagonal().min(objects[b].sim().diagonal());
+                (depth, depth / diag)
+            }
+            _ => (0.0, 0.0),
+        }
     }
 }
 

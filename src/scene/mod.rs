@@ -48,7 +48,7 @@ mod world;
 
 pub use frames::{FrameObserver, FrameWriter};
 pub use gradient::WorldRecording;
-pub use object::{PreparedObject, SceneObject};
+pub use object::{PreparedObject, SceneObject, CONTACT_SURFACE_SET};
 pub use render_set::RenderSet;
 pub use report::{ContactStepRow, ContactSummary, ObjectSummary, RunSummary, StepRow};
 pub use run::run;

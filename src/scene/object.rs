@@ -460,7 +460,11 @@ impl SceneObject {
     /// # Errors
     /// A render input of that name already, or vertices the kernels do not cover.
     pub(super) fn add_contact_surface(&mut self, mesh: &crate::geometry::TriMesh) -> Result<()> {
-        if self.render_sets.iter().any(|s| s.name() == CONTACT_SURFACE_SET) {
+        if self
+            .render_sets
+            .iter()
+            .any(|s| s.name() == CONTACT_SURFACE_SET)
+        {
             return Err(Error::param(
                 "render",
                 CONTACT_SURFACE_SET,

@@ -155,6 +155,12 @@ pub struct ContactStepRow {
     pub penetration: f64,
     /// The same relative to the smaller rest diagonal of the two objects.
     pub penetration_fraction: f64,
+    /// Deepest reach of a point of an object's own surface (edges and corners included; the
+    /// derived surface of a cloud, splat or image object) into another object's sample
+    /// envelope at the end of the step, metres (0 when none reaches in).
+    pub visible_penetration: f64,
+    /// The same relative to the smaller rest diagonal of the two objects.
+    pub visible_penetration_fraction: f64,
     /// Sizes of the islands solved together (two or more objects, or one object in
     /// self-contact), largest first.
     pub islands: Vec<usize>,
@@ -198,6 +204,14 @@ pub struct ContactSummary {
     pub worst_penetration: f64,
     /// Worst penetration relative to the smaller diagonal of its two objects.
     pub worst_penetration_fraction: f64,
+    /// Worst visible penetration of the run (a surface point into another object, see
+    /// [`ContactStepRow::visible_penetration`]), metres.
+    pub worst_visible_penetration: f64,
+    /// The same relative to the smaller diagonal of its two objects.
+    pub worst_visible_penetration_fraction: f64,
+    /// Surface points per object the visible penetration is measured at (0: its surface is
+    /// not covered by its kernels, so it is not measured).
+    pub surface_points: Vec<usize>,
     /// Steps whose deepest penetration exceeded the tolerance.
     pub steps_over_tolerance: usize,
     /// Mean world step wall time, ms.

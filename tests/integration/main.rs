@@ -19,6 +19,7 @@ mod assembly;
 mod bad_inputs;
 mod boundary_modes;
 mod cli;
+mod cloud_contact;
 mod colliders;
 mod contact;
 mod eval_shapes;

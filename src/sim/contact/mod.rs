@@ -2,6 +2,7 @@
 //!
 //! - [`samples`]: contact samples on each object's surface with their skinning weights.
 //! - [`surface`]: the surface of the volume a point cloud or image occupies, for its samples.
+//! - [`visible`]: how deep an object's own surface points reach into another object.
 //! - [`pairs`]: the broad phase (object boxes, then a k-d tree over the samples; an object's
 //!   own samples for self-contact).
 //! - [`energy`]: the pair penalty with its gradient, Hessian and line-search step bound, in
@@ -24,6 +25,7 @@ pub mod samples;
 pub mod step;
 pub mod surface;
 pub mod system;
+pub mod visible;
 
 pub use energy::{Body, ContactStats, PairContact, PairHessian};
 pub use samples::ContactSamples;

@@ -35,7 +35,11 @@ pub fn derived_surface(shape: &Shape) -> Result<Option<TriMesh>> {
             grid
         }
         Shape::Image(image) => {
-            let h = image.spacing().into_iter().fold(f64::INFINITY, f64::min).max(floor);
+            let h = image
+                .spacing()
+                .into_iter()
+                .fold(f64::INFINITY, f64::min)
+                .max(floor);
             OccupancyGrid::from_inside(&image.bounding_box(), h, PAD, |c| image.contains(c))?
         }
     };
