@@ -696,9 +696,11 @@ impl PyWorld {
     /// (object boxes compared, n (n - 1) / 2) and ``object_pairs_near`` (boxes that met);
     /// ``sample_pairs_active`` (sample pairs within contact distance at the end of the
     /// step); ``penetration`` (deepest, metres) and ``penetration_fraction`` (of the smaller
-    /// rest bounding-box diagonal of the two objects); ``islands`` (sizes of the islands of
-    /// two or more objects, largest first), ``island_count``, ``largest_island`` (0 without
-    /// islands); ``regrouped`` (objects solved again); ``wall_ms`` (the world step, ms).
+    /// rest bounding-box diagonal of the two objects); ``visible_penetration`` and
+    /// ``visible_penetration_fraction`` (an object's own surface points); ``islands`` (sizes
+    /// of the islands of two or more objects, largest first), ``island_count``,
+    /// ``largest_island`` (0 without islands); ``regrouped`` (objects solved again);
+    /// ``wall_ms`` (the world step, ms).
     #[getter]
     fn contact<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
         let Some(row) = self.world.contact_summary().and_then(|s| s.steps.last()) else {
@@ -714,9 +716,11 @@ impl PyWorld {
     /// ``freeform run --json``'s ``contact`` (None without ``[contact]``): per-step rows as
     /// ``contact`` gives them (without the ``island_count`` and ``largest_island``
     /// shorthands), ``worst_penetration`` (metres), ``worst_penetration_fraction``,
-    /// ``steps_over_tolerance``, ``step_ms_mean`` (ms), per object ``samples`` and
-    /// ``thickness`` (metres), and the pair ``stiffness`` (Pa/m^2, objects x objects,
-    /// row-major).
+    /// ``worst_visible_penetration`` (metres) and ``worst_visible_penetration_fraction`` (an
+    /// object's own surface points into another object), ``steps_over_tolerance``,
+    /// ``step_ms_mean`` (ms), per object ``samples``, ``thickness`` (metres),
+    /// ``derived_surface_triangles`` (point clouds, splats and images; None for others) and
+    /// ``surface_points``, and the pair ``stiffness`` (Pa/m^2, objects x objects, row-major).
     fn contact_summary<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
         self.world
             .contact_summary()

@@ -341,15 +341,36 @@ impl WorldContact {
     /// The deepest reach of an object's own surface points into another object's sample
     /// envelope now: (metres, fraction of the smaller rest diagonal of the two).
     fn visible_penetration(&self, objects: &[SceneObject]) -> (f64, f64) {
-        let surface: Vec<Vec<Point3>> = self
-            .surface
-            .iter()
-            .zip(objects)
-            .map(|(p, o)| p.as_ref().map_or_else(Vec::new, |p| p.positions(o.sim())))
-            .collect();
         let n = objects.len();
         let samples: Vec<&[Point3]> = (0..n).map(|i| self.world.positions(i)).collect();
         let thickness: Vec<f64> = (0..n).map(|i| self.world.samples(i).thickness).collect();
+        // Surface points lie within t sqrt(3) of their samples (a box corner), so only objects
+        // whose sample boxes grown by 2t meet another's need theirs deformed.
+        let boxes: Vec<(Point3, Point3)> = samples
+            .iter()
+            .zip(&thickness)
+            .map(|(x, t)| {
+                let mut lo = [f64::INFINITY; 3];
+                let mut hi = [f64::NEG_INFINITY; 3];
+                for p in x.iter() {
+                    for d in 0..3 {
+                        lo[d] = lo[d].min(p[d] - 2.0 * t);
+                        hi[d] = hi[d].max(p[d] + 2.0 * t);
+                    }
+                }
+                (lo, hi)
+            })
+            .collect();
+        let meets = |a: usize, b: usize| {
+            let ((la, ha), (lb, hb)) = (boxes[a], boxes[b]);
+            (0..3).all(|d| la[d] <= hb[d] && lb[d] <= ha[d])
+        };
+        let surface: Vec<Vec<Point3>> = (0..n)
+            .map(|i| match &self.surface[i] {
+                Some(p) if (0..n).any(|j| j != i && meets(i, j)) => p.positions(objects[i].sim()),
+                _ => Vec::new(),
+            })
+            .collect();
         match deepest_visible(&surface, &samples, &thickness) {
             Some((depth, a, b)) if depth > 0.0 => {
                 let diag = objects[a].sim().diagonal().min(objects[b].sim().diagonal());
