@@ -68,6 +68,16 @@ $FF render "$WORK/plinko" --ground 0 --elevation 10 --azimuth 0 --every 6 --size
     --color none --out "$WORK/plinko_png"
 cp "$WORK/plinko_png/frame_000006.png" docs/img/plinko.png
 
+# Plinko with splat toys (examples/plinko_splats.toml): the derived contact surfaces of the 18
+# splat objects among the pegs, frame 12 (t = 0.6 s) of the first 60 steps.
+sed 's/^steps = 150$/steps = 60/' examples/plinko_splats.toml > examples/.plinko_splats60.toml
+grep -q '^steps = 60$' examples/.plinko_splats60.toml
+$FF run examples/.plinko_splats60.toml --out "$WORK/plinko_splats" > /dev/null
+rm examples/.plinko_splats60.toml
+$FF render "$WORK/plinko_splats" --ground 0 --elevation 15 --azimuth 20 --every 12 \
+    --size 640x480 --zoom 1.4 --out "$WORK/plinko_splats_png"
+cp "$WORK/plinko_splats_png/frame_000012.png" docs/img/plinko_splats.png
+
 # A splat object before and after: a beach ball of 3D Gaussians (docs/splats.md) dropped on
 # the floor. 16 000 flat surface splats (Fibonacci sphere, radius 0.3 m; axes along north,
 # east and the normal; six coloured gores and white caps, light baked in) and a grid of faint interior splats

@@ -471,7 +471,14 @@ impl SceneObject {
                 "the derived contact surface's frames carry this name; rename the render file",
             ));
         }
-        let set = RenderSet::derived(CONTACT_SURFACE_SET, &self.basis, mesh)?;
+        let set = RenderSet::derived(CONTACT_SURFACE_SET, &self.basis, mesh).map_err(|e| {
+            Error::Scene {
+                message: format!(
+                    "the contact surface derived from the object's points reaches where its                      kernels do not ({e}); raise {} so the supports reach a point spacing                      past the outermost points",
+                    crate::options::SUPPORT_FACTOR
+                ),
+            }
+        })?;
         self.render_sets.push(set);
         Ok(())
     }
