@@ -14,6 +14,7 @@
 //! marching cubes' ambiguous faces would need a disambiguation table to promise that.
 
 use super::{Aabb, GeometryError, ShapeOptions, TriMesh};
+use crate::linalg3::{cross, sub};
 use crate::Point3;
 use std::collections::HashMap;
 
@@ -325,7 +326,8 @@ impl OccupancyGrid {
                         let out = direction(&ins, &outs);
                         for t in 1..polygon.len() - 1 {
                             let mut tri = [polygon[0], polygon[t], polygon[t + 1]];
-                            let n = normal(&vertices, &tri);
+                            let [a, b, c] = tri.map(|v| vertices[v as usize]);
+                            let n = cross(&sub(&b, &a), &sub(&c, &a));
                             if n[0] * out[0] + n[1] * out[1] + n[2] * out[2] < 0.0 {
                                 tri.swap(1, 2);
                             }
@@ -353,18 +355,6 @@ fn too_many(h: f64, aabb: &Aabb) -> GeometryError {
          would have more than {MAX_CELLS} cells; use a coarser cell",
         aabb.diagonal()
     ))
-}
-
-/// (b - a) x (c - a) of a triangle of `v`.
-fn normal(v: &[Point3], t: &[u32; 3]) -> [f64; 3] {
-    let [a, b, c] = t.map(|i| v[i as usize]);
-    let e = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-    let f = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-    [
-        e[1] * f[2] - e[2] * f[1],
-        e[2] * f[0] - e[0] * f[2],
-        e[0] * f[1] - e[1] * f[0],
-    ]
 }
 
 #[cfg(test)]

@@ -3,7 +3,7 @@
 //! collision, a stack of three blocks at rest, and that scenes without `[contact]` step as
 //! before.
 
-use crate::common::no_cache;
+use crate::common::{assert_momentum_conserved, no_cache};
 use freeform::geometry::Shape;
 use freeform::material::Material;
 use freeform::progress::Silent;
@@ -37,29 +37,6 @@ fn block(name: &str, size: f64, at: [f64; 3], velocity: [f64; 3]) -> ObjectSpec 
 
 fn world(scene: &Scene) -> World {
     World::new(scene, &RunSettings::default(), &Silent).unwrap()
-}
-
-/// Linear momentum of every object, sum rho v xdot over the integration points, from the
-/// positions before and after the last step (kg m/s).
-fn momentum(w: &World, before: &[Vec<[f64; 3]>]) -> [f64; 3] {
-    let mut p = [0.0; 3];
-    for (o, x0) in w.objects().iter().zip(before) {
-        let x1 = o.integration_positions().unwrap();
-        let rho = o.spec().material.density;
-        for ((a, b), v) in x0.iter().zip(&x1).zip(&o.rest_points().volumes) {
-            for d in 0..3 {
-                p[d] += rho * v * (b[d] - a[d]) / w.dt();
-            }
-        }
-    }
-    p
-}
-
-fn positions(w: &World) -> Vec<Vec<[f64; 3]>> {
-    w.objects()
-        .iter()
-        .map(|o| o.integration_positions().unwrap())
-        .collect()
 }
 
 /// The gradient `g` and exact Hessian `h` of `contact`'s energy at `z` against central
@@ -300,35 +277,7 @@ fn a_head_on_collision_conserves_linear_momentum() {
         .build()
         .unwrap();
     let mut w = world(&scene);
-    // At a converged step the remaining Newton step delta has a mass-weighted RMS length
-    // below tol D per object, so the end state is off the exact minimiser by at most that:
-    // the momentum of each object is off by at most M tol D / h, per step.
-    let bound_per_step: f64 = w
-        .objects()
-        .iter()
-        .map(|o| o.sim().total_mass() * tol * o.sim().diagonal() / w.dt())
-        .sum();
-    let mut before = positions(&w);
-    w.step().unwrap();
-    let p0 = momentum(&w, &before);
-    let mut touched = 0;
-    for _ in 1..30 {
-        before = positions(&w);
-        w.step().unwrap();
-        let row = w.contact_summary().unwrap().steps.last().unwrap().clone();
-        touched += usize::from(row.sample_pairs_active > 0);
-    }
-    let p1 = momentum(&w, &before);
-    assert!(touched >= 2, "the blocks never touched");
-    for r in w.objects().iter().flat_map(|o| o.summary().steps.iter()) {
-        assert!(r.converged, "{r:?}");
-    }
-    let err = (0..3).map(|d| (p1[d] - p0[d]).abs()).fold(0.0, f64::max);
-    assert!(
-        err <= 30.0 * bound_per_step,
-        "momentum {p0:?} -> {p1:?}: change {err:.3e} > {:.3e}",
-        30.0 * bound_per_step
-    );
+    let before = assert_momentum_conserved(&mut w, tol, 30);
     // They did bounce: the first block now moves left or slower than before.
     let v_a = {
         let o = w.object(0);

@@ -111,13 +111,7 @@ fn triangle_area(v: &[Point3], t: &[u32; 3]) -> f64 {
 /// (b - a) x (c - a): twice the area along the outward normal.
 fn triangle_normal(v: &[Point3], t: &[u32; 3]) -> [f64; 3] {
     let [a, b, c] = t.map(|i| v[i as usize]);
-    let e = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-    let f = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-    [
-        e[1] * f[2] - e[2] * f[1],
-        e[2] * f[0] - e[0] * f[2],
-        e[0] * f[1] - e[1] * f[0],
-    ]
+    crate::linalg3::cross(&crate::linalg3::sub(&b, &a), &crate::linalg3::sub(&c, &a))
 }
 
 impl ContactSamples {
