@@ -22,8 +22,9 @@ print("""# 64 objects of eight kinds poured into an open-top container (0.9 x 0.
 # one-sided mesh collider of examples/container.toml): boxes, balls, tori and L-prisms (closed
 # meshes) and four synthetic Gaussian-splat toys (examples/data/splats: blocks, eggs, dog toys
 # and slabs, whose contact samples lie on the surface derived from their splat centres).
-# They start in 8 layers of 4 x 2, 0.17 m apart, and settle in 1.2 s. Written by
-# scripts/pour_scene.py; docs/performance.md has its measurements.
+# They start in 8 layers of 4 x 2, 0.17 m apart; 120 steps of 10 ms. Written by
+# scripts/pour_scene.py; docs/performance.md has its measurements (slow: islands of up to
+# 64 objects take tens of seconds a step on 2 cores).
 #   cargo run --release -- run examples/pour64.toml --out out/pour64 --json > pour64.json
 #   cargo run --release -- render out/pour64 --elevation 40
 

@@ -256,3 +256,28 @@ fn flat_and_degenerate_clouds_are_refused_with_the_reason() {
     let e = e.to_string();
     assert!(e.contains("coincide") || e.contains("duplicate"), "{e}");
 }
+
+/// The splat container scene (13 synthetic splat toys, examples/data/splats) sets up with a
+/// derived surface for every object and takes its first steps without a warning.
+#[test]
+fn the_splat_container_scene_sets_up_and_steps() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples");
+    let mut scene = freeform::scene::Scene::load(&dir.join("container_splats.toml")).unwrap();
+    scene.simulation.steps = 3;
+    scene.cache = no_cache();
+    let settings = RunSettings {
+        base_dir: dir,
+        ..RunSettings::default()
+    };
+    let mut w = World::new(&scene, &settings, &Silent).unwrap();
+    for _ in 0..3 {
+        w.step().unwrap();
+    }
+    let c = w.contact_summary().unwrap();
+    assert_eq!(c.derived_surface_triangles.len(), 13);
+    assert!(c
+        .derived_surface_triangles
+        .iter()
+        .all(|t| t.is_some_and(|n| n > 1000)));
+    assert!(w.warnings().is_empty(), "{:?}", w.warnings());
+}

@@ -82,12 +82,15 @@ fn example_scenes_parse() {
         "plinko.toml",
         "container.toml",
         "self_contact.toml",
+        "plinko_splats.toml",
+        "container_splats.toml",
+        "pour64.toml",
     ] {
         let s = Scene::load(&dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert!(!s.objects.is_empty());
         n += 1;
     }
-    assert_eq!(n, 9);
+    assert_eq!(n, 12);
     // Self-contact: on for the clip, with a thickness below half its 0.1 m slot.
     let clip = Scene::load(&dir.join("self_contact.toml")).unwrap();
     let contact = clip.contact.as_ref().unwrap();
