@@ -13,7 +13,7 @@ use crate::io::splat::{MovedSplats, Splats};
 use crate::linalg3::Mat3;
 
 /// The render set name of a point cloud's, splat object's or image object's derived contact
-/// surface in a `[contact]` scene: its frames are `<object>_contact_surface.NNNN.<ext>`.
+/// surface in a `[contact]` scene: its frames are `<object>_contact_surface_NNNNNN.<ext>`.
 pub const CONTACT_SURFACE_SET: &str = "contact_surface";
 use crate::material::MaterialField;
 use crate::precompute::sampling::IntegrationPoints;
