@@ -116,16 +116,6 @@ impl OccupancyGrid {
         Ok(grid)
     }
 
-    /// Cells per axis (padding included).
-    pub fn dims(&self) -> [usize; 3] {
-        self.dims
-    }
-
-    /// Cell edge, metres.
-    pub fn cell(&self) -> f64 {
-        self.h
-    }
-
     /// Number of occupied cells.
     pub fn occupied(&self) -> usize {
         self.cells.iter().filter(|&&c| c).count()
@@ -266,6 +256,14 @@ impl OccupancyGrid {
                 (vertices.len() - 1) as u32
             })
         };
+        let mean_position = |nodes: &[usize]| {
+            let mut m = [0.0; 3];
+            for &n in nodes {
+                let p = position(n);
+                (0..3).for_each(|a| m[a] += p[a] / nodes.len() as f64);
+            }
+            m
+        };
         const PERMUTATIONS: [[usize; 3]; 6] = [
             [0, 1, 2],
             [0, 2, 1],
@@ -294,36 +292,32 @@ impl OccupancyGrid {
                             tet[s + 1] = c;
                         }
                         let tet = tet.map(|c| corners[c]);
-                        let (ins, outs): (Vec<usize>, Vec<usize>) =
-                            tet.iter().partition(|&&n| field[n] > ISO_LEVEL);
-                        let direction = |ins: &[usize], outs: &[usize]| {
-                            let mean = |s: &[usize]| {
-                                let mut m = [0.0; 3];
-                                for &n in s {
-                                    let p = position(n);
-                                    (0..3).for_each(|a| m[a] += p[a] / s.len() as f64);
-                                }
-                                m
-                            };
-                            let (a, b) = (mean(ins), mean(outs));
-                            [0, 1, 2].map(|x| b[x] - a[x])
-                        };
-                        let polygon: Vec<u32> = match (ins.len(), outs.len()) {
-                            (1, 3) => outs
-                                .iter()
-                                .map(|&o| crossing(ins[0], o, &mut vertices))
-                                .collect(),
-                            (3, 1) => ins
-                                .iter()
-                                .map(|&i| crossing(i, outs[0], &mut vertices))
-                                .collect(),
-                            (2, 2) => [(0, 0), (0, 1), (1, 1), (1, 0)]
-                                .iter()
-                                .map(|&(a, b)| crossing(ins[a], outs[b], &mut vertices))
-                                .collect(),
+                        // The tetrahedron's nodes inside and outside the level set.
+                        let (mut ins, mut outs) = ([0usize; 4], [0usize; 4]);
+                        let (mut ni, mut no) = (0, 0);
+                        for n in tet {
+                            if field[n] > ISO_LEVEL {
+                                (ins[ni], ni) = (n, ni + 1);
+                            } else {
+                                (outs[no], no) = (n, no + 1);
+                            }
+                        }
+                        let (ins, outs) = (&ins[..ni], &outs[..no]);
+                        // Its cut: a triangle (one node apart) or a quad (two and two).
+                        let mut polygon = [0u32; 4];
+                        let corners_of_cut: &[(usize, usize)] = match (ni, no) {
+                            (1, 3) => &[(0, 0), (0, 1), (0, 2)],
+                            (3, 1) => &[(0, 0), (1, 0), (2, 0)],
+                            (2, 2) => &[(0, 0), (0, 1), (1, 1), (1, 0)],
                             _ => continue,
                         };
-                        let out = direction(&ins, &outs);
+                        for (v, &(a, b)) in polygon.iter_mut().zip(corners_of_cut) {
+                            *v = crossing(ins[a], outs[b], &mut vertices);
+                        }
+                        let polygon = &polygon[..corners_of_cut.len()];
+                        // Outward: from the inside nodes' mean towards the outside nodes'.
+                        let (a, b) = (mean_position(ins), mean_position(outs));
+                        let out = sub(&b, &a);
                         for t in 1..polygon.len() - 1 {
                             let mut tri = [polygon[0], polygon[t], polygon[t + 1]];
                             let [a, b, c] = tri.map(|v| vertices[v as usize]);

@@ -5,7 +5,7 @@
 
 use super::object::SceneObject;
 use super::report::{ContactStepRow, ContactSummary};
-use crate::geometry::Shape;
+use crate::geometry::{Aabb, Shape};
 use crate::report::{Stopwatch, Warning};
 use crate::sim::contact::pairs::candidates;
 use crate::sim::contact::samples::default_count;
@@ -335,9 +335,7 @@ impl WorldContact {
         s.steps.push(row);
         reports
     }
-}
 
-impl WorldContact {
     /// The deepest reach of an object's own surface points into another object's sample
     /// envelope now: (metres, fraction of the smaller rest diagonal of the two).
     fn visible_penetration(&self, objects: &[SceneObject]) -> (f64, f64) {
@@ -345,25 +343,14 @@ impl WorldContact {
         let samples: Vec<&[Point3]> = (0..n).map(|i| self.world.positions(i)).collect();
         let thickness: Vec<f64> = (0..n).map(|i| self.world.samples(i).thickness).collect();
         // Surface points lie within t sqrt(3) of their samples (a box corner), so only objects
-        // whose sample boxes grown by 2t meet another's need theirs deformed.
-        let boxes: Vec<(Point3, Point3)> = samples
-            .iter()
-            .zip(&thickness)
-            .map(|(x, t)| {
-                let mut lo = [f64::INFINITY; 3];
-                let mut hi = [f64::NEG_INFINITY; 3];
-                for p in x.iter() {
-                    for d in 0..3 {
-                        lo[d] = lo[d].min(p[d] - 2.0 * t);
-                        hi[d] = hi[d].max(p[d] + 2.0 * t);
-                    }
-                }
-                (lo, hi)
-            })
-            .collect();
-        let meets = |a: usize, b: usize| {
-            let ((la, ha), (lb, hb)) = (boxes[a], boxes[b]);
-            (0..3).all(|d| la[d] <= hb[d] && lb[d] <= ha[d])
+        // whose sample boxes come within 2 (t_a + t_b) of another's need theirs deformed.
+        let boxes: Vec<Option<Aabb>> = samples.iter().map(|x| Aabb::from_points(x)).collect();
+        let meets = |a: usize, b: usize| match (boxes[a], boxes[b]) {
+            (Some(p), Some(q)) => {
+                let r = 2.0 * (thickness[a] + thickness[b]);
+                (0..3).all(|d| p.min[d] <= q.max[d] + r && q.min[d] <= p.max[d] + r)
+            }
+            _ => false,
         };
         let surface: Vec<Vec<Point3>> = (0..n)
             .map(|i| match &self.surface[i] {

@@ -11,10 +11,6 @@ use super::spec::{ObjectSpec, Scene};
 use crate::geometry::{PointCloud, Shape, ShapeOptions, ShapeSpec, UpAxis};
 use crate::io::splat::{MovedSplats, Splats};
 use crate::linalg3::Mat3;
-
-/// The render set name of a point cloud's, splat object's or image object's derived contact
-/// surface in a `[contact]` scene: its frames are `<object>_contact_surface_NNNNNN.<ext>`.
-pub const CONTACT_SURFACE_SET: &str = "contact_surface";
 use crate::material::MaterialField;
 use crate::precompute::sampling::IntegrationPoints;
 use crate::precompute::skinning::{Basis, SkinningWeights};
@@ -26,6 +22,10 @@ use crate::sim::{ReducedSim, SimOptions, StepReport};
 use crate::{Error, Point3, Result};
 use std::sync::Arc;
 use std::sync::OnceLock;
+
+/// The render set name of a point cloud's, splat object's or image object's derived contact
+/// surface in a `[contact]` scene: its frames are `<object>_contact_surface_NNNNNN.<ext>`.
+pub const CONTACT_SURFACE_SET: &str = "contact_surface";
 
 /// The points an object is drawn with: the mesh's vertices, a point cloud's points, or (for
 /// primitives) the integration points; rest positions with their skinning weights.
@@ -474,7 +474,9 @@ impl SceneObject {
         let set = RenderSet::derived(CONTACT_SURFACE_SET, &self.basis, mesh).map_err(|e| {
             Error::Scene {
                 message: format!(
-                    "the contact surface derived from the object's points reaches where its                      kernels do not ({e}); raise {} so the supports reach a point spacing                      past the outermost points",
+                    "the contact surface derived from the object's points reaches where its \
+                     kernels do not ({e}); raise {} so the supports reach a point spacing \
+                     past the outermost points",
                     crate::options::SUPPORT_FACTOR
                 ),
             }

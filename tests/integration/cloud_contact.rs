@@ -42,15 +42,8 @@ fn material() -> Material {
     }
 }
 
-/// A point-cloud object from `points`, written to `dir/<name>.ply`.
-fn cloud(dir: &Path, name: &str, points: &[Point3], at: Point3, v: Point3) -> ObjectSpec {
-    let file = dir.join(format!("{name}.ply"));
-    write_ply_points(&file, points, &[]).unwrap();
-    let mut o = ObjectSpec::new(name, &file.to_string_lossy())
-        .unwrap()
-        .kernels(40)
-        .modes(3)
-        .material(material());
+/// `o` placed at `at` (metres) moving at `v` (m/s), with 300 contact samples.
+fn placed(mut o: ObjectSpec, at: Point3, v: Point3) -> ObjectSpec {
     o.placement = Placement {
         translation: at,
         velocity: v,
@@ -60,20 +53,26 @@ fn cloud(dir: &Path, name: &str, points: &[Point3], at: Point3, v: Point3) -> Ob
     o
 }
 
+/// A point-cloud object from `points`, written to `dir/<name>.ply`.
+fn cloud(dir: &Path, name: &str, points: &[Point3], at: Point3, v: Point3) -> ObjectSpec {
+    let file = dir.join(format!("{name}.ply"));
+    write_ply_points(&file, points, &[]).unwrap();
+    let o = ObjectSpec::new(name, &file.to_string_lossy())
+        .unwrap()
+        .kernels(40)
+        .modes(3)
+        .material(material());
+    placed(o, at, v)
+}
+
 fn block(name: &str, size: f64, at: Point3, v: Point3) -> ObjectSpec {
-    let mut o = ObjectSpec::new(name, &format!("box:{size},{size},{size}"))
+    let o = ObjectSpec::new(name, &format!("box:{size},{size},{size}"))
         .unwrap()
         .kernels(30)
         .modes(3)
         .points(1500)
         .material(material());
-    o.placement = Placement {
-        translation: at,
-        velocity: v,
-        ..Placement::default()
-    };
-    o.contact_samples = Some(300);
-    o
+    placed(o, at, v)
 }
 
 /// A point-cloud block and a box meet head-on without gravity or friction: the total linear

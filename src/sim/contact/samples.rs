@@ -5,6 +5,7 @@
 //! render sets), so its position is x = X + B(X) z like any point of the object.
 
 use crate::geometry::Shape;
+use crate::linalg3::{cross, sub};
 use crate::precompute::skinning::Basis;
 use crate::sim::collider::{MeshObstacle, Sided};
 use crate::sim::elastic::Layout;
@@ -111,7 +112,7 @@ fn triangle_area(v: &[Point3], t: &[u32; 3]) -> f64 {
 /// (b - a) x (c - a): twice the area along the outward normal.
 fn triangle_normal(v: &[Point3], t: &[u32; 3]) -> [f64; 3] {
     let [a, b, c] = t.map(|i| v[i as usize]);
-    crate::linalg3::cross(&crate::linalg3::sub(&b, &a), &crate::linalg3::sub(&c, &a))
+    cross(&sub(&b, &a), &sub(&c, &a))
 }
 
 impl ContactSamples {

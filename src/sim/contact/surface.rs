@@ -25,7 +25,7 @@ const PAD: usize = 3;
 /// sparse or thin for its cells, or the image has no filled voxel thick enough.
 pub fn derived_surface(shape: &Shape) -> Result<Option<TriMesh>> {
     let floor = shape.bounding_box().diagonal() / SURFACE_CELLS_PER_DIAGONAL;
-    let grid = match shape {
+    let mut grid = match shape {
         Shape::Box { .. } | Shape::Sphere { .. } | Shape::Mesh(_) => return Ok(None),
         Shape::PointCloud(cloud) => {
             let points = cloud.points();
@@ -43,7 +43,6 @@ pub fn derived_surface(shape: &Shape) -> Result<Option<TriMesh>> {
             OccupancyGrid::from_inside(&image.bounding_box(), h, PAD, |c| image.contains(c))?
         }
     };
-    let mut grid = grid;
     grid.fill_cavities();
     let mesh = grid.surface().map_err(|e| {
         Error::param(
