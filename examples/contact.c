@@ -5,12 +5,17 @@
  *   contact K enabled E tested T near N active A penetration P fraction F islands I
  *     largest L regrouped R
  *
- * (one line; P in metres, F relative to the smaller rest diagonal of the two objects), then
+ * (one line; P in metres, F relative to the smaller rest diagonal of the two objects) and the
+ * visible penetration (ff_world_visible_penetration: surface points, not samples)
  *
- *   worst P F over S
+ *   visible K P F
  *
- * the run's worst penetration (metres, fraction) and the steps above the tolerance. A scene
- * without [contact] prints zeros (enabled 0).
+ * then
+ *
+ *   worst P F over S visible P F
+ *
+ * the run's worst penetration (metres, fraction), the steps above the tolerance and the run's
+ * worst visible penetration. A scene without [contact] prints zeros (enabled 0).
  *
  *   cargo build --release -p freeform-capi
  *   cc examples/contact.c -Iffi/include target/release/libfreeform_capi.a -lm -lpthread -ldl \
@@ -38,9 +43,12 @@ int main(int argc, char **argv) {
     }
     ff_contact_report c;
     memset(&c, 0, sizeof c);
+    ff_visible_penetration v;
+    memset(&v, 0, sizeof v);
     for (int k = 1; k <= steps; k++) {
         rc = ff_world_step(w);
         if (rc == FF_OK) rc = ff_world_contact_report(w, &c);
+        if (rc == FF_OK) rc = ff_world_visible_penetration(w, &v);
         if (rc != FF_OK) {
             fprintf(stderr, "step %d failed (%d): %s\n", k, rc, ff_last_error());
             ff_world_free(w);
@@ -51,9 +59,11 @@ int main(int argc, char **argv) {
                c.step, c.enabled, c.object_pairs_tested, c.object_pairs_near,
                c.sample_pairs_active, c.penetration, c.penetration_fraction, c.islands,
                c.largest_island, c.regrouped);
+        printf("visible %zu %.17g %.17g\n", v.step, v.penetration, v.penetration_fraction);
     }
-    printf("worst %.17g %.17g over %zu\n", c.worst_penetration, c.worst_penetration_fraction,
-           c.steps_over_tolerance);
+    printf("worst %.17g %.17g over %zu visible %.17g %.17g\n", c.worst_penetration,
+           c.worst_penetration_fraction, c.steps_over_tolerance, v.worst_penetration,
+           v.worst_penetration_fraction);
     ff_world_free(w);
     return 0;
 }

@@ -109,6 +109,32 @@ pub struct FfContactReport {
     pub steps_over_tolerance: usize,
 }
 
+/// The visible penetration of the world's last step and the worst of the run (C struct
+/// `ff_visible_penetration`), from [`ff_world_visible_penetration`]: each object's own surface
+/// points (box faces with their edges and corners, sphere lattice, mesh vertices, the
+/// derived surface of a cloud, splat or image) against the other objects' contact sample
+/// envelopes, as [`freeform::scene::ContactStepRow::visible_penetration`] describes; the
+/// contact samples' own figure is [`FfContactReport::penetration`]. All zero without
+/// `[contact]` (`enabled` 0) and before the first step (`step` 0).
+///
+/// A struct of its own, not new fields of [`FfContactReport`], which C callers allocate.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FfVisiblePenetration {
+    /// 1 if the scene has a `[contact]` section, else 0.
+    pub enabled: c_int,
+    /// Step number the figures are for, 1-based (0 before the first step or without contact).
+    pub step: usize,
+    /// Deepest surface point behind another object's samples at the end of the step, metres.
+    pub penetration: f64,
+    /// The same relative to the smaller rest bounding-box diagonal of the two objects.
+    pub penetration_fraction: f64,
+    /// The deepest of the run so far, metres.
+    pub worst_penetration: f64,
+    /// The deepest of the run so far relative to the smaller diagonal of its two objects.
+    pub worst_penetration_fraction: f64,
+}
+
 type CResult<T> = Result<T, (Status, String)>;
 
 /// [`guard`] with the function's name before every error message. Messages formatted inside
@@ -355,6 +381,36 @@ pub unsafe extern "C" fn ff_world_contact_report(
             }
         }
         // SAFETY: checked non-NULL; the caller provides a writable ff_contact_report.
+        unsafe { *out = rep };
+        Ok(())
+    })
+}
+
+/// The visible penetration of the last world step and the worst of the run into `*out` (see
+/// [`FfVisiblePenetration`]). Never an error for a valid world: a scene without `[contact]`
+/// gives all zeros with `enabled` 0, and a step count of 0 means no step was taken yet.
+#[no_mangle]
+pub unsafe extern "C" fn ff_world_visible_penetration(
+    world: *const FfWorld,
+    out: *mut FfVisiblePenetration,
+) -> c_int {
+    call("ff_world_visible_penetration", || {
+        let w = unsafe { world_ref(world)? };
+        if out.is_null() {
+            return Err((Status::NullPointer, "out is NULL".into()));
+        }
+        let mut rep = FfVisiblePenetration::default();
+        if let Some(s) = w.world.contact_summary() {
+            rep.enabled = 1;
+            rep.worst_penetration = s.worst_visible_penetration;
+            rep.worst_penetration_fraction = s.worst_visible_penetration_fraction;
+            if let Some(row) = s.steps.last() {
+                rep.step = row.step;
+                rep.penetration = row.visible_penetration;
+                rep.penetration_fraction = row.visible_penetration_fraction;
+            }
+        }
+        // SAFETY: checked non-NULL; the caller provides a writable ff_visible_penetration.
         unsafe { *out = rep };
         Ok(())
     })

@@ -1,8 +1,8 @@
 //! Object-object contact reports through C: compiles `examples/contact.c` against the static
 //! library, runs it on a two-block contact scene and checks every printed number against
 //! [`World::contact_summary`] on the same scene (a separate process: the same numbers bit for
-//! bit); a scene without `[contact]` reports zeros; the NULL paths of
-//! `ff_world_contact_report`.
+//! bit), the visible penetration (`ff_world_visible_penetration`) likewise; a scene without
+//! `[contact]` reports zeros; the NULL paths of both.
 
 use freeform::progress::Silent;
 use freeform::scene::{RunSettings, Scene, World};
@@ -18,11 +18,23 @@ const STEPS: usize = 8;
 
 /// A 0.2 m block resting on a floor and a second one 1 cm above it falling at 1 m/s: they
 /// meet within two steps of 10 ms and stay in contact. Small (30 kernels, 3 modes) so the
-/// test runs in about a second. `contact` false leaves out the `[contact]` section.
-fn scene(dir: &Path, contact: bool) -> PathBuf {
-    let path = dir.join(if contact { "two.toml" } else { "apart.toml" });
+/// test runs in about a second. `contact` false leaves out the `[contact]` section; `tilted`
+/// turns the upper block 30 degrees about z (its lower corner where it was), so that it lands
+/// on an edge.
+fn scene(dir: &Path, contact: bool, tilted: bool) -> PathBuf {
+    let name = match (contact, tilted) {
+        (true, false) => "two.toml",
+        (true, true) => "tilted.toml",
+        (false, _) => "apart.toml",
+    };
+    let path = dir.join(name);
     let section = if contact {
         "[contact]\nfriction = 0.3\n"
+    } else {
+        ""
+    };
+    let rotation = if tilted {
+        ", rotation = { axis = [0.0, 0.0, 1.0], degrees = 30.0 }"
     } else {
         ""
     };
@@ -57,7 +69,7 @@ shape = "box:0.2,0.2,0.2"
 material = {{ youngs = 1e6, poisson = 0.3, density = 500.0 }}
 basis = {{ kernels = 30, modes = 3, points = 1500 }}
 contact_samples = 300
-placement = {{ translation = [0.02, 0.21, 0.0], velocity = [0.0, -1.0, 0.0] }}
+placement = {{ translation = [0.02, 0.21, 0.0], velocity = [0.0, -1.0, 0.0]{rotation} }}
 
 [[collider]]
 shape = {{ plane = {{ point = [0.0, 0.0, 0.0], normal = [0.0, 1.0, 0.0] }} }}
@@ -81,10 +93,15 @@ struct Row {
     islands: usize,
     largest: usize,
     regrouped: usize,
+    /// The `visible` line after it: step, metres, fraction.
+    visible: (usize, f64, f64),
 }
 
-/// The `contact` rows and the `worst` line (metres, fraction, steps over tolerance).
-fn parse(stdout: &str) -> (Vec<Row>, (f64, f64, usize)) {
+/// The run's worst: metres, fraction, steps over tolerance; visible metres, fraction.
+type Worst = (f64, f64, usize, f64, f64);
+
+/// The `contact` rows (each with the `visible` line after it) and the `worst` line.
+fn parse(stdout: &str) -> (Vec<Row>, Worst) {
     let mut rows = Vec::new();
     let mut worst = None;
     for line in stdout.lines() {
@@ -103,8 +120,12 @@ fn parse(stdout: &str) -> (Vec<Row>, (f64, f64, usize)) {
                 islands: int(15),
                 largest: int(17),
                 regrouped: int(19),
+                visible: (0, f64::NAN, f64::NAN),
             }),
-            Some("worst") => worst = Some((num(1), num(2), int(4))),
+            Some("visible") => {
+                rows.last_mut().expect("a contact line first").visible = (int(1), num(2), num(3))
+            }
+            Some("worst") => worst = Some((num(1), num(2), int(4), num(6), num(7))),
             _ => {}
         }
     }
@@ -112,7 +133,7 @@ fn parse(stdout: &str) -> (Vec<Row>, (f64, f64, usize)) {
 }
 
 /// The same scene stepped by the Rust `World`: its contact summary as rows.
-fn rust_rows(path: &Path) -> (Vec<Row>, (f64, f64, usize)) {
+fn rust_rows(path: &Path) -> (Vec<Row>, Worst) {
     let scene = Scene::load(path).unwrap();
     let mut world = World::new(&scene, &RunSettings::for_scene_file(path), &Silent).unwrap();
     for _ in 0..STEPS {
@@ -130,8 +151,12 @@ fn rust_rows(path: &Path) -> (Vec<Row>, (f64, f64, usize)) {
             islands: 0,
             largest: 0,
             regrouped: 0,
+            visible: (0, 0.0, 0.0),
         };
-        return ((0..STEPS).map(|_| zero(0)).collect(), (0.0, 0.0, 0));
+        return (
+            (0..STEPS).map(|_| zero(0)).collect(),
+            (0.0, 0.0, 0, 0.0, 0.0),
+        );
     };
     let rows = s
         .steps
@@ -147,6 +172,11 @@ fn rust_rows(path: &Path) -> (Vec<Row>, (f64, f64, usize)) {
             islands: r.islands.len(),
             largest: r.islands.iter().copied().max().unwrap_or(0),
             regrouped: r.regrouped,
+            visible: (
+                r.step,
+                r.visible_penetration,
+                r.visible_penetration_fraction,
+            ),
         })
         .collect();
     (
@@ -155,6 +185,8 @@ fn rust_rows(path: &Path) -> (Vec<Row>, (f64, f64, usize)) {
             s.worst_penetration,
             s.worst_penetration_fraction,
             s.steps_over_tolerance,
+            s.worst_visible_penetration,
+            s.worst_visible_penetration_fraction,
         ),
     )
 }
@@ -163,7 +195,7 @@ fn rust_rows(path: &Path) -> (Vec<Row>, (f64, f64, usize)) {
 fn c_contact_reports_equal_the_rust_world_and_are_zero_without_contact() {
     let dir = tempfile::tempdir().unwrap();
     let steps = STEPS.to_string();
-    let with = scene(dir.path(), true);
+    let with = scene(dir.path(), true, false);
     let stdout = compile_and_run("contact", dir.path(), &[&with, Path::new(&steps)]);
     let (c_rows, c_worst) = parse(&stdout);
     let (r_rows, r_worst) = rust_rows(&with);
@@ -181,22 +213,83 @@ fn c_contact_reports_equal_the_rust_world_and_are_zero_without_contact() {
         "{stdout}"
     );
     assert!(c_worst.0 > 0.0, "{stdout}");
+    // Every step reports its visible figure (equal to the Rust world's below; 0 here: the
+    // faces meet flat, and the samples' envelopes stay inside them).
+    assert!(
+        c_rows
+            .iter()
+            .all(|r| r.visible.0 == r.step && r.visible.1.is_finite()),
+        "{stdout}"
+    );
     // Same library, same scene, same thread count, and %.17g round-trips a double: every
     // number equals the Rust world's exactly (no arithmetic differs between the paths).
     assert_eq!(c_rows, r_rows);
     assert_eq!(c_worst, r_worst);
 
     // Without [contact]: every field zero, enabled 0, whatever the objects do.
-    let apart = scene(dir.path(), false);
+    let apart = scene(dir.path(), false, false);
     let stdout = compile_and_run("contact", dir.path(), &[&apart, Path::new(&steps)]);
     let (c_rows, c_worst) = parse(&stdout);
     assert_eq!((c_rows, c_worst), rust_rows(&apart), "{stdout}");
 }
 
+/// A block landing on an edge: its edge stands past its own samples' envelope, so the visible
+/// figure is positive once the blocks touch; C reports it as the Rust world does, exactly.
+#[test]
+fn c_visible_penetration_equals_the_rust_world_on_an_edge_impact() {
+    let dir = tempfile::tempdir().unwrap();
+    let steps = STEPS.to_string();
+    let tilted = scene(dir.path(), true, true);
+    let stdout = compile_and_run("contact", dir.path(), &[&tilted, Path::new(&steps)]);
+    let (c_rows, c_worst) = parse(&stdout);
+    assert!(c_worst.3 > 0.0 && c_worst.4 > 0.0, "{stdout}");
+    assert!(c_rows.iter().any(|r| r.visible.1 > 0.0), "{stdout}");
+    assert_eq!((c_rows, c_worst), rust_rows(&tilted));
+}
+
+#[test]
+fn visible_penetration_checks_its_pointers_and_is_zero_before_the_first_step() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = CString::new(scene(dir.path(), true, false).to_str().unwrap()).unwrap();
+    let mut w: *mut FfWorld = null_mut();
+    unsafe {
+        assert_eq!(ff_world_open(path.as_ptr(), 0, &mut w), 0);
+        let mut rep = FfVisiblePenetration {
+            step: 99,
+            penetration: 1.0,
+            ..FfVisiblePenetration::default()
+        };
+        assert_eq!(ff_world_visible_penetration(w, &mut rep), 0);
+        assert_eq!(
+            rep,
+            FfVisiblePenetration {
+                enabled: 1,
+                ..FfVisiblePenetration::default()
+            }
+        );
+        assert_eq!(
+            ff_world_visible_penetration(std::ptr::null(), &mut rep),
+            Status::NullPointer as i32
+        );
+        let msg = CStr::from_ptr(ff_last_error()).to_string_lossy();
+        assert!(
+            msg.contains("ff_world_visible_penetration: world is NULL"),
+            "{msg}"
+        );
+        assert_eq!(
+            ff_world_visible_penetration(w, null_mut()),
+            Status::NullPointer as i32
+        );
+        let msg = CStr::from_ptr(ff_last_error()).to_string_lossy();
+        assert!(msg.contains("out is NULL"), "{msg}");
+        ff_world_free(w);
+    }
+}
+
 #[test]
 fn contact_report_checks_its_pointers_and_is_zero_before_the_first_step() {
     let dir = tempfile::tempdir().unwrap();
-    let path = CString::new(scene(dir.path(), true).to_str().unwrap()).unwrap();
+    let path = CString::new(scene(dir.path(), true, false).to_str().unwrap()).unwrap();
     let mut w: *mut FfWorld = null_mut();
     unsafe {
         assert_eq!(ff_world_open(path.as_ptr(), 0, &mut w), 0);

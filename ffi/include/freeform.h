@@ -140,6 +140,20 @@ typedef struct ff_contact_report {
     size_t steps_over_tolerance;       /* steps deeper than contact.penetration_tolerance */
 } ff_contact_report;
 
+/* The visible penetration ([contact] scenes) of the last world step and the worst of the run
+ * (see ff_world_visible_penetration): each object's own surface points (box faces with their
+ * edges and corners, sphere lattice, mesh vertices, the derived surface of a cloud, splat or
+ * image) behind another object's contact samples. ff_contact_report's penetration is the
+ * samples' own figure. A struct of its own: ff_contact_report keeps its layout. */
+typedef struct ff_visible_penetration {
+    int enabled;                       /* 1 if the scene has a [contact] section, else 0 */
+    size_t step;                       /* step of the figures, 1-based; 0 before the first */
+    double penetration;                /* deepest surface point at the step's end, metres */
+    double penetration_fraction;       /* the same / smaller rest diagonal of the two objects */
+    double worst_penetration;          /* the deepest of the run so far, metres */
+    double worst_penetration_fraction; /* the same / smaller diagonal of its two objects */
+} ff_visible_penetration;
+
 /* Open the scene file scene_path and set up every object (basis from the scene's cache or
  * computed, reduced model, render points), as `freeform run` does: relative paths in the
  * scene resolve against the scene file's directory; no frames are written, nothing is
@@ -165,6 +179,10 @@ int ff_world_step_report(const ff_world *world, size_t object, ff_step_report *o
 /* Object-object contact of the last world step and the worst of the run into *out. A scene
  * without [contact] gives all zeros (enabled 0); before the first step, step is 0. */
 int ff_world_contact_report(const ff_world *world, ff_contact_report *out);
+
+/* The visible penetration of the last world step and the worst of the run into *out. A scene
+ * without [contact] gives all zeros (enabled 0); before the first step, step is 0. */
+int ff_world_visible_penetration(const ff_world *world, ff_visible_penetration *out);
 
 /* Steps of object `object` that did not converge so far (0 for NULL or a bad index). */
 size_t ff_world_nonconverged_steps(const ff_world *world, size_t object);
