@@ -4,9 +4,9 @@
 //! the contact energy between them; it is minimised by Newton with the contact step bound in
 //! the line search, from a start that the same bound keeps on the safe side of the previous
 //! state. The Newton system keeps its block structure (one block per object, coupling blocks
-//! only between objects in contact; [`super::system`]) and is solved by block-Jacobi
-//! preconditioned conjugate gradients, or densely on request ([`IslandSolver::Dense`], the
-//! reference the tests compare with).
+//! only between objects in contact; [`super::system`]) and is solved by conjugate gradients
+//! preconditioned by block Jacobi with a coarse level over the members' affine motions, or
+//! densely on request ([`IslandSolver::Dense`], the reference the tests compare with).
 
 use super::energy::{PairContact, PairHessian, PairLag};
 use super::system::BlockHessian;
@@ -28,6 +28,8 @@ struct IslandPotential<'a> {
     /// Lagged object-object friction and its smoothing displacement, metres.
     friction: (Vec<PairLag>, f64),
     solver: IslandSolver,
+    /// Each member's affine motions, the coarse space of the block solve.
+    coarse: Vec<Mat<f64>>,
 }
 
 impl IslandPotential<'_> {
@@ -74,7 +76,7 @@ impl IslandPotential<'_> {
                 (Box::new(f), d)
             }
             IslandSolver::Blocks => {
-                let s = h.into_solver()?;
+                let s = h.into_solver(Some(&self.coarse))?;
                 let (d, info) = s.solve_with_info(grad);
                 if info.negative_curvature {
                     return None;
@@ -186,6 +188,7 @@ pub fn step_island(
             contact,
             friction: (contact.friction_lag(&z0, mu), eps_v * shared[0].dt()),
             solver,
+            coarse: shared.iter().map(|s| s.affine_motions()).collect(),
         };
         // The start: a given one (an earlier solve of this step, reached from z0 by bounded
         // line searches), or the guess within the step bound.

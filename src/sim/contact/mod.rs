@@ -8,8 +8,9 @@
 //! - [`energy`]: the pair penalty with its gradient, Hessian and line-search step bound, in
 //!   the stacked reduced coordinates of an island.
 //! - [`island`]: objects that can touch within a step, solved together by Newton.
-//! - [`system`]: the island's Newton system in blocks, solved by block-Jacobi conjugate
-//!   gradients.
+//! - [`system`]: the island's Newton system in blocks, solved by conjugate gradients
+//!   preconditioned by block Jacobi and [`coarse`], a coarse level over the objects' affine
+//!   motions.
 //! - [`forest`]: union-find over objects (which share an island).
 //! - [`step`]: one step of every object, in stages (sweep, group, solve, regroup, stiffen,
 //!   report); `scene` keeps only the adaptor to its objects, warnings and report.
@@ -17,6 +18,7 @@
 //! Only scenes with a `[contact]` section build any of it ([`ContactSettings`]); without one
 //! every object steps alone, as before.
 
+pub mod coarse;
 pub mod energy;
 pub mod forest;
 pub mod island;

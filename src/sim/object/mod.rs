@@ -280,6 +280,12 @@ impl ReducedSim {
         &self.rest_factor
     }
 
+    /// The object's affine motions in reduced coordinates (12 (m + 1) x 12): the coarse
+    /// space of an island's preconditioner.
+    pub(crate) fn affine_motions(&self) -> faer::Mat<f64> {
+        placement::affine_motions(self.layout, &self.terms.inertia.mass)
+    }
+
     /// The solver settings of each step.
     pub(crate) fn newton_options(&self) -> &NewtonOptions {
         &self.options

@@ -12,7 +12,7 @@ use faer::linalg::solvers::Solve;
 /// (m^(3/2)): a free basis has it in mode 0 alone, a boundary-aware one in its lifts. It is
 /// the mass-weighted least-squares fit G alpha = g over the integration points (G_jk = sum
 /// rho v W_j W_k, g_j = sum rho v W_j, from the mass moments `b`), checked to reproduce 1.
-fn unity(layout: Layout, b: &Moments) -> Result<Vec<f64>> {
+pub(super) fn unity(layout: Layout, b: &Moments) -> Result<Vec<f64>> {
     let nh = layout.handles;
     let g = faer::Mat::from_fn(nh, nh, |j, k| b.bb[(4 * j + 3, 4 * k + 3)]);
     let rhs = faer::Mat::from_fn(nh, 1, |j, _| b.b[4 * j + 3]);
@@ -55,6 +55,27 @@ fn unity(layout: Layout, b: &Moments) -> Result<Vec<f64>> {
         return Err(fail(format!("relative misfit {:.2e}", misfit(&alpha))));
     }
     Ok(alpha)
+}
+
+/// The object's affine motions x -> x + A [x; 1] in reduced coordinates, 12 (m + 1) x 12:
+/// column 4 r + a is A = e_r e_a^T, z = alpha_j at (r, j, a) for the constant combination
+/// alpha of [`unity`] (mode 0 alone when no combination is constant: still twelve
+/// independent whole-body motions).
+pub(super) fn affine_motions(layout: Layout, mass: &Moments) -> faer::Mat<f64> {
+    let alpha = unity(layout, mass).unwrap_or_else(|_| {
+        let mut e0 = vec![0.0; layout.handles];
+        e0[0] = 1.0;
+        e0
+    });
+    let mut p = faer::Mat::zeros(layout.dofs(), 12);
+    for (j, &aj) in alpha.iter().enumerate() {
+        for r in 0..3 {
+            for a in 0..4 {
+                p[(layout.index(r, j, a), 4 * r + a)] = aj;
+            }
+        }
+    }
+    p
 }
 
 /// Write into `z` and `zdot` (both zero on entry) the rest shape moved by `rigid` with the
