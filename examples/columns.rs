@@ -68,20 +68,12 @@ fn main() {
         eprintln!("{n} objects: the columns scene needs an even count of at least 2");
         std::process::exit(2);
     }
-    let steps = if which == scaling::Counts::Quick {
-        40
-    } else {
-        80
-    };
-    let rows: Vec<scaling::Row> = counts
-        .iter()
-        .map(|&n| scaling::measure(n, &scene(n, steps), steps))
-        .collect();
-    scaling::print_table(&rows);
-    if which == scaling::Counts::Full {
-        let title = "Columns: cost per object against object count";
-        if let Err(e) = scaling::plot(&rows, title, "docs/img/columns_scaling.png") {
-            eprintln!("plot: {e}");
-        }
-    }
+    scaling::run(
+        &counts,
+        which,
+        [40, 80],
+        scene,
+        "Columns: cost per object against object count",
+        "docs/img/columns_scaling.png",
+    );
 }

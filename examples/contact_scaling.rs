@@ -68,20 +68,12 @@ fn scene(n: usize, steps: usize) -> String {
 
 fn main() {
     let (counts, which) = scaling::counts(&[1, 2, 4, 8, 16, 32, 64, 128], &[1, 2, 4]);
-    let steps = if which == scaling::Counts::Quick {
-        40
-    } else {
-        60
-    };
-    let rows: Vec<scaling::Row> = counts
-        .iter()
-        .map(|&n| scaling::measure(n, &scene(n, steps), steps))
-        .collect();
-    scaling::print_table(&rows);
-    if which == scaling::Counts::Full {
-        let title = "Contact: cost per object against object count";
-        if let Err(e) = scaling::plot(&rows, title, "docs/img/contact_scaling.png") {
-            eprintln!("plot: {e}");
-        }
-    }
+    scaling::run(
+        &counts,
+        which,
+        [40, 60],
+        scene,
+        "Contact: cost per object against object count",
+        "docs/img/contact_scaling.png",
+    );
 }

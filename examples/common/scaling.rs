@@ -48,7 +48,7 @@ impl Row {
 }
 
 /// Set up `text` (a scene with `[contact]` and `n` objects) and run `steps` steps.
-pub fn measure(n: usize, text: &str, steps: usize) -> Row {
+fn measure(n: usize, text: &str, steps: usize) -> Row {
     let scene = Scene::from_toml(text).expect("the generated scene parses");
     let settings = RunSettings::default();
     let c0 = cpu_seconds();
@@ -89,9 +89,36 @@ pub fn measure(n: usize, text: &str, steps: usize) -> Row {
     }
 }
 
+/// Measure the scene `scene(n, steps)` for each count (`steps` = [quick, otherwise] by
+/// `which`), print the table and, for the full set, draw the plot titled `title` into `png`.
+pub fn run(
+    counts: &[usize],
+    which: Counts,
+    steps: [usize; 2],
+    scene: impl Fn(usize, usize) -> String,
+    title: &str,
+    png: &str,
+) {
+    let steps = if which == Counts::Quick {
+        steps[0]
+    } else {
+        steps[1]
+    };
+    let rows: Vec<Row> = counts
+        .iter()
+        .map(|&n| measure(n, &scene(n, steps), steps))
+        .collect();
+    print_table(&rows);
+    if which == Counts::Full {
+        if let Err(e) = plot(&rows, title, png) {
+            eprintln!("plot: {e}");
+        }
+    }
+}
+
 /// The markdown table of the rows, with each count's CPU ms per object-step as a multiple of
 /// the first row's.
-pub fn print_table(rows: &[Row]) {
+fn print_table(rows: &[Row]) {
     println!(
         "| N | world step, ms (mean) | max | CPU ms per step | CPU ms per object | x first row | islands (mean) | largest island | sample pairs active (mean) | worst penetration, samples | visible | steps over the tolerance | unconverged object steps | Newton iterations per object-step |"
     );
@@ -120,7 +147,7 @@ pub fn print_table(rows: &[Row]) {
 
 /// Plot CPU ms per object-step against N (log-log) with `title`, and the flat line a cost
 /// per object that does not grow would follow, into the PNG `path`.
-pub fn plot(rows: &[Row], title: &str, path: &str) -> Result<(), Box<dyn std::error::Error>> {
+fn plot(rows: &[Row], title: &str, path: &str) -> Result<(), Box<dyn std::error::Error>> {
     let font = freeform::render::register_font()?;
     let (w, h) = (720u32, 480u32);
     let mut rgb = vec![255u8; (w * h * 3) as usize];

@@ -12,7 +12,7 @@ use faer::{Accum, Mat, MatMut, MatRef, Par, Side};
 use std::collections::BTreeMap;
 
 /// Entries lo..hi of `v` as a column.
-fn column(v: &[f64], lo: usize, hi: usize) -> MatRef<'_, f64> {
+pub(super) fn column(v: &[f64], lo: usize, hi: usize) -> MatRef<'_, f64> {
     MatRef::from_column_major_slice(&v[lo..hi], hi - lo, 1)
 }
 

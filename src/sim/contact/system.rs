@@ -10,7 +10,7 @@
 //! directly, in the balancing form that keeps the preconditioner symmetric and exact on the
 //! coarse space.
 
-use super::coarse::Coarse;
+use super::coarse::{column, Coarse};
 use crate::sim::newton::{dot, RestSolve};
 use faer::linalg::matmul::matmul;
 use faer::linalg::solvers::{Llt, Solve};
@@ -180,11 +180,6 @@ pub struct CgInfo {
     /// Whether the solve stopped at a direction of zero or negative curvature (H is not
     /// positive definite).
     pub negative_curvature: bool,
-}
-
-/// Entries lo..hi of `v` as a column.
-fn column(v: &[f64], lo: usize, hi: usize) -> MatRef<'_, f64> {
-    MatRef::from_column_major_slice(&v[lo..hi], hi - lo, 1)
 }
 
 impl BlockSolve {
