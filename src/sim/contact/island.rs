@@ -8,6 +8,7 @@
 //! preconditioned by block Jacobi with a coarse level over the members' affine motions, or
 //! densely on request ([`IslandSolver::Dense`], the reference the tests compare with).
 
+use super::coarse::CoarseBasis;
 use super::energy::{PairContact, PairHessian, PairLag};
 use super::system::BlockHessian;
 use super::{ContactStats, IslandSolver};
@@ -19,6 +20,7 @@ use crate::sim::newton::{
 use crate::sim::object::{StepPotential, StepStart};
 use crate::sim::{ReducedSim, StepReport};
 use faer::Mat;
+use std::sync::Arc;
 
 /// The incremental potential of an island.
 struct IslandPotential<'a> {
@@ -28,8 +30,8 @@ struct IslandPotential<'a> {
     /// Lagged object-object friction and its smoothing displacement, metres.
     friction: (Vec<PairLag>, f64),
     solver: IslandSolver,
-    /// Each member's affine motions, the coarse space of the block solve.
-    coarse: Vec<Mat<f64>>,
+    /// The members' affine motions, the coarse space of the block solve.
+    coarse: Arc<CoarseBasis>,
 }
 
 impl IslandPotential<'_> {
@@ -188,7 +190,12 @@ pub fn step_island(
             contact,
             friction: (contact.friction_lag(&z0, mu), eps_v * shared[0].dt()),
             solver,
-            coarse: shared.iter().map(|s| s.affine_motions()).collect(),
+            coarse: Arc::new(CoarseBasis::new(
+                &shared
+                    .iter()
+                    .map(|s| s.affine_motions())
+                    .collect::<Vec<_>>(),
+            )),
         };
         // The start: a given one (an earlier solve of this step, reached from z0 by bounded
         // line searches), or the guess within the step bound.

@@ -10,13 +10,14 @@
 //! directly, in the balancing form that keeps the preconditioner symmetric and exact on the
 //! coarse space.
 
-use super::coarse::{column, Coarse};
+use super::coarse::{column, Coarse, CoarseBasis};
 use crate::sim::newton::{dot, RestSolve};
 use faer::linalg::matmul::matmul;
 use faer::linalg::solvers::{Llt, Solve};
 use faer::{Accum, Mat, MatMut, MatRef, Par, Side};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
+use std::sync::Arc;
 
 /// Relative residual |H d - g| / |g| at which the conjugate gradients stop. 1e-8: the
 /// direction then differs from the exact Newton step by far less than the minimiser's own
@@ -138,11 +139,10 @@ impl BlockHessian {
 
     /// Factor each diagonal block (in parallel; each factor on its own, so the result does
     /// not depend on the thread count) for the block-Jacobi preconditioner, and, when
-    /// `coarse` holds a basis per block (n_a x c_a, full column rank) and there are at least
-    /// two blocks, the island's system restricted to those bases for the coarse correction
-    /// ([`BlockSolve`]). None: a block or the coarse system is not positive definite (then
-    /// neither is H).
-    pub fn into_solver(self, coarse: Option<&[Mat<f64>]>) -> Option<BlockSolve> {
+    /// `coarse` holds a basis per block and there are at least two blocks, the island's
+    /// system restricted to those bases for the coarse correction ([`BlockSolve`]). None: a
+    /// block or the coarse system is not positive definite (then neither is H).
+    pub fn into_solver(self, coarse: Option<&Arc<CoarseBasis>>) -> Option<BlockSolve> {
         let factors: Vec<Option<Llt<f64>>> = self
             .diag
             .par_iter()
@@ -182,6 +182,14 @@ pub struct CgInfo {
     pub negative_curvature: bool,
 }
 
+/// The preconditioner's work vectors, allocated once per solve: the residual after the coarse
+/// correction (n) and the two coarse solutions.
+struct Scratch {
+    r1: Vec<f64>,
+    w1: Mat<f64>,
+    w2: Mat<f64>,
+}
+
 impl BlockSolve {
     /// The matrix.
     pub fn matrix(&self) -> &BlockHessian {
@@ -191,19 +199,20 @@ impl BlockSolve {
     /// z = M^-1 r with M^-1 the block-Jacobi inverse B; with a coarse level, the balancing
     /// form z = Q r + (I - Q H) B (I - H Q) r, Q = P E^-1 P^T (symmetric positive definite;
     /// exact on the coarse space), its products with H through the stored H P.
-    fn precondition(&self, r: &[f64], z: &mut [f64]) {
+    fn precondition(&self, r: &[f64], z: &mut [f64], scratch: &mut Scratch) {
         let o = &self.h.offsets;
         let Some(c) = &self.coarse else {
             self.block_jacobi(r, z);
             return;
         };
-        let w1 = c.solve_restricted(o, r, false);
-        let mut r1 = r.to_vec();
-        c.prolong(o, &w1, -1.0, true, &mut r1);
-        self.block_jacobi(&r1, z);
-        let w2 = c.solve_restricted(o, z, true);
-        c.prolong(o, &w1, 1.0, false, z);
-        c.prolong(o, &w2, -1.0, false, z);
+        let Scratch { r1, w1, w2 } = scratch;
+        c.solve_restricted(o, r, false, w1);
+        r1.copy_from_slice(r);
+        c.prolong(o, w1, -1.0, true, r1);
+        self.block_jacobi(r1, z);
+        c.solve_restricted(o, z, true, w2);
+        c.prolong(o, w1, 1.0, false, z);
+        c.prolong(o, w2, -1.0, false, z);
     }
 
     fn block_jacobi(&self, r: &[f64], z: &mut [f64]) {
@@ -232,7 +241,18 @@ impl BlockSolve {
         }
         let mut r = g.to_vec();
         let mut z = vec![0.0; n];
-        self.precondition(&r, &mut z);
+        let mut scratch = Scratch {
+            r1: vec![0.0; if self.coarse.is_some() { n } else { 0 }],
+            w1: self
+                .coarse
+                .as_ref()
+                .map_or(Mat::zeros(0, 1), Coarse::coarse_vector),
+            w2: self
+                .coarse
+                .as_ref()
+                .map_or(Mat::zeros(0, 1), Coarse::coarse_vector),
+        };
+        self.precondition(&r, &mut z, &mut scratch);
         let mut p = z.clone();
         let mut rz = dot(&r, &z);
         let mut hp = vec![0.0; n];
@@ -256,7 +276,7 @@ impl BlockSolve {
             if info.relative_residual <= CG_TOLERANCE {
                 break;
             }
-            self.precondition(&r, &mut z);
+            self.precondition(&r, &mut z, &mut scratch);
             let rz_next = dot(&r, &z);
             let beta = rz_next / rz;
             rz = rz_next;
@@ -376,14 +396,17 @@ mod tests {
             .collect();
         let (d, info) = h
             .clone()
-            .into_solver(Some(&random))
+            .into_solver(Some(&Arc::new(CoarseBasis::new(&random))))
             .unwrap()
             .solve_with_info(&g);
         assert!(info.relative_residual <= CG_TOLERANCE, "{info:?}");
         assert!(error_against_dense(&dense, &g, &d) <= 10.0 * CG_TOLERANCE);
 
         let full: Vec<Mat<f64>> = sizes.iter().map(|&n| Mat::identity(n, n)).collect();
-        let (d, info) = h.into_solver(Some(&full)).unwrap().solve_with_info(&g);
+        let (d, info) = h
+            .into_solver(Some(&Arc::new(CoarseBasis::new(&full))))
+            .unwrap()
+            .solve_with_info(&g);
         assert_eq!(info.iterations, 1, "{info:?}");
         // One application of the exact inverse: round-off of a 9 x 9 solve, condition < 10.
         assert!(error_against_dense(&dense, &g, &d) <= 1e-12);
@@ -420,7 +443,10 @@ mod tests {
         let rigid: Vec<Mat<f64>> = (0..objects)
             .map(|_| Mat::from_fn(2, 1, |_, _| 1.0))
             .collect();
-        let (d2, two_level) = h.into_solver(Some(&rigid)).unwrap().solve_with_info(&g);
+        let (d2, two_level) = h
+            .into_solver(Some(&Arc::new(CoarseBasis::new(&rigid))))
+            .unwrap()
+            .solve_with_info(&g);
         for (d, info) in [(&d1, jacobi), (&d2, two_level)] {
             assert!(info.relative_residual <= CG_TOLERANCE, "{info:?}");
             // The condition number is ~1e4 / soft contrast: the error bound scales with it.

@@ -12,7 +12,7 @@ use faer::linalg::solvers::Solve;
 /// (m^(3/2)): a free basis has it in mode 0 alone, a boundary-aware one in its lifts. It is
 /// the mass-weighted least-squares fit G alpha = g over the integration points (G_jk = sum
 /// rho v W_j W_k, g_j = sum rho v W_j, from the mass moments `b`), checked to reproduce 1.
-pub(super) fn unity(layout: Layout, b: &Moments) -> Result<Vec<f64>> {
+fn unity(layout: Layout, b: &Moments) -> Result<Vec<f64>> {
     let nh = layout.handles;
     let g = faer::Mat::from_fn(nh, nh, |j, k| b.bb[(4 * j + 3, 4 * k + 3)]);
     let rhs = faer::Mat::from_fn(nh, 1, |j, _| b.b[4 * j + 3]);
