@@ -4,7 +4,9 @@
 use crate::fem::beam::{run_beam_reference, BeamReference, BeamTest, FemBeamConfig};
 use crate::material::Region;
 use crate::precompute::sampling::Resolution;
-use crate::precompute::{build_basis, BasisOptions, BasisRun, BoundaryModes};
+use crate::precompute::{
+    build_basis, BasisOptions, BasisRun, BoundaryModes, DensityBands, KernelDensity,
+};
 use crate::progress::Progress;
 use crate::report::{Monitors, Stopwatch};
 use crate::sim::motion::Motion;
@@ -46,6 +48,8 @@ pub struct ReducedBeamOptions {
     /// Also fit the FEM frames compared onto the basis by least squares and report the
     /// residual ([`BeamComparison::fit`], paper Table 6). Default false.
     pub fit: bool,
+    /// Where the kernels go (refined bands; the basis default when not changed).
+    pub density: DensityBands,
 }
 
 impl Default for ReducedBeamOptions {
@@ -60,6 +64,7 @@ impl Default for ReducedBeamOptions {
             hold_stiffness: None,
             boundaries: BoundaryModes::default(),
             fit: false,
+            density: BasisOptions::default().density.bands,
         }
     }
 }
@@ -164,6 +169,8 @@ pub struct BasisKey {
     pub resolution: Option<Resolution>,
     /// Free or boundary-aware basis.
     pub boundaries: BoundaryModes,
+    /// Kernel density bands.
+    pub density: DensityBands,
 }
 
 impl ReducedBeamOptions {
@@ -174,6 +181,7 @@ impl ReducedBeamOptions {
             kernels: self.kernels,
             resolution: self.resolution,
             boundaries: self.boundaries,
+            density: self.density,
         }
     }
 
@@ -188,6 +196,7 @@ impl ReducedBeamOptions {
                 BoundaryModes::Free => Vec::new(),
                 BoundaryModes::Aware => beam_regions(fem),
             },
+            density: KernelDensity::bands(self.density),
             ..BasisOptions::default()
         }
     }

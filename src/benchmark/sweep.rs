@@ -20,7 +20,7 @@ use super::pareto::pareto_front;
 use super::{beam_basis, simulate_beam, BeamComparison, ReducedBeamOptions};
 use crate::fem::beam::{run_beam_reference, FemBeamConfig};
 use crate::precompute::sampling::Resolution;
-use crate::precompute::BoundaryModes;
+use crate::precompute::{BoundaryModes, DensityBands};
 use crate::progress::{Progress, Silent};
 use crate::report::Stopwatch;
 use crate::sim::{HessianStrategy, NewtonOptions};
@@ -76,6 +76,8 @@ pub struct SweepSpec {
     pub frames: Option<usize>,
     /// Free or boundary-aware bases for every run. Default: the beam command's.
     pub boundaries: BoundaryModes,
+    /// Kernel density bands of every run. Default: the beam command's.
+    pub density: DensityBands,
 }
 
 impl Default for SweepSpec {
@@ -92,6 +94,7 @@ impl Default for SweepSpec {
             newton: beam.newton,
             frames: None,
             boundaries: beam.boundaries,
+            density: beam.density,
         }
     }
 }
@@ -139,6 +142,7 @@ impl SweepSpec {
             hold_stiffness: None,
             boundaries: self.boundaries,
             fit: false,
+            density: self.density,
         };
         let mut runs: Vec<PlannedRun> = Vec::new();
         let mut push = |axis, opts: ReducedBeamOptions| {

@@ -174,6 +174,57 @@ pub static VOXEL: OptionName = OptionName {
            spacing)",
 };
 
+/// Kernel spacing factor near boundary regions.
+pub static DENSITY_BOUNDARIES: OptionName = OptionName {
+    library: "DensityBands::boundaries",
+    flag: Some("--density-boundaries"),
+    scene: Some("basis.density_boundaries"),
+    python: Some("density_boundaries"),
+    c: None,
+    value_prefix: "",
+    help: "Kernel spacing factor within the band around each boundary region's surface (the \
+           held and driven parts of an aware basis): 2 halves the spacing there, 1 is uniform \
+           placement; K stays the same, the kernels move [1/8, 8]",
+};
+
+/// Kernel spacing factor at material interfaces.
+pub static DENSITY_INTERFACES: OptionName = OptionName {
+    library: "DensityBands::interfaces",
+    flag: Some("--density-interfaces"),
+    scene: Some("basis.density_interfaces"),
+    python: Some("density_interfaces"),
+    c: None,
+    value_prefix: "",
+    help: "Kernel spacing factor within the band around material interfaces (modulus or \
+           density changing by more than 1.5x between neighbouring points: overrides, label \
+           and modulus images); 1 is uniform placement [1/8, 8]",
+};
+
+/// Half-width of the refined bands, in kernel spacings.
+pub static DENSITY_BAND: OptionName = OptionName {
+    library: "DensityBands::band",
+    flag: Some("--density-band"),
+    scene: Some("basis.density_band"),
+    python: Some("density_band"),
+    c: None,
+    value_prefix: "",
+    help: "Half-width of the refined bands in kernel spacings h0 = (V / K)^(1/3); the factor \
+           grades back to 1 over one more band width",
+};
+
+/// User regions with their own kernel spacing factor.
+pub static DENSITY_REGIONS: OptionName = OptionName {
+    library: "KernelDensity::regions",
+    flag: Some("--density-region"),
+    scene: None,
+    python: Some("density_regions"),
+    c: None,
+    value_prefix: "",
+    help: "A region with its own kernel spacing factor, REGION@FACTOR (box:X0,Y0,Z0,X1,Y1,Z1, \
+           sphere:CX,CY,CZ,R or halfspace:PX,PY,PZ,NX,NY,NZ, metres; factor in [1/8, 8], 2 = \
+           twice as fine); repeat for several, the last one holding a point wins",
+};
+
 /// Accept a mesh with holes.
 pub static ALLOW_OPEN_MESH: OptionName = OptionName {
     library: "ShapeOptions::allow_open_mesh",
@@ -246,7 +297,7 @@ pub static PETSC_OPTIONS: OptionName = OptionName {
 };
 
 /// Every row, for the checks that hold each front end to the table.
-pub static ALL: [&OptionName; 20] = [
+pub static ALL: [&OptionName; 24] = [
     &KERNELS,
     &MODES,
     &POINTS,
@@ -263,6 +314,10 @@ pub static ALL: [&OptionName; 20] = [
     &VOXEL,
     &ALLOW_OPEN_MESH,
     &REGIONS,
+    &DENSITY_BOUNDARIES,
+    &DENSITY_INTERFACES,
+    &DENSITY_BAND,
+    &DENSITY_REGIONS,
     &BOUNDARIES,
     &SOLVER,
     &SLEPC,

@@ -6,6 +6,11 @@
 //! returns exactly the sequence of the brute-force O(N K) algorithm
 //! ([`farthest_point_sampling_brute`]) — same start, same tie-breaking (lowest index) — at a
 //! cost of about O(N log K) for well-spread points.
+//!
+//! With a scale per point s_i ([`farthest_point_sampling_scaled`], from
+//! [`super::density::KernelDensity`]) the sampling is weighted: distances are measured in units
+//! of the local spacing, s_i |X_i - c|, so centres come s_i times closer together where s_i is
+//! larger. The pruning ball grows to sqrt(d_max) / min s; the brute force has the same option.
 
 use crate::{Error, Point3, Result};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
@@ -56,6 +61,26 @@ fn check(points: &[Point3], k: usize) -> Result<()> {
         ));
     }
     crate::error::check_finite_points("integration points", points)
+}
+
+/// The scale factors must be one per point, finite and positive.
+fn check_scale(points: &[Point3], scale: Option<&[f64]>) -> Result<()> {
+    let Some(scale) = scale else { return Ok(()) };
+    if scale.len() != points.len() {
+        return Err(Error::param(
+            "kernel density",
+            scale.len(),
+            format!("one scale per integration point needed ({})", points.len()),
+        ));
+    }
+    if let Some(i) = scale.iter().position(|s| !(s.is_finite() && *s > 0.0)) {
+        return Err(Error::param(
+            "kernel density",
+            scale[i],
+            format!("the scale at integration point {i} must be a positive finite number"),
+        ));
+    }
+    Ok(())
 }
 
 fn too_few_distinct(k: usize, found: usize) -> Error {
@@ -170,9 +195,21 @@ fn cell_max(grid: &CellGrid, dist: &[f64], c: usize) -> (u64, u32) {
 /// rescanned. Heap keys are (squared distance bits, lowest index), so the sequence is exactly
 /// that of the brute force, ties included.
 pub fn farthest_point_sampling(points: &[Point3], k: usize) -> Result<Vec<usize>> {
+    farthest_point_sampling_scaled(points, None, k)
+}
+
+/// [`farthest_point_sampling`] with distances scaled per point: point i is at s_i |X_i - c|
+/// from a centre c (`scale`: N positive finite factors, None for all 1), so the centres'
+/// spacing near X_i is about 1 / s_i of what it is where s = 1. The first centre is the same.
+pub fn farthest_point_sampling_scaled(
+    points: &[Point3],
+    scale: Option<&[f64]>,
+    k: usize,
+) -> Result<Vec<usize>> {
     check(points, k)?;
+    check_scale(points, scale)?;
     let s0 = start_index(points);
-    let mut state = FarthestPoints::new(points, &points[s0]);
+    let mut state = FarthestPoints::with_scale(points, scale, &points[s0]);
     let mut chosen = Vec::with_capacity(k);
     chosen.push(s0);
     while chosen.len() < k {
@@ -193,7 +230,11 @@ pub fn farthest_point_sampling(points: &[Point3], k: usize) -> Result<Vec<usize>
 /// the farthest point, found through a grid of cells and a max-heap over them.
 pub struct FarthestPoints<'a> {
     points: &'a [Point3],
+    /// Squared scale per point (None: all 1) and 1 / its minimum.
+    scale2: Option<Vec<f64>>,
+    inv_min_scale2: f64,
     grid: CellGrid,
+    /// Scaled squared distance to the nearest centre, s_i^2 |X_i - c|^2.
     dist: Vec<f64>,
     /// Each cell's farthest point: (squared distance bits, lowest index attaining it).
     best: Vec<(u64, u32)>,
@@ -204,8 +245,25 @@ pub struct FarthestPoints<'a> {
 impl<'a> FarthestPoints<'a> {
     /// Distances of `points` (N x 3, metres; at most 2^32 of them) to a first centre `first`.
     pub fn new(points: &'a [Point3], first: &Point3) -> Self {
+        Self::with_scale(points, None, first)
+    }
+
+    /// [`FarthestPoints::new`] with distances scaled by `scale` (N positive finite factors,
+    /// checked by the caller), as [`farthest_point_sampling_scaled`].
+    pub fn with_scale(points: &'a [Point3], scale: Option<&[f64]>, first: &Point3) -> Self {
         let grid = CellGrid::new(points);
-        let dist: Vec<f64> = points.iter().map(|p| dist2(p, first)).collect();
+        let scale2: Option<Vec<f64>> = scale.map(|s| s.iter().map(|v| v * v).collect());
+        let inv_min_scale2 = scale2.as_ref().map_or(1.0, |s| {
+            1.0 / s.iter().copied().fold(f64::INFINITY, f64::min)
+        });
+        let dist: Vec<f64> = match &scale2 {
+            None => points.iter().map(|p| dist2(p, first)).collect(),
+            Some(s2) => points
+                .iter()
+                .zip(s2)
+                .map(|(p, s)| s * dist2(p, first))
+                .collect(),
+        };
         let ncell = grid.start.len() - 1;
         let best: Vec<(u64, u32)> = (0..ncell).map(|c| cell_max(&grid, &dist, c)).collect();
         // Non-negative f64 bit patterns order like the numbers; Reverse makes the lowest index
@@ -218,6 +276,8 @@ impl<'a> FarthestPoints<'a> {
             .collect();
         Self {
             points,
+            scale2,
+            inv_min_scale2,
             grid,
             dist,
             best,
@@ -237,13 +297,14 @@ impl<'a> FarthestPoints<'a> {
         }
     }
 
-    /// Add a centre `c` that was the farthest point overall at squared distance `d_max`: only
-    /// points within sqrt(d_max) of it can come closer, so only those cells are visited.
+    /// Add a centre `c` that was the farthest point overall at (scaled) squared distance
+    /// `d_max`: only points within sqrt(d_max) / min s of it can come closer, so only those
+    /// cells are visited.
     pub fn add_center(&mut self, c: &Point3, d_max: f64) {
         if self.points.is_empty() {
             return;
         }
-        let r = d_max.sqrt();
+        let r = (d_max * self.inv_min_scale2).sqrt();
         let grid = &self.grid;
         // A ball that misses this set's bounding box changes nothing (another rank's part).
         if (0..3).any(|d| c[d] + r < grid.lo[d] || c[d] - r > grid.hi[d]) {
@@ -258,7 +319,10 @@ impl<'a> FarthestPoints<'a> {
                     let mut changed = false;
                     for &i in grid.points(cell) {
                         let i = i as usize;
-                        let d = dist2(&self.points[i], c);
+                        let mut d = dist2(&self.points[i], c);
+                        if let Some(s2) = &self.scale2 {
+                            d *= s2[i];
+                        }
                         if d < self.dist[i] {
                             self.dist[i] = d;
                             changed = true;
@@ -278,9 +342,22 @@ impl<'a> FarthestPoints<'a> {
 /// Brute-force O(N K) farthest point sampling; the reference that
 /// [`farthest_point_sampling`] reproduces exactly. Use it only for small inputs and tests.
 pub fn farthest_point_sampling_brute(points: &[Point3], k: usize) -> Result<Vec<usize>> {
+    farthest_point_sampling_brute_scaled(points, None, k)
+}
+
+/// Brute-force [`farthest_point_sampling_scaled`]: the reference it reproduces exactly.
+pub fn farthest_point_sampling_brute_scaled(
+    points: &[Point3],
+    scale: Option<&[f64]>,
+    k: usize,
+) -> Result<Vec<usize>> {
     check(points, k)?;
+    check_scale(points, scale)?;
+    let s2 = |i: usize| scale.map_or(1.0, |s| s[i] * s[i]);
     let s0 = start_index(points);
-    let mut dist: Vec<f64> = points.iter().map(|p| dist2(p, &points[s0])).collect();
+    let mut dist: Vec<f64> = (0..points.len())
+        .map(|i| s2(i) * dist2(&points[i], &points[s0]))
+        .collect();
     let mut chosen = vec![s0];
     while chosen.len() < k {
         let mut best = (0.0, usize::MAX);
@@ -295,7 +372,7 @@ pub fn farthest_point_sampling_brute(points: &[Point3], k: usize) -> Result<Vec<
         chosen.push(best.1);
         let c = points[best.1];
         for (i, p) in points.iter().enumerate() {
-            dist[i] = dist[i].min(dist2(p, &c));
+            dist[i] = dist[i].min(s2(i) * dist2(p, &c));
         }
     }
     Ok(chosen)
@@ -508,6 +585,39 @@ mod tests {
             farthest_point_sampling(&nan, 2),
             Err(Error::NonFinite { index: 3, .. })
         ));
+    }
+
+    #[test]
+    fn scaled_fps_equals_its_brute_force_and_follows_the_scale() {
+        let pts = cloud(6000, 31);
+        // Twice as fine for x < 1 (a fifth of the volume), graded over 1 < x < 2.
+        let scale: Vec<f64> = pts
+            .iter()
+            .map(|p| 2.0 - (p[0] - 1.0).clamp(0.0, 1.0))
+            .collect();
+        let fast = farthest_point_sampling_scaled(&pts, Some(&scale), 300).unwrap();
+        let brute = farthest_point_sampling_brute_scaled(&pts, Some(&scale), 300).unwrap();
+        assert_eq!(fast, brute);
+        // Spacing 1/2 in x < 1 is 8x the kernels per volume of x > 2: with 1/5 and 3/5 of
+        // the volume, about 8 / 3 as many kernels in the first fifth as in the last three.
+        let fine = fast.iter().filter(|&&i| pts[i][0] < 1.0).count() as f64;
+        let coarse = fast.iter().filter(|&&i| pts[i][0] > 2.0).count() as f64;
+        let ratio = fine / coarse;
+        // FPS covers the faces of this thin (1 x 1 cross-section) box first, which takes a
+        // larger share of the coarse kernels, so the ratio comes out below 8/3 (1.84 with
+        // these points); uniform sampling gives about 1/3, so the interval separates them.
+        assert!((1.5..3.5).contains(&ratio), "fine {fine} coarse {coarse}");
+        // All ones is the unweighted sampling.
+        assert_eq!(
+            farthest_point_sampling_scaled(&pts, Some(&vec![1.0; pts.len()]), 200).unwrap(),
+            farthest_point_sampling(&pts, 200).unwrap()
+        );
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            let mut s = scale.clone();
+            s[17] = bad;
+            let e = farthest_point_sampling_scaled(&pts, Some(&s), 10).unwrap_err();
+            assert!(e.to_string().contains("integration point 17"), "{e}");
+        }
     }
 
     #[test]

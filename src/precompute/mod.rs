@@ -2,7 +2,8 @@
 //!
 //! ```text
 //! Shape --sampling--> integration points, volumes, materials
-//!       --centers---> kernel centres (FPS, Morton order), support radii
+//!       --centers---> kernel centres (FPS, weighted by the kernel density; Morton order),
+//!                     support radii
 //!       --rkpm------> shape functions and gradients at the points
 //!       --assembly--> sparse H_w and M (K x K)                  = Problem
 //!       --eigen-----> m + 1 eigenpairs (LOBPCG | dense | SLEPc)
@@ -19,6 +20,7 @@ pub mod assembly;
 pub mod boundary_modes;
 pub mod centers;
 mod compare;
+pub mod density;
 pub mod distributed;
 pub mod image_material;
 pub mod memory;
@@ -35,6 +37,7 @@ pub mod table;
 
 pub use boundary_modes::BoundaryModes;
 pub use compare::{compare_solvers, ProblemComparison, SolverComparison, SolverResult};
+pub use density::{DensityBands, DensityRegion, KernelDensity};
 pub use image_material::{GapPolicy, ImageMaterial};
 pub use memory::MemoryEstimate;
 pub use options::{default_points, BasisOptions, MAX_KERNELS, MAX_POINTS};

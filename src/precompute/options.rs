@@ -1,5 +1,6 @@
 //! Every knob of the precomputation ([`BasisOptions`]) with its default and its valid range.
 
+use super::density::{DensityBands, KernelDensity};
 use super::image_material::{GapPolicy, ImageMaterial};
 use super::resolution::{CloudVolumeOptions, Resolution};
 use super::rkpm::{KernelType, ShapeFunctionOptions, SupportOptions};
@@ -52,6 +53,14 @@ pub struct BasisOptions {
     /// of the serialized options when empty, so cache keys of free bases are unchanged.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub boundary_regions: Vec<Region>,
+    /// Where the kernels go ([`KernelDensity`]): finer near boundary regions and material
+    /// interfaces, or per user region. Left out of the serialized options when off, so cache
+    /// keys of uniformly placed bases are unchanged.
+    #[serde(
+        default = "KernelDensity::off",
+        skip_serializing_if = "KernelDensity::is_off"
+    )]
+    pub density: KernelDensity,
 }
 
 impl Default for BasisOptions {
@@ -72,6 +81,7 @@ impl Default for BasisOptions {
             cloud: CloudVolumeOptions::default(),
             coverage_repair_rounds: 3,
             boundary_regions: Vec::new(),
+            density: KernelDensity::bands(DensityBands::default()),
         }
     }
 }
@@ -228,6 +238,7 @@ impl BasisOptions {
         for r in &self.boundary_regions {
             r.validate()?;
         }
+        self.density.validate()?;
         if self.boundary_regions.len() > self.modes {
             return Err(Error::param(
                 "modes",

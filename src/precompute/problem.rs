@@ -4,7 +4,8 @@
 
 use super::assembly::Assembled;
 use super::boundary_modes;
-use super::centers::{farthest_point_sampling, morton_order};
+use super::centers::{farthest_point_sampling_scaled, morton_order};
+use super::density::kernel_scale;
 use super::memory::{expected_points, MemoryEstimate};
 use super::options::BasisOptions;
 use super::quality::{CoverageReport, ModesReport, SolveFacts};
@@ -109,10 +110,15 @@ fn resample_source(shape: &Shape) -> Option<Shape> {
     }
 }
 
-/// Kernel centres by farthest point sampling of `points` (N x 3, metres), in Morton order
-/// (the row and column order of H_w and M), with support radii by `opts.support`: the stage
-/// that the pipeline and the MPI path share, so every rank places the same kernels.
-pub fn place_kernels(points: &[Point3], opts: &BasisOptions) -> Result<Kernels> {
+/// Kernel centres by farthest point sampling of `points` (N x 3, metres), weighted by `scale`
+/// (N factors from [`super::density::kernel_scale`], None for uniform), in Morton order (the
+/// row and column order of H_w and M), with support radii by `opts.support`: the stage that
+/// the pipeline and the MPI path share, so every rank places the same kernels.
+pub fn place_kernels(
+    points: &[Point3],
+    scale: Option<&[f64]>,
+    opts: &BasisOptions,
+) -> Result<Kernels> {
     let n = points.len();
     if n < opts.kernels {
         return Err(Error::param(
@@ -121,7 +127,7 @@ pub fn place_kernels(points: &[Point3], opts: &BasisOptions) -> Result<Kernels> 
             format!("only {n} integration points; use fewer kernels or more points"),
         ));
     }
-    let mut idx = farthest_point_sampling(points, opts.kernels)?;
+    let mut idx = farthest_point_sampling_scaled(points, scale, opts.kernels)?;
     morton_order(points, &mut idx);
     let centers: Vec<Point3> = idx.iter().map(|&i| points[i]).collect();
     let radii = support_radii(&centers, &opts.support)?;
@@ -199,7 +205,17 @@ impl Problem {
         let mut warnings = Vec::new();
 
         progress.begin("centers", Some(opts.kernels as u64));
-        let mut kernels = place_kernels(&points.points, opts)?;
+        let volume: f64 = points.volumes.iter().sum();
+        let scale = kernel_scale(
+            &points.points,
+            volume,
+            opts.kernels,
+            &opts.density,
+            &opts.boundary_regions,
+            Some(&material),
+        )?;
+        let mut kernels = place_kernels(&points.points, scale.as_deref(), opts)?;
+        drop(scale);
         progress.finish();
         check_cancelled(progress, "centers")?;
         timings.centers = clock.lap();

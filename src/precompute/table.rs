@@ -10,6 +10,7 @@
 //! plus one registration line: an entry of [`BASIS_OPTIONS`], or `.with(&ROW)` on a table
 //! (docs/architecture.md, "An option").
 
+use super::density::DensityRegion;
 use super::options::BasisOptions;
 use super::resolution::Resolution;
 use super::rkpm::KernelType;
@@ -233,7 +234,7 @@ impl OptionTable {
 
 /// The built-in basis options, in the command line's order: registering an option is one
 /// entry here.
-pub static BASIS_OPTIONS: [&BasisOption; 17] = [
+pub static BASIS_OPTIONS: [&BasisOption; 21] = [
     &KERNELS,
     &MODES,
     &POINTS,
@@ -250,6 +251,10 @@ pub static BASIS_OPTIONS: [&BasisOption; 17] = [
     &VOXEL,
     &ALLOW_OPEN_MESH,
     &REGIONS,
+    &DENSITY_BOUNDARIES,
+    &DENSITY_INTERFACES,
+    &DENSITY_BAND,
+    &DENSITY_REGIONS,
     &EIGENSOLVER,
 ];
 
@@ -451,6 +456,54 @@ pub static REGIONS: BasisOption = row(
             .texts(v)?
             .iter()
             .map(|r| r.parse::<Region>())
+            .collect::<Result<_>>()?;
+        Ok(())
+    },
+);
+
+/// The kernel spacing factor near boundary regions.
+pub static DENSITY_BOUNDARIES: BasisOption = row(
+    &options::DENSITY_BOUNDARIES,
+    ValueKind::Number,
+    |d| Some(Value::Number(d.options.density.bands.boundaries)),
+    |row, c, v| {
+        c.options.density.bands.boundaries = row.number(v)?;
+        Ok(())
+    },
+);
+
+/// The kernel spacing factor at material interfaces.
+pub static DENSITY_INTERFACES: BasisOption = row(
+    &options::DENSITY_INTERFACES,
+    ValueKind::Number,
+    |d| Some(Value::Number(d.options.density.bands.interfaces)),
+    |row, c, v| {
+        c.options.density.bands.interfaces = row.number(v)?;
+        Ok(())
+    },
+);
+
+/// The refined bands' half-width, in kernel spacings.
+pub static DENSITY_BAND: BasisOption = row(
+    &options::DENSITY_BAND,
+    ValueKind::Number,
+    |d| Some(Value::Number(d.options.density.bands.band)),
+    |row, c, v| {
+        c.options.density.bands.band = row.number(v)?;
+        Ok(())
+    },
+);
+
+/// User regions with their own kernel spacing factor, `REGION@FACTOR`.
+pub static DENSITY_REGIONS: BasisOption = row(
+    &options::DENSITY_REGIONS,
+    ValueKind::Texts,
+    |_d| None,
+    |row, c, v| {
+        c.options.density.regions = row
+            .texts(v)?
+            .iter()
+            .map(|r| r.parse::<DensityRegion>())
             .collect::<Result<_>>()?;
         Ok(())
     },

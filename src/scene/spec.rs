@@ -9,7 +9,7 @@ use crate::precompute::rkpm::{KernelType, SupportOptions};
 use crate::precompute::sampling::CloudVolumeOptions;
 use crate::precompute::table::{self, OptionTable, Value};
 use crate::precompute::GapPolicy;
-use crate::precompute::{BasisOptions, BoundaryModes, SolverConfig};
+use crate::precompute::{BasisOptions, BoundaryModes, DensityBands, KernelDensity, SolverConfig};
 use crate::sim::contact::ContactSettings;
 use crate::sim::newton::{HessianStrategy, InitialGuess, Precision};
 use crate::sim::{Boundary, Collider, NewtonOptions, Placement};
@@ -336,6 +336,13 @@ pub struct BasisSettings {
     /// region and free modes that vanish on the regions) or "free" (global modes, regions held
     /// by the penalty alone). Objects without boundaries get the same basis either way.
     pub boundaries: BoundaryModes,
+    /// Kernel spacing factor near the boundaries' regions (docs/accuracy.md, "Kernel
+    /// density"); 1 is uniform placement.
+    pub density_boundaries: f64,
+    /// Kernel spacing factor near material interfaces; 1 is uniform placement.
+    pub density_interfaces: f64,
+    /// Half-width of the refined bands, in kernel spacings (V / K)^(1/3).
+    pub density_band: f64,
 }
 
 impl Default for BasisSettings {
@@ -354,6 +361,9 @@ impl Default for BasisSettings {
             volume: None,
             voxel: None,
             boundaries: BoundaryModes::default(),
+            density_boundaries: b.density.bands.boundaries,
+            density_interfaces: b.density.bands.interfaces,
+            density_band: b.density.bands.band,
         }
     }
 }
@@ -404,6 +414,11 @@ impl ObjectSpec {
                 BoundaryModes::Free => Vec::new(),
                 BoundaryModes::Aware => distinct_regions(&self.boundaries),
             },
+            density: KernelDensity::bands(DensityBands {
+                boundaries: b.density_boundaries,
+                interfaces: b.density_interfaces,
+                band: b.density_band,
+            }),
             ..BasisOptions::default()
         };
         opts.validate()?;

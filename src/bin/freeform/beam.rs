@@ -7,7 +7,7 @@ use freeform::benchmark::{compare_beam, ReducedBeamOptions};
 use freeform::fem::beam::{BeamTest, FemBeamConfig};
 use freeform::fem::ElementOrder;
 use freeform::precompute::sampling::Resolution;
-use freeform::precompute::{BasisOptions, BoundaryModes};
+use freeform::precompute::{BasisOptions, BoundaryModes, DensityBands};
 use freeform::progress::{Progress, Silent, TerminalProgress};
 use freeform::sim::cubature::DEFAULT_CUBATURE;
 use freeform::sim::{HessianStrategy, NewtonOptions};
@@ -107,6 +107,8 @@ pub struct BeamArgs {
     #[arg(long)]
     frames: Option<usize>,
     #[command(flatten)]
+    density: DensityArgs,
+    #[command(flatten)]
     fem: FemArgs,
     /// Print the JSON report.
     #[arg(long)]
@@ -118,6 +120,29 @@ pub struct BeamArgs {
     /// a poorly conditioned basis or a step that did not converge.
     #[arg(long)]
     strict: bool,
+}
+
+/// The kernel density options shared by `freeform beam` and `freeform sweep`.
+#[derive(Args)]
+pub(crate) struct DensityArgs {
+    /// Kernel spacing factor within the band around the held and turned ends (1 = uniform
+    /// placement; 2 = half the spacing there).
+    #[arg(long, default_value_t = DensityBands::default().boundaries)]
+    density_boundaries: f64,
+    /// Half-width of the refined band, in kernel spacings h0 = (V / K)^(1/3).
+    #[arg(long, default_value_t = DensityBands::default().band)]
+    density_band: f64,
+}
+
+impl DensityArgs {
+    /// The bands given (the beam is homogeneous: no interface band).
+    pub(crate) fn bands(&self) -> DensityBands {
+        DensityBands {
+            boundaries: self.density_boundaries,
+            band: self.density_band,
+            ..DensityBands::off()
+        }
+    }
 }
 
 /// The FEM reference options shared by `freeform beam` and `freeform sweep`.
@@ -177,6 +202,7 @@ pub fn run(args: BeamArgs) -> CliResult {
         hold_stiffness: args.hold_stiffness,
         boundaries: args.boundaries.into(),
         fit: args.fit,
+        density: args.density.bands(),
     };
     opts.validate(&fem)?;
     let r = compare_beam(&fem, &opts, Some(&args.fem.cache), progress().as_ref())?;

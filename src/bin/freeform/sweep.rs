@@ -3,7 +3,7 @@
 //! a base point (design in `freeform::benchmark::sweep`); writes `sweep.csv`,
 //! `error_vs_precompute.png`, `error_vs_step.png` (and `sweep.json` with `--json`) to `--out`.
 
-use crate::beam::{progress, BoundariesArg, FemArgs, HessianArg, TestArg};
+use crate::beam::{progress, BoundariesArg, DensityArgs, FemArgs, HessianArg, TestArg};
 use crate::{emit, set_threads, CliResult};
 use clap::Args;
 use freeform::benchmark::sweep::{
@@ -66,6 +66,8 @@ pub struct SweepArgs {
     #[arg(long, default_value = "sweep")]
     out: PathBuf,
     #[command(flatten)]
+    density: DensityArgs,
+    #[command(flatten)]
     fem: FemArgs,
     /// Also write sweep.json and print it.
     #[arg(long)]
@@ -112,6 +114,7 @@ pub fn run(args: SweepArgs) -> CliResult {
         },
         frames: args.frames,
         boundaries: args.boundaries.into(),
+        density: args.density.bands(),
     };
     let runs = spec.plan(&fem)?;
     std::fs::create_dir_all(&args.out)

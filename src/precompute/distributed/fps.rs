@@ -13,6 +13,7 @@ use super::collective::{agree, arg_max, Collective};
 use super::partition::PointPart;
 use crate::eigen::block_range;
 use crate::precompute::centers::{FarthestPoints, MortonFrame};
+use crate::precompute::density::{check_regions_hold_points, kernel_scale_part};
 use crate::precompute::rkpm::{support_radii, Kernels};
 use crate::precompute::BasisOptions;
 use crate::progress::Progress;
@@ -77,7 +78,25 @@ pub fn place_kernels_parts(
     let offer = points.get(best.1).copied().unwrap_or([0.0; 3]);
     let (_, first, first_at) = arg_max(comm, best.0, part.first + best.1, offer)?;
 
-    let mut state = FarthestPoints::new(points, &first_at);
+    // The density's scale is local to each point (the distances to the boundary regions);
+    // interface refinement, which needs a point's neighbours, is refused here.
+    let scale = kernel_scale_part(
+        points,
+        part.volume(),
+        k,
+        &opts.density,
+        &opts.boundary_regions,
+        None,
+    );
+    let scale = agree(comm, "kernel density", scale)?;
+    if let Some((_, held)) = &scale {
+        let mut total: Vec<f64> = held.iter().map(|&n| n as f64).collect();
+        comm.sum(&mut total)?;
+        let held: Vec<usize> = total.iter().map(|&n| n as usize).collect();
+        check_regions_hold_points(&opts.density.regions, &held)?;
+    }
+    let scale = scale.map(|(s, _)| s);
+    let mut state = FarthestPoints::with_scale(points, scale.as_deref(), &first_at);
     let mut chosen = vec![(first, first_at)];
     progress.begin("centers", Some(k as u64));
     while chosen.len() < k {
@@ -164,7 +183,7 @@ mod tests {
                 ..BasisOptions::default()
             };
             let (whole, _) = sample_with_material(&shape, &opts).unwrap();
-            let want = place_kernels(&whole.points, &opts).unwrap();
+            let want = place_kernels(&whole.points, None, &opts).unwrap();
             for size in [1, 2, 3, 4] {
                 let got = run_ranks(size, |c| {
                     let part = sample_part(&shape, &opts, c).unwrap();
@@ -175,6 +194,87 @@ mod tests {
                     assert_eq!(kernels.radii, want.radii, "P = {size}");
                 }
             }
+        }
+    }
+
+    #[test]
+    fn the_ranks_place_the_one_process_kernels_with_a_density_too() {
+        use crate::material::Region;
+        use crate::precompute::density::{kernel_scale, DensityBands, DensityRegion};
+        use crate::precompute::KernelDensity;
+        let shape = Shape::Box {
+            size: [2.0, 1.0, 0.5],
+        };
+        let held = Region::HalfSpace {
+            point: [0.4, 0.0, 0.0],
+            normal: [-1.0, 0.0, 0.0],
+        };
+        let opts = BasisOptions {
+            kernels: 150,
+            resolution: Some(Resolution::Count(4000)),
+            boundary_regions: vec![held],
+            density: KernelDensity {
+                bands: DensityBands {
+                    boundaries: 2.0,
+                    ..DensityBands::off()
+                },
+                regions: vec![DensityRegion {
+                    region: Region::Sphere {
+                        center: [1.6, 0.5, 0.25],
+                        radius: 0.3,
+                    },
+                    factor: 1.5,
+                }],
+            },
+            ..BasisOptions::default()
+        };
+        let (whole, material) = sample_with_material(&shape, &opts).unwrap();
+        let volume: f64 = whole.volumes.iter().sum();
+        let scale = kernel_scale(
+            &whole.points,
+            volume,
+            opts.kernels,
+            &opts.density,
+            &opts.boundary_regions,
+            Some(&material),
+        )
+        .unwrap();
+        let want = place_kernels(&whole.points, scale.as_deref(), &opts).unwrap();
+        // The band around x = 0.4 (h0 = (1 / 150)^(1/3) = 0.19 m) holds more kernels than
+        // uniform placement puts there: twice as fine is up to 8x per volume.
+        let uniform = place_kernels(&whole.points, None, &opts).unwrap();
+        let in_band = |k: &crate::precompute::rkpm::Kernels| {
+            k.centers.iter().filter(|c| (c[0] - 0.4).abs() < 0.19).count()
+        };
+        assert!(
+            in_band(&want) > 2 * in_band(&uniform),
+            "{} vs {}",
+            in_band(&want),
+            in_band(&uniform)
+        );
+        for size in [1, 3] {
+            let got = run_ranks(size, |c| {
+                let part = sample_part(&shape, &opts, c).unwrap();
+                place_kernels_parts(&part, &opts, c, &Silent).unwrap()
+            });
+            for kernels in got {
+                assert_eq!(kernels, want, "P = {size}");
+            }
+        }
+        // Interface refinement needs a point's neighbours: refused on every rank.
+        let interfaces = BasisOptions {
+            density: KernelDensity::bands(DensityBands {
+                interfaces: 2.0,
+                ..DensityBands::off()
+            }),
+            ..opts
+        };
+        let errors = run_ranks(2, |c| {
+            let part = sample_part(&shape, &interfaces, c).unwrap();
+            place_kernels_parts(&part, &interfaces, c, &Silent).unwrap_err()
+        });
+        for e in errors {
+            assert!(e.to_string().contains("across MPI ranks"), "{e}");
         }
     }
 

@@ -34,6 +34,17 @@ pub struct PointPart {
     source: Source,
 }
 
+impl PointPart {
+    /// The whole object's volume, m^3: the sum of all ranks' point volumes in the one-process
+    /// order (so the same f64 as the one-process pipeline's).
+    pub fn volume(&self) -> f64 {
+        match &self.source {
+            Source::Grid { volume, .. } => std::iter::repeat_n(*volume, self.total).sum(),
+            Source::Cloud(all) => all.volumes.iter().sum(),
+        }
+    }
+}
+
 #[derive(Debug, Clone)]
 enum Source {
     /// A solid's sampling grid; every point has volume `volume`, m^3.
