@@ -244,7 +244,10 @@ mod tests {
         // uniform placement puts there: twice as fine is up to 8x per volume.
         let uniform = place_kernels(&whole.points, None, &opts).unwrap();
         let in_band = |k: &crate::precompute::rkpm::Kernels| {
-            k.centers.iter().filter(|c| (c[0] - 0.4).abs() < 0.19).count()
+            k.centers
+                .iter()
+                .filter(|c| (c[0] - 0.4).abs() < 0.19)
+                .count()
         };
         assert!(
             in_band(&want) > 2 * in_band(&uniform),
