@@ -311,6 +311,45 @@ fn modes_png_draws_a_grid_of_the_first_modes() {
     assert!(o.status.success(), "{}", stderr(&o));
     // min(6, 5) modes: 3 per row, 2 rows, a 28-pixel footer.
     assert_eq!(png_size(&png), (360, 228));
+    // With a kernel density the picture gets one more tile, the kernels by support radius;
+    // the density is in the basis metadata.
+    let npz = dir.path().join("d.npz");
+    let o = freeform(&[
+        "modes",
+        "box:1,0.3,0.3",
+        "--kernels",
+        "60",
+        "--modes",
+        "3",
+        "--points",
+        "3000",
+        "--density-region",
+        "sphere:0.2,0.15,0.15,0.2@2",
+        "--out",
+        npz.to_str().unwrap(),
+        "--png",
+        png.to_str().unwrap(),
+        "--png-tile",
+        "120x100",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // 3 modes and the density tile: two rows (one row without it).
+    assert_eq!(png_size(&png), (360, 228));
+    let back = freeform::io::basis::load(&npz).unwrap();
+    let options = back.metadata.options.expect("typed options");
+    assert_eq!(options.density.regions.len(), 1);
+    assert_eq!(options.density.regions[0].factor, 2.0);
+    let o = freeform(&[
+        "modes",
+        "box:1,0.3,0.3",
+        "--density-region",
+        "sphere:0.2,0.15,0.15,0.2@0",
+    ]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("density region"),
+        "{}",
+        stderr(&o)
+    );
     let o = freeform(&[
         "modes",
         "box:1,0.3,0.3",

@@ -192,6 +192,7 @@ pub fn run(args: ModesArgs) -> CliResult {
             args.png_modes,
             png_tile,
             &args.view,
+            !opts.density.is_off(),
         )?;
     }
     let r = &report;

@@ -467,6 +467,7 @@ pub fn modes_png(
     count: usize,
     tile: (u32, u32),
     view: &ViewArgs,
+    density_tile: bool,
 ) -> CliResult {
     use freeform::geometry::Shape;
     let camera_options = view.options()?;
@@ -486,8 +487,9 @@ pub fn modes_png(
     let bounds = Aabb::from_points(positions).unwrap_or_else(|| shape.bounding_box());
     let camera = Camera::fit(&bounds, &camera_options);
     let radius = disc_radius_from_spacing(positions);
-    let cols = count.min(3) as u32;
-    let rows = count.div_ceil(3) as u32;
+    let tiles = count + usize::from(density_tile);
+    let cols = tiles.min(3) as u32;
+    let rows = tiles.div_ceil(3) as u32;
     let footer = 28;
     let (tw, th) = tile;
     let mut image = Image::new(cols * tw, rows * th + footer, WHITE);
@@ -535,6 +537,15 @@ pub fn modes_png(
             &format!("mode {j}   \u{3bb} = {ev:.3e} Pa/m\u{b2}"),
         )?;
     }
+    if density_tile {
+        let rect = Rect {
+            x: (count as u32 % 3) * tw,
+            y: (count as u32 / 3) * th,
+            width: tw,
+            height: th,
+        };
+        kernel_spacing_tile(&mut image, rect, &camera, &basis.kernels)?;
+    }
     draw_text(
         &mut image,
         8,
@@ -544,6 +555,46 @@ pub fn modes_png(
         "skinning weight of each mode: blue < 0 < red, each scaled to its largest magnitude",
     )?;
     image.write_png(path)?;
+    Ok(())
+}
+
+/// The kernel density as the kernels' support radii (metres) at their centres: small (dark)
+/// where the density placed them close together.
+fn kernel_spacing_tile(
+    image: &mut Image,
+    rect: Rect,
+    camera: &Camera,
+    kernels: &freeform::precompute::rkpm::Kernels,
+) -> CliResult {
+    let (lo, hi) = kernels
+        .radii
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), &a| {
+            (lo.min(a), hi.max(a))
+        });
+    let options = DrawOptions {
+        scalars: Some(Scalars {
+            map: ColorMap::Viridis,
+            range: [lo, hi.max(lo * (1.0 + 1e-12))],
+        }),
+        ..Default::default()
+    };
+    let item = Item::Points {
+        positions: &kernels.centers,
+        // Half the usual disc, so the close-packed refined kernels stay apart.
+        radius: 0.5 * disc_radius_from_spacing(&kernels.centers),
+        scalars: Some(&kernels.radii),
+        colour: [0; 3],
+    };
+    draw(image, rect, camera, &[item], &options)?;
+    draw_text(
+        image,
+        rect.x as i32 + 8,
+        rect.y as i32 + 6,
+        14.0,
+        [0, 0, 0],
+        &format!("kernels by support radius: {lo:.3} (dark) .. {hi:.3} m"),
+    )?;
     Ok(())
 }
 
