@@ -189,10 +189,12 @@ pub fn run(args: ModesArgs) -> CliResult {
             &shape,
             &basis,
             points,
-            args.png_modes,
-            png_tile,
+            crate::render::ModesLayout {
+                count: args.png_modes,
+                tile: png_tile,
+                density_tile: !opts.density.is_off(),
+            },
             &args.view,
-            !opts.density.is_off(),
         )?;
     }
     let r = &report;

@@ -458,18 +458,32 @@ pub fn ground_below(bounds: &Aabb, axis: usize, height: f64) -> Ground {
 /// `freeform modes --png`: the first `count` non-constant modes' weights on the shape, one
 /// tile of `tile` pixels each (three per row), blue (negative) to red (positive), each mode
 /// scaled to its largest |W_j|. Meshes are drawn by their triangles, point clouds and
+/// What `freeform modes --png` draws: how many modes, each tile's size (pixels) and whether a
+/// last tile shows the kernel density.
+pub struct ModesLayout {
+    /// Non-constant modes drawn.
+    pub count: usize,
+    /// Tile width and height, pixels.
+    pub tile: (u32, u32),
+    /// Add the kernels coloured by support radius.
+    pub density_tile: bool,
+}
+
 /// primitives as discs at `points` (a primitive's integration points, N x 3, metres).
 pub fn modes_png(
     path: &Path,
     shape: &freeform::geometry::Shape,
     basis: &freeform::precompute::skinning::Basis,
     points: &[[f64; 3]],
-    count: usize,
-    tile: (u32, u32),
+    layout: ModesLayout,
     view: &ViewArgs,
-    density_tile: bool,
 ) -> CliResult {
     use freeform::geometry::Shape;
+    let ModesLayout {
+        count,
+        tile,
+        density_tile,
+    } = layout;
     let camera_options = view.options()?;
     let (positions, triangles): (&[[f64; 3]], Option<&[[u32; 3]]>) = match shape {
         Shape::Mesh(m) => (m.vertices(), Some(m.triangles())),
