@@ -613,7 +613,8 @@ pub enum FemError {
     #[error(
         "Newton did not converge in step {step}: {iterations} iterations, last step \
          max |dx| = {step_norm:.3e} m (tolerance {tolerance:.3e} m), gradient max norm \
-         {gradient_norm:.3e} N; reduce the time step or raise max_newton_iterations"
+         {gradient_norm:.3e} N; reduce the time step or raise max_newton_iterations (FEM \
+         references halve a failing step up to 4 times before they report this)"
     )]
     NotConverged {
         /// 0-based step index.

@@ -297,10 +297,15 @@ fn compute(config: &FemBeamConfig, progress: &dyn Progress) -> crate::Result<Bea
     )
 }
 
+/// How often a reference step that Newton cannot converge is halved before the reference
+/// fails ([`FemSolver::step_substepping`]): down to 1/16 of the step.
+pub const MAX_HALVINGS: u32 = 4;
+
 /// Step `solver` `steps` times and record the reference: before step n (1-based),
 /// `targets(n, rest positions, fixed nodes)` gives the fixed nodes' positions, or None to
 /// leave them where they are; every step's positions, wall time and Newton iterations are
-/// kept. `label` names the work in `progress`.
+/// kept. A step Newton cannot converge is halved, up to [`MAX_HALVINGS`] times (frames stay at
+/// the full steps). `label` names the work in `progress`.
 pub(crate) fn record_trajectory(
     solver: &mut FemSolver,
     mesh: &TetMesh,
@@ -319,7 +324,7 @@ pub(crate) fn record_trajectory(
             solver.set_targets(&t)?;
         }
         let t0 = Instant::now();
-        let info = solver.step()?;
+        let info = solver.step_substepping(MAX_HALVINGS)?;
         step_seconds.push(t0.elapsed().as_secs_f64());
         newton_iterations.push(info.newton_iterations as u32);
         frames.push(solver.positions().to_vec());

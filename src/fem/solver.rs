@@ -133,6 +133,10 @@ pub struct StepInfo {
     pub factor_seconds: f64,
     /// Iterations that fell back to the PSD-projected Hessian ([`HessianMode::ExactFirst`]).
     pub projected_iterations: usize,
+    /// Backward Euler steps the step was taken as: 1, or more where
+    /// [`FemSolver::step_substepping`] halved it.
+    #[serde(default)]
+    pub substeps: usize,
 }
 
 const NONE: u32 = u32::MAX;
@@ -494,6 +498,66 @@ impl FemSolver {
         }
     }
 
+    /// One step of size `params.dt` that halves itself where Newton fails: a step that does
+    /// not converge (or whose line search fails) is undone and taken as two steps of half the
+    /// size, the fixed nodes' targets halfway at the first, up to `max_halvings` times deep.
+    /// Where every step converges this is [`FemSolver::step`] bit for bit; where it sub-steps
+    /// the result is backward Euler at the smaller step there, a finer and converged reference.
+    /// The returned info sums the sub-steps' iterations and counts them in `substeps`.
+    ///
+    /// # Errors
+    /// As [`FemSolver::step`], from the deepest sub-step that still failed; the state then
+    /// holds the start of the full step.
+    pub fn step_substepping(&mut self, max_halvings: u32) -> Result<StepInfo, FemError> {
+        let (x0, v0, steps0) = (self.x.clone(), self.v.clone(), self.steps);
+        match self.step() {
+            Ok(info) => Ok(info),
+            Err(FemError::NotConverged { .. } | FemError::LineSearch { .. })
+                if max_halvings > 0 =>
+            {
+                self.x.copy_from_slice(&x0);
+                self.v.copy_from_slice(&v0);
+                let end = self.targets.clone();
+                let half: Vec<Point3> = self
+                    .fixed_nodes
+                    .iter()
+                    .zip(&end)
+                    .map(|(&i, t)| [0, 1, 2].map(|r| 0.5 * (x0[i][r] + t[r])))
+                    .collect();
+                let h = self.params.dt;
+                self.params.dt = 0.5 * h;
+                self.targets.copy_from_slice(&half);
+                let first = self.step_substepping(max_halvings - 1);
+                self.targets.copy_from_slice(&end);
+                let both = first.and_then(|a| Ok((a, self.step_substepping(max_halvings - 1)?)));
+                self.params.dt = h;
+                match both {
+                    Ok((a, b)) => {
+                        // Two half steps make one step of the caller's count.
+                        self.steps = steps0 + 1;
+                        Ok(StepInfo {
+                            newton_iterations: a.newton_iterations + b.newton_iterations,
+                            line_search_halvings: a.line_search_halvings + b.line_search_halvings,
+                            step_norm: b.step_norm,
+                            gradient_norm: b.gradient_norm,
+                            seconds: a.seconds + b.seconds,
+                            factor_seconds: a.factor_seconds + b.factor_seconds,
+                            projected_iterations: a.projected_iterations + b.projected_iterations,
+                            substeps: a.substeps + b.substeps,
+                        })
+                    }
+                    Err(e) => {
+                        self.x.copy_from_slice(&x0);
+                        self.v.copy_from_slice(&v0);
+                        self.steps = steps0;
+                        Err(e)
+                    }
+                }
+            }
+            Err(e) => Err(e),
+        }
+    }
+
     /// Static equilibrium from the current positions (no inertia; gravity, Dirichlet targets
     /// and plane penalty apply); sets v = 0. Needs enough held nodes to remove rigid motions.
     ///
@@ -642,7 +706,10 @@ impl FemSolver {
         let t0 = Instant::now();
         let step = self.steps;
         let tol = self.params.tolerance * self.diag;
-        let mut info = StepInfo::default();
+        let mut info = StepInfo {
+            substeps: 1,
+            ..StepInfo::default()
+        };
         let ndof = self.free_dofs();
         let mut rhs = vec![0.0; ndof];
         let mut trial = x.to_vec();

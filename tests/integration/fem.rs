@@ -698,3 +698,73 @@ fn nested_levels_compare_on_the_coarse_nodes() {
     // The other way round, fine nodes are missing from the coarse mesh.
     assert!(nested_difference(&fine, &coarse).is_err());
 }
+
+/// A soft cantilever under gravity: 4 m x 1 m x 1 m, two cubes per metre, held at x = 0.
+fn soft_cantilever(dt: f64, max_newton_iterations: usize) -> FemSolver {
+    let mesh = TetMesh::structured_box([0.0; 3], [4.0, 1.0, 1.0], [8, 2, 2]).unwrap();
+    let mat = Material {
+        youngs: 2e4,
+        poisson: 0.3,
+        density: 1000.0,
+    };
+    let mats = TetMaterials::homogeneous(&mesh, &mat).unwrap();
+    let fixed = mesh.select_nodes(|p| p[0] < 1e-9);
+    let params = FemParams {
+        dt,
+        max_newton_iterations,
+        ..FemParams::default()
+    };
+    FemSolver::new(&mesh, &mats, &fixed, params).unwrap()
+}
+
+#[test]
+fn a_step_newton_cannot_converge_is_halved_into_converged_half_steps() {
+    // Where every step converges, sub-stepping is the plain step bit for bit.
+    let (mut plain, mut halving) = (soft_cantilever(0.01, 50), soft_cantilever(0.01, 50));
+    for _ in 0..3 {
+        plain.step().unwrap();
+        let info = halving.step_substepping(4).unwrap();
+        assert_eq!(info.substeps, 1);
+    }
+    assert_eq!(plain.positions(), halving.positions());
+    assert_eq!(halving.steps_taken(), 3);
+
+    // Large steps with a tight Newton cap: the plain step fails, the halving one converges
+    // as backward Euler at the smaller steps. Where the step was taken as 2^d sub-steps (here
+    // every such case split to one depth throughout), an independent solver stepping at
+    // dt / 2^d reproduces it bit for bit; at least one of these settings is such a case.
+    let mut compared = 0;
+    for (dt, cap) in [(0.5, 3), (0.5, 4), (0.3, 3), (0.3, 2), (0.2, 2)] {
+        let mut failing = soft_cantilever(dt, cap);
+        if failing.step().is_ok() {
+            continue;
+        }
+        let mut halving = soft_cantilever(dt, cap);
+        let info = halving.step_substepping(4).unwrap();
+        assert!(info.substeps > 1, "{info:?}");
+        assert_eq!(halving.steps_taken(), 1);
+        if !info.substeps.is_power_of_two() {
+            continue;
+        }
+        let mut fine = soft_cantilever(dt / info.substeps as f64, cap);
+        for _ in 0..info.substeps {
+            fine.step().unwrap();
+        }
+        assert_eq!(fine.positions(), halving.positions(), "dt {dt}, cap {cap}");
+        assert_eq!(
+            fine.velocities(),
+            halving.velocities(),
+            "dt {dt}, cap {cap}"
+        );
+        compared += 1;
+    }
+    assert!(compared > 0);
+    let dt = 0.5;
+    // Not even 1/16 of the step converges in one iteration: the error, and the state is the
+    // start of the step.
+    let mut hopeless = soft_cantilever(dt, 1);
+    let start = hopeless.positions().to_vec();
+    assert!(hopeless.step_substepping(4).is_err());
+    assert_eq!(hopeless.positions(), &start[..]);
+    assert_eq!(hopeless.steps_taken(), 0);
+}
