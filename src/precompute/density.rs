@@ -108,6 +108,9 @@ pub struct KernelDensity {
 /// on a material interface (a modulus image's gentle gradients do not).
 pub const INTERFACE_CONTRAST: f64 = 1.5;
 
+/// Narrowest band accepted, in kernel spacings.
+pub const MIN_BAND: f64 = 0.1;
+
 /// Largest factor accepted: 8 (512x the kernels per volume).
 pub const MAX_DENSITY_FACTOR: f64 = 8.0;
 
@@ -133,7 +136,7 @@ impl KernelDensity {
         self.bands.boundaries == 1.0 && self.bands.interfaces == 1.0 && self.regions.is_empty()
     }
 
-    /// Check the ranges: factors finite and in [1/8, 8], band in (0, 100].
+    /// Check the ranges: factors finite and in [1/8, 8], band in [0.1, 100].
     pub fn validate(&self) -> Result<()> {
         for (name, f) in [
             ("density boundaries", self.bands.boundaries),
@@ -150,12 +153,14 @@ impl KernelDensity {
                 ));
             }
         }
-        if !(self.bands.band.is_finite() && self.bands.band > 0.0 && self.bands.band <= 100.0) {
+        if !(self.bands.band.is_finite() && (MIN_BAND..=100.0).contains(&self.bands.band)) {
             return Err(Error::param(
                 "density band",
                 self.bands.band,
-                "the band half-width is in kernel spacings h0 = (V / K)^(1/3) and must lie in \
-                 (0, 100] (default 1)",
+                format!(
+                    "the band half-width is in kernel spacings h0 = (V / K)^(1/3) and must lie \
+                     in [{MIN_BAND}, 100] (default 1): a narrower band holds hardly a kernel"
+                ),
             ));
         }
         for (i, r) in self.regions.iter().enumerate() {
