@@ -212,6 +212,19 @@ pub static DENSITY_BAND: OptionName = OptionName {
            grades back to 1 over one more band width",
 };
 
+/// Largest kernel spacing factor on thin parts.
+pub static DENSITY_THIN: OptionName = OptionName {
+    library: "DensityBands::thin",
+    flag: Some("--density-thin"),
+    scene: Some("basis.density_thin"),
+    python: Some("density_thin"),
+    c: None,
+    value_prefix: "",
+    help: "Largest kernel spacing factor on parts thinner than 3 kernel spacings (local \
+           thickness from the integration points' depth below the surface), so that about 3 \
+           kernels lie across them; 1 is uniform placement [1/8, 8]; one process only",
+};
+
 /// User regions with their own kernel spacing factor.
 pub static DENSITY_REGIONS: OptionName = OptionName {
     library: "KernelDensity::regions",
@@ -297,7 +310,7 @@ pub static PETSC_OPTIONS: OptionName = OptionName {
 };
 
 /// Every row, for the checks that hold each front end to the table.
-pub static ALL: [&OptionName; 24] = [
+pub static ALL: [&OptionName; 25] = [
     &KERNELS,
     &MODES,
     &POINTS,
@@ -317,6 +330,7 @@ pub static ALL: [&OptionName; 24] = [
     &DENSITY_BOUNDARIES,
     &DENSITY_INTERFACES,
     &DENSITY_BAND,
+    &DENSITY_THIN,
     &DENSITY_REGIONS,
     &BOUNDARIES,
     &SOLVER,

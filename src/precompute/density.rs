@@ -72,7 +72,20 @@ pub struct DensityBands {
     /// over one more band width, so the spacing grades instead of jumping; where the two bands
     /// overlap their factors multiply.
     pub band: f64,
+    /// Thin parts: the largest spacing factor given to parts thinner than [`THIN_ACROSS`]
+    /// spacings h0, so that about that many kernels lie across them (local thickness from
+    /// the integration points' distance to the object's surface). 1 is off.
+    #[serde(default = "one")]
+    pub thin: f64,
 }
+
+fn one() -> f64 {
+    1.0
+}
+
+/// Kernels wanted across a thin part: parts thinner than this many spacings h0 get a finer
+/// spacing (up to [`DensityBands::thin`]), so their kernels do not lie on one line or plane.
+pub const THIN_ACROSS: f64 = 3.0;
 
 impl Default for DensityBands {
     /// The default bands of every basis: see docs/accuracy.md ("Kernel density").
@@ -88,6 +101,7 @@ impl DensityBands {
             boundaries: 1.0,
             interfaces: 1.0,
             band: 1.0,
+            thin: 1.0,
         }
     }
 }
@@ -133,7 +147,10 @@ impl KernelDensity {
 
     /// True when the density changes nothing (uniform farthest point sampling).
     pub fn is_off(&self) -> bool {
-        self.bands.boundaries == 1.0 && self.bands.interfaces == 1.0 && self.regions.is_empty()
+        self.bands.boundaries == 1.0
+            && self.bands.interfaces == 1.0
+            && self.bands.thin == 1.0
+            && self.regions.is_empty()
     }
 
     /// Check the ranges: factors finite and in [1/8, 8], band in [0.1, 100].
@@ -141,6 +158,7 @@ impl KernelDensity {
         for (name, f) in [
             ("density boundaries", self.bands.boundaries),
             ("density interfaces", self.bands.interfaces),
+            ("density thin", self.bands.thin),
         ] {
             if !(f.is_finite() && (1.0 / MAX_DENSITY_FACTOR..=MAX_DENSITY_FACTOR).contains(&f)) {
                 return Err(Error::param(
@@ -234,8 +252,8 @@ fn taper(factor: f64, band: f64, d: f64) -> f64 {
 /// The scale s(X) at every point (N, dimensionless), or None when `density` is off.
 ///
 /// `volume` is the object's volume (m^3), `boundary_regions` the aware basis's regions,
-/// `material` the per-point material (needed only for interface refinement; None across MPI
-/// ranks, where a point's neighbours may live on another rank).
+/// `whole` the per-point materials and volumes (needed only for interface and thin-part
+/// refinement; None across MPI ranks, where a point's neighbours may live on another rank).
 ///
 /// # Errors
 /// Invalid options; a band wider than the object; interface refinement asked for on an object
@@ -247,9 +265,9 @@ pub fn kernel_scale(
     kernels: usize,
     density: &KernelDensity,
     boundary_regions: &[Region],
-    material: Option<&MaterialField>,
+    whole: Option<WholeObject<'_>>,
 ) -> Result<Option<Vec<f64>>> {
-    let part = kernel_scale_part(points, volume, kernels, density, boundary_regions, material)?;
+    let part = kernel_scale_part(points, volume, kernels, density, boundary_regions, whole)?;
     Ok(match part {
         Some((scale, held)) => {
             check_regions_hold_points(&density.regions, &held)?;
@@ -271,7 +289,7 @@ pub fn kernel_scale_part(
     kernels: usize,
     density: &KernelDensity,
     boundary_regions: &[Region],
-    material: Option<&MaterialField>,
+    whole: Option<WholeObject<'_>>,
 ) -> Result<Option<(Vec<f64>, Vec<usize>)>> {
     density.validate()?;
     if density.is_off() {
@@ -300,15 +318,30 @@ pub fn kernel_scale_part(
                 *s *= taper(density.bands.boundaries, band, d);
             });
     }
+    let needs_whole = |name: &'static str, value: f64| {
+        whole.ok_or_else(|| {
+            Error::param(
+                name,
+                value,
+                "interface and thin-part refinement are not available across MPI ranks (a \
+                 point's neighbours may live on another rank); run in one process or set them \
+                 to 1",
+            )
+        })
+    };
+    if density.bands.thin != 1.0 {
+        let w = needs_whole("density thin", density.bands.thin)?;
+        let h0 = bulk_spacing(volume, kernels);
+        let t = local_thickness(points, w.volumes, h0)?;
+        scale
+            .par_iter_mut()
+            .zip(t)
+            .for_each(|(s, t): (&mut f64, f64)| {
+                *s *= thin_factor(density.bands.thin, h0, t);
+            });
+    }
     if density.bands.interfaces != 1.0 {
-        let Some(material) = material else {
-            return Err(Error::param(
-                "density interfaces",
-                density.bands.interfaces,
-                "interface refinement is not available across MPI ranks (a point's neighbours \
-                 may live on another rank); run in one process or set it to 1",
-            ));
-        };
+        let material = needs_whole("density interfaces", density.bands.interfaces)?.material;
         let d = interface_distance(points, material)?;
         scale
             .par_iter_mut()
@@ -367,6 +400,112 @@ pub fn check_regions_hold_points(regions: &[DensityRegion], held: &[usize]) -> R
         ));
     }
     Ok(())
+}
+
+/// What interface and thin-part refinement need of the whole object in one process: every
+/// point's material and volume (N each, in the points' order).
+#[derive(Debug, Clone, Copy)]
+pub struct WholeObject<'a> {
+    /// Per-point materials.
+    pub material: &'a MaterialField,
+    /// Per-point volumes, m^3.
+    pub volumes: &'a [f64],
+}
+
+/// The thin-part factor at local thickness `t` (metres): enough to put [`THIN_ACROSS`]
+/// kernels across it, between 1 and `max`.
+fn thin_factor(max: f64, h0: f64, t: f64) -> f64 {
+    if max <= 1.0 {
+        // A factor below 1 coarsens thin parts by it, wherever they are thinner than the
+        // target (a user's choice; 1 is off).
+        return if t < THIN_ACROSS * h0 { max } else { 1.0 };
+    }
+    (THIN_ACROSS * h0 / t).clamp(1.0, max)
+}
+
+/// Local thickness at every point, metres: twice the largest distance to the surface found
+/// within 1.5 h0 (a thin part's medial axis is that close to each of its points). The surface
+/// is where integration points lack a neighbour: a grid point with fewer than 6 others within
+/// 1.2 of its spacing (its volume's cube root) lies in the outer layer, half a spacing inside.
+fn local_thickness(points: &[Point3], volumes: &[f64], h0: f64) -> Result<Vec<f64>> {
+    let index = |what: &str, n: usize, e: String| {
+        Error::param(
+            "density thin",
+            n,
+            format!("cannot index the {what} for the thickness estimate: {e}"),
+        )
+    };
+    let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(points)
+        .map_err(|e| index("points", points.len(), format!("{e:?}")))?;
+    let seven = std::num::NonZero::new(7).expect("7 > 0");
+    let spacing: Vec<f64> = volumes.iter().map(|v| v.cbrt()).collect();
+    let outer: Vec<Point3> = (0..points.len())
+        .into_par_iter()
+        .filter(|&i| {
+            let r2 = (1.2 * spacing[i]).powi(2);
+            let near = tree
+                .query(&points[i])
+                .nearest_n::<SquaredEuclidean<f64>>(seven)
+                .execute()
+                .iter()
+                .filter(|n| n.item as usize != i && n.distance <= r2)
+                .count();
+            near < 6
+        })
+        .map(|i| points[i])
+        .collect();
+    if outer.is_empty() {
+        return Err(Error::param(
+            "density thin",
+            points.len(),
+            "no integration point lies at the object's surface (every point has all 6 grid \
+             neighbours), so there is no thickness to estimate: thin-part refinement needs a \
+             solid sampled on a grid (a mesh, primitive or image); set it to 1",
+        ));
+    }
+    let surface: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(&outer)
+        .map_err(|e| index("surface points", outer.len(), format!("{e:?}")))?;
+    const ONE: std::num::NonZero<usize> = std::num::NonZero::<usize>::MIN;
+    let depth: Vec<f64> = points
+        .par_iter()
+        .zip(&spacing)
+        .map(|(p, h)| {
+            let d = surface
+                .query(p)
+                .nearest_n::<SquaredEuclidean<f64>>(ONE)
+                .execute()
+                .first()
+                .map_or(0.0, |n| n.distance.sqrt());
+            d + 0.5 * h
+        })
+        .collect();
+    let reach = (1.5 * h0).powi(2);
+    let thickness: Vec<f64> = points
+        .par_iter()
+        .map(|p| {
+            let deepest = tree
+                .query(p)
+                .within::<SquaredEuclidean<f64>>(reach)
+                .unsorted()
+                .execute()
+                .iter()
+                .map(|n| depth[n.item as usize])
+                .fold(0.0, f64::max);
+            2.0 * deepest
+        })
+        .collect();
+    if let Some(i) = thickness.iter().position(|t| !(t.is_finite() && *t > 0.0)) {
+        return Err(Error::param(
+            "density thin",
+            thickness[i],
+            format!(
+                "the thickness estimate failed at integration point {i} ({:?}): check the \
+                 shape (an open or degenerate mesh) or set the thin-part factor to 1",
+                points[i]
+            ),
+        ));
+    }
+    Ok(thickness)
 }
 
 /// Whether two materials differ across an interface ([`INTERFACE_CONTRAST`]).
@@ -514,6 +653,53 @@ mod tests {
     }
 
     #[test]
+    fn thin_parts_are_found_by_their_depth_below_the_surface() {
+        // A 1 m cube with a 0.25 m thick fin beside it, on a grid of 1/16 m.
+        let h = 1.0 / 16.0;
+        let mut pts = Vec::new();
+        for i in 0..32 {
+            for j in 0..16 {
+                for k in 0..16 {
+                    let p = [
+                        (i as f64 + 0.5) * h,
+                        (j as f64 + 0.5) * h,
+                        (k as f64 + 0.5) * h,
+                    ];
+                    if p[0] < 1.0 || p[2] < 0.25 {
+                        pts.push(p);
+                    }
+                }
+            }
+        }
+        let volumes = vec![h * h * h; pts.len()];
+        let h0 = 0.3;
+        let t = local_thickness(&pts, &volumes, h0).unwrap();
+        for (p, t) in pts.iter().zip(&t) {
+            if p[0] > 1.5 {
+                // The fin, away from the cube: its thickness to within a grid spacing (an even
+                // number of layers, 4 here, has no point on the mid-plane: 0.1875 m).
+                assert!((t - 0.25).abs() <= h, "{p:?}: {t}");
+                // 3 kernels across 0.25 m want a spacing of 0.083 m: 3.6x finer than h0 (4.8x
+                // from the estimate 0.1875 m).
+                let f = thin_factor(8.0, h0, *t);
+                assert!((3.0..=4.8).contains(&f), "{p:?}: {f}");
+            }
+            if (0..3).all(|d| (p[d] - 0.5).abs() < 0.2) {
+                // The cube's core: at least twice the reach of the estimate, no refinement.
+                assert!(*t >= 0.9, "{p:?}: {t}");
+                assert_eq!(thin_factor(8.0, h0, *t), 1.0);
+            }
+        }
+        // A single sheet of grid points: every point is in the outer layer, so the sheet is
+        // one spacing thick.
+        let sheet: Vec<Point3> = (0..100)
+            .map(|i| [(i % 10) as f64 * h, (i / 10) as f64 * h, 0.0])
+            .collect();
+        let t = local_thickness(&sheet, &vec![h * h * h; 100], h0).unwrap();
+        assert!(t.iter().all(|t| (t - h).abs() < 1e-12), "{t:?}");
+    }
+
+    #[test]
     fn interfaces_are_found_between_materials_only() {
         let pts = grid(6, 2.0);
         let m = crate::material::Material::default();
@@ -536,8 +722,13 @@ mod tests {
         let pts = grid(4, 2.0);
         let m = crate::material::Material::default();
         let one = MaterialField::homogeneous(pts.len(), &m).unwrap();
+        let volumes = vec![1.0 / 64.0; pts.len()];
+        let whole = WholeObject {
+            material: &one,
+            volumes: &volumes,
+        };
         let run = |d: &KernelDensity, regions: &[Region]| {
-            kernel_scale(&pts, 2.0, 16, d, regions, Some(&one))
+            kernel_scale(&pts, 2.0, 16, d, regions, Some(whole))
                 .unwrap_err()
                 .to_string()
         };

@@ -5,7 +5,7 @@
 use super::assembly::Assembled;
 use super::boundary_modes;
 use super::centers::{farthest_point_sampling_scaled, morton_order};
-use super::density::kernel_scale;
+use super::density::{kernel_scale, WholeObject};
 use super::memory::{expected_points, MemoryEstimate};
 use super::options::BasisOptions;
 use super::quality::{CoverageReport, ModesReport, SolveFacts};
@@ -212,7 +212,10 @@ impl Problem {
             opts.kernels,
             &opts.density,
             &opts.boundary_regions,
-            Some(&material),
+            Some(WholeObject {
+                material: &material,
+                volumes: &points.volumes,
+            }),
         )?;
         let mut kernels = place_kernels(&points.points, scale.as_deref(), opts)?;
         drop(scale);

@@ -234,7 +234,7 @@ impl OptionTable {
 
 /// The built-in basis options, in the command line's order: registering an option is one
 /// entry here.
-pub static BASIS_OPTIONS: [&BasisOption; 21] = [
+pub static BASIS_OPTIONS: [&BasisOption; 22] = [
     &KERNELS,
     &MODES,
     &POINTS,
@@ -254,6 +254,7 @@ pub static BASIS_OPTIONS: [&BasisOption; 21] = [
     &DENSITY_BOUNDARIES,
     &DENSITY_INTERFACES,
     &DENSITY_BAND,
+    &DENSITY_THIN,
     &DENSITY_REGIONS,
     &EIGENSOLVER,
 ];
@@ -490,6 +491,17 @@ pub static DENSITY_BAND: BasisOption = row(
     |d| Some(Value::Number(d.options.density.bands.band)),
     |row, c, v| {
         c.options.density.bands.band = row.number(v)?;
+        Ok(())
+    },
+);
+
+/// The largest kernel spacing factor on thin parts.
+pub static DENSITY_THIN: BasisOption = row(
+    &options::DENSITY_THIN,
+    ValueKind::Number,
+    |d| Some(Value::Number(d.options.density.bands.thin)),
+    |row, c, v| {
+        c.options.density.bands.thin = row.number(v)?;
         Ok(())
     },
 );

@@ -343,6 +343,8 @@ pub struct BasisSettings {
     pub density_interfaces: f64,
     /// Half-width of the refined bands, in kernel spacings (V / K)^(1/3).
     pub density_band: f64,
+    /// Largest kernel spacing factor on thin parts; 1 is uniform placement.
+    pub density_thin: f64,
 }
 
 impl Default for BasisSettings {
@@ -364,6 +366,7 @@ impl Default for BasisSettings {
             density_boundaries: b.density.bands.boundaries,
             density_interfaces: b.density.bands.interfaces,
             density_band: b.density.bands.band,
+            density_thin: b.density.bands.thin,
         }
     }
 }
@@ -418,6 +421,7 @@ impl ObjectSpec {
                 boundaries: b.density_boundaries,
                 interfaces: b.density_interfaces,
                 band: b.density_band,
+                thin: b.density_thin,
             }),
             ..BasisOptions::default()
         };

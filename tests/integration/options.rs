@@ -171,7 +171,7 @@ fn the_scene_keys_are_the_option_tables() {
         );
         checked += 1;
     }
-    assert_eq!(checked, 18);
+    assert_eq!(checked, 19);
     // The defaults are the same: an object without a basis table has the table's defaults.
     let bare = Scene::from_toml(
         "[simulation]\ndt = 0.01\nsteps = 1\n[[object]]\nname = \"a\"\nshape = \"box:1,1,1\"\n",

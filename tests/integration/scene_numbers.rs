@@ -95,6 +95,7 @@ boundaries = "aware"
 density_boundaries = 1.0
 density_interfaces = 1.0
 density_band = 1.0
+density_thin = 1.0
 eigensolver = { lobpcg = { guard = 4, preconditioner = "incomplete_cholesky", shift_factor = 1e-3, max_factor_entries = 1000000, max_fill_ratio = 10.0, escalate_after = 20, recompute_every = 10, restart_tol = 1e-3, ortho_drop = 1e-10, svqb_drop = 1e-14, seed = 7 } }
 
 [[object.boundary]]

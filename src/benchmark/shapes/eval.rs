@@ -11,7 +11,9 @@ use crate::fem::solver::FemParams;
 use crate::fem::ElementOrder;
 use crate::geometry::{Shape, ShapeOptions, TriMesh};
 use crate::precompute::sampling::Resolution;
-use crate::precompute::{build_basis, BasisOptions, BasisRun, BoundaryModes};
+use crate::precompute::{
+    build_basis, BasisOptions, BasisRun, BoundaryModes, DensityBands, KernelDensity,
+};
 use crate::progress::Progress;
 use crate::report::Stopwatch;
 use crate::sim::{NewtonOptions, ReducedSim};
@@ -43,6 +45,9 @@ pub struct EvalOptions {
     pub tests: Vec<ShapeTest>,
     /// The bases compared.
     pub boundaries: Vec<BoundaryModes>,
+    /// The largest kernel spacing factor on thin parts ([`DensityBands::thin`]). Default 1
+    /// (uniform placement).
+    pub density_thin: f64,
 }
 
 impl Default for EvalOptions {
@@ -61,6 +66,7 @@ impl Default for EvalOptions {
             newton: NewtonOptions::default(),
             tests: ShapeTest::ALL.to_vec(),
             boundaries: vec![BoundaryModes::Free, BoundaryModes::Aware],
+            density_thin: 1.0,
         }
     }
 }
@@ -233,6 +239,10 @@ fn timed_basis(
         resolution: opts.resolution,
         material: opts.protocol.material,
         boundary_regions: regions,
+        density: KernelDensity::bands(DensityBands {
+            thin: opts.density_thin,
+            ..DensityBands::off()
+        }),
         ..BasisOptions::default()
     };
     let run = build_basis(solid, &basis_opts, progress)?;

@@ -52,6 +52,10 @@ pub struct EvalArgs {
     /// Integration points [default: 50 K].
     #[arg(long)]
     points: Option<usize>,
+    /// Largest kernel spacing factor on thin parts (about 3 kernels across parts thinner than
+    /// 3 kernel spacings); 1 is uniform placement.
+    #[arg(long, default_value_t = 1.0)]
+    density_thin: f64,
     /// Steps of every test (dt 0.01 s).
     #[arg(long, default_value_t = 50)]
     steps: usize,
@@ -100,6 +104,7 @@ pub fn run(args: EvalArgs) -> CliResult {
             })
             .collect(),
         boundaries: args.boundaries.iter().map(|&b| b.into()).collect(),
+        density_thin: args.density_thin,
         ..EvalOptions::default()
     };
     opts.protocol.steps = args.steps;

@@ -200,7 +200,7 @@ mod tests {
     #[test]
     fn the_ranks_place_the_one_process_kernels_with_a_density_too() {
         use crate::material::Region;
-        use crate::precompute::density::{kernel_scale, DensityBands, DensityRegion};
+        use crate::precompute::density::{kernel_scale, DensityBands, DensityRegion, WholeObject};
         use crate::precompute::KernelDensity;
         let shape = Shape::Box {
             size: [2.0, 1.0, 0.5],
@@ -236,7 +236,10 @@ mod tests {
             opts.kernels,
             &opts.density,
             &opts.boundary_regions,
-            Some(&material),
+            Some(WholeObject {
+                material: &material,
+                volumes: &whole.volumes,
+            }),
         )
         .unwrap();
         let want = place_kernels(&whole.points, scale.as_deref(), &opts).unwrap();
