@@ -292,47 +292,40 @@ fn render_rejects_bad_input_with_clear_errors() {
 fn modes_png_draws_a_grid_of_the_first_modes() {
     let dir = tempfile::tempdir().unwrap();
     let png = dir.path().join("modes.png");
-    let o = freeform(&[
-        "modes",
-        "box:1,0.3,0.3",
-        "--kernels",
-        "40",
-        "--modes",
+    // `freeform modes` on a small box with m modes and 120 x 100 tiles, plus `extra` flags.
+    let draw = |modes: &str, out: &std::path::Path, extra: &[&str]| {
+        let mut args = vec![
+            "modes",
+            "box:1,0.3,0.3",
+            "--modes",
+            modes,
+            "--out",
+            out.to_str().unwrap(),
+            "--png",
+            png.to_str().unwrap(),
+            "--png-tile",
+            "120x100",
+        ];
+        args.extend_from_slice(extra);
+        let o = freeform(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+    };
+    draw(
         "5",
-        "--points",
-        "2000",
-        "--out",
-        dir.path().join("b.npz").to_str().unwrap(),
-        "--png",
-        png.to_str().unwrap(),
-        "--png-tile",
-        "120x100",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+        &dir.path().join("b.npz"),
+        &["--kernels", "40", "--points", "2000"],
+    );
     // min(6, 5) modes: 3 per row, 2 rows, a 28-pixel footer.
     assert_eq!(png_size(&png), (360, 228));
     // With a kernel density the picture gets one more tile, the kernels by support radius;
     // the density is in the basis metadata.
     let npz = dir.path().join("d.npz");
-    let o = freeform(&[
-        "modes",
-        "box:1,0.3,0.3",
-        "--kernels",
-        "60",
-        "--modes",
+    let region = ["--density-region", "sphere:0.2,0.15,0.15,0.2@2"];
+    draw(
         "3",
-        "--points",
-        "3000",
-        "--density-region",
-        "sphere:0.2,0.15,0.15,0.2@2",
-        "--out",
-        npz.to_str().unwrap(),
-        "--png",
-        png.to_str().unwrap(),
-        "--png-tile",
-        "120x100",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+        &npz,
+        &["--kernels", "60", "--points", "3000", region[0], region[1]],
+    );
     // 3 modes and the density tile: two rows (one row without it).
     assert_eq!(png_size(&png), (360, 228));
     let back = freeform::io::basis::load(&npz).unwrap();
