@@ -160,7 +160,7 @@ impl KernelDensity {
             ("density interfaces", self.bands.interfaces),
             ("density thin", self.bands.thin),
         ] {
-            if !(f.is_finite() && (1.0 / MAX_DENSITY_FACTOR..=MAX_DENSITY_FACTOR).contains(&f)) {
+            if !factor_in_range(f) {
                 return Err(Error::param(
                     name,
                     f,
@@ -184,7 +184,7 @@ impl KernelDensity {
         for (i, r) in self.regions.iter().enumerate() {
             r.region.validate()?;
             let f = r.factor;
-            if !(f.is_finite() && (1.0 / MAX_DENSITY_FACTOR..=MAX_DENSITY_FACTOR).contains(&f)) {
+            if !factor_in_range(f) {
                 return Err(Error::param(
                     "density region",
                     format!("{i} ({:?}): factor {f}", r.region),
@@ -198,6 +198,11 @@ impl KernelDensity {
         }
         Ok(())
     }
+}
+
+/// A spacing factor in [1/8, 8] (so also finite, not NaN, positive).
+fn factor_in_range(f: f64) -> bool {
+    (1.0 / MAX_DENSITY_FACTOR..=MAX_DENSITY_FACTOR).contains(&f)
 }
 
 /// The spacing K kernels would have spread evenly over `volume` (m^3): (V / K)^(1/3), metres.
@@ -329,10 +334,20 @@ pub fn kernel_scale_part(
             )
         })
     };
+    // Both neighbour searches run on one index of all points, built when either needs it.
+    let needs_index = density.bands.thin != 1.0 || density.bands.interfaces != 1.0;
+    let all = if needs_index && whole.is_some() {
+        Some(index(points, "kernel density", "integration points")?)
+    } else {
+        None
+    };
     if density.bands.thin != 1.0 {
         let w = needs_whole("density thin", density.bands.thin)?;
+        let all = all
+            .as_ref()
+            .expect("built when thin refinement has the whole object");
         let h0 = bulk_spacing(volume, kernels);
-        let t = local_thickness(points, w.volumes, h0)?;
+        let t = local_thickness(points, all, w.volumes, h0)?;
         scale
             .par_iter_mut()
             .zip(t)
@@ -342,7 +357,10 @@ pub fn kernel_scale_part(
     }
     if density.bands.interfaces != 1.0 {
         let material = needs_whole("density interfaces", density.bands.interfaces)?.material;
-        let d = interface_distance(points, material)?;
+        let all = all
+            .as_ref()
+            .expect("built when interface refinement has the whole object");
+        let d = interface_distance(points, all, material)?;
         scale
             .par_iter_mut()
             .zip(d)
@@ -427,16 +445,12 @@ fn thin_factor(max: f64, h0: f64, t: f64) -> f64 {
 /// within 1.5 h0 (a thin part's medial axis is that close to each of its points). The surface
 /// is where integration points lack a neighbour: a grid point with fewer than 6 others within
 /// 1.2 of its spacing (its volume's cube root) lies in the outer layer, half a spacing inside.
-fn local_thickness(points: &[Point3], volumes: &[f64], h0: f64) -> Result<Vec<f64>> {
-    let index = |what: &str, n: usize, e: String| {
-        Error::param(
-            "density thin",
-            n,
-            format!("cannot index the {what} for the thickness estimate: {e}"),
-        )
-    };
-    let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(points)
-        .map_err(|e| index("points", points.len(), format!("{e:?}")))?;
+fn local_thickness(
+    points: &[Point3],
+    tree: &ImmutableKdTree<f64, 3>,
+    volumes: &[f64],
+    h0: f64,
+) -> Result<Vec<f64>> {
     let seven = std::num::NonZero::new(7).expect("7 > 0");
     let spacing: Vec<f64> = volumes.iter().map(|v| v.cbrt()).collect();
     let outer: Vec<Point3> = (0..points.len())
@@ -463,21 +477,10 @@ fn local_thickness(points: &[Point3], volumes: &[f64], h0: f64) -> Result<Vec<f6
              solid sampled on a grid (a mesh, primitive or image); set it to 1",
         ));
     }
-    let surface: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(&outer)
-        .map_err(|e| index("surface points", outer.len(), format!("{e:?}")))?;
-    const ONE: std::num::NonZero<usize> = std::num::NonZero::<usize>::MIN;
-    let depth: Vec<f64> = points
-        .par_iter()
+    let depth: Vec<f64> = distance_to(&outer, points, "density thin")?
+        .into_iter()
         .zip(&spacing)
-        .map(|(p, h)| {
-            let d = surface
-                .query(p)
-                .nearest_n::<SquaredEuclidean<f64>>(ONE)
-                .execute()
-                .first()
-                .map_or(0.0, |n| n.distance.sqrt());
-            d + 0.5 * h
-        })
+        .map(|(d, h)| d + 0.5 * h)
         .collect();
     let reach = (1.5 * h0).powi(2);
     let thickness: Vec<f64> = points
@@ -522,16 +525,12 @@ const INTERFACE_NEIGHBORS: usize = 8;
 
 /// Distance from every point to the nearest point on a material interface (a point with a
 /// neighbour of another material), metres.
-fn interface_distance(points: &[Point3], material: &MaterialField) -> Result<Vec<f64>> {
-    let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(points).map_err(|e| {
-        Error::param(
-            "density interfaces",
-            points.len(),
-            format!("cannot index the points: {e:?}"),
-        )
-    })?;
+fn interface_distance(
+    points: &[Point3],
+    tree: &ImmutableKdTree<f64, 3>,
+    material: &MaterialField,
+) -> Result<Vec<f64>> {
     let want = std::num::NonZero::new(INTERFACE_NEIGHBORS + 1).expect("9 > 0");
-    const ONE: std::num::NonZero<usize> = std::num::NonZero::<usize>::MIN;
     let on_interface: Vec<Point3> = (0..points.len())
         .into_par_iter()
         .filter(|&i| {
@@ -554,14 +553,25 @@ fn interface_distance(points: &[Point3], material: &MaterialField) -> Result<Vec
             ),
         ));
     }
-    let near: ImmutableKdTree<f64, 3> =
-        ImmutableKdTree::new_from_slice(&on_interface).map_err(|e| {
-            Error::param(
-                "density interfaces",
-                on_interface.len(),
-                format!("cannot index the interface points: {e:?}"),
-            )
-        })?;
+    distance_to(&on_interface, points, "density interfaces")
+}
+
+/// A k-d tree over `points` for the neighbour searches of `option` (`what` names the points
+/// in the error).
+fn index(points: &[Point3], option: &'static str, what: &str) -> Result<ImmutableKdTree<f64, 3>> {
+    ImmutableKdTree::new_from_slice(points).map_err(|e| {
+        Error::param(
+            option,
+            points.len(),
+            format!("cannot index the {what}: {e:?}"),
+        )
+    })
+}
+
+/// Distance from every one of `points` to the nearest of `marked` (not empty), metres.
+fn distance_to(marked: &[Point3], points: &[Point3], option: &'static str) -> Result<Vec<f64>> {
+    const ONE: std::num::NonZero<usize> = std::num::NonZero::<usize>::MIN;
+    let near = index(marked, option, "marked points")?;
     Ok(points
         .par_iter()
         .map(|p| {
@@ -673,7 +683,8 @@ mod tests {
         }
         let volumes = vec![h * h * h; pts.len()];
         let h0 = 0.3;
-        let t = local_thickness(&pts, &volumes, h0).unwrap();
+        let all = index(&pts, "test", "points").unwrap();
+        let t = local_thickness(&pts, &all, &volumes, h0).unwrap();
         for (p, t) in pts.iter().zip(&t) {
             if p[0] > 1.5 {
                 // The fin, away from the cube: its thickness to within a grid spacing (an even
@@ -695,7 +706,8 @@ mod tests {
         let sheet: Vec<Point3> = (0..100)
             .map(|i| [(i % 10) as f64 * h, (i / 10) as f64 * h, 0.0])
             .collect();
-        let t = local_thickness(&sheet, &vec![h * h * h; 100], h0).unwrap();
+        let all = index(&sheet, "test", "points").unwrap();
+        let t = local_thickness(&sheet, &all, &vec![h * h * h; 100], h0).unwrap();
         assert!(t.iter().all(|t| (t - h).abs() < 1e-12), "{t:?}");
     }
 
@@ -709,7 +721,8 @@ mod tests {
                 field.youngs[i] *= 100.0;
             }
         }
-        let d = interface_distance(&pts, &field).unwrap();
+        let all = index(&pts, "test", "points").unwrap();
+        let d = interface_distance(&pts, &all, &field).unwrap();
         for (p, d) in pts.iter().zip(&d) {
             // The points next to x = 1 (at 1 -/+ h/2) are on the interface.
             let want = ((p[0] - 1.0).abs() - 1.0 / 12.0).max(0.0);

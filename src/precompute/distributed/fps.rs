@@ -79,7 +79,7 @@ pub fn place_kernels_parts(
     let (_, first, first_at) = arg_max(comm, best.0, part.first + best.1, offer)?;
 
     // The density's scale is local to each point (the distances to the boundary regions);
-    // interface refinement, which needs a point's neighbours, is refused here.
+    // interface and thin-part refinement, which need a point's neighbours, are refused here.
     let scale = kernel_scale_part(
         points,
         part.volume(),
