@@ -15,7 +15,7 @@
 //! is positive semi-definite (eigenvalues mu lambda (2/eps - 2y/eps^2) >= 0 along s, mu lambda
 //! f1/y across it, 0 along n): Newton needs no projection.
 
-use crate::linalg3::{norm, Mat3};
+use crate::linalg3::{dot, mat_t_vec, mat_vec, norm, Mat3};
 use crate::Point3;
 
 /// The smoothed friction potential of one contact: its lagged mu lambda (N), normal
@@ -75,17 +75,69 @@ pub fn hessian(mu_lambda: f64, eps: f64, p: &Mat3, d: &[f64; 3]) -> Mat3 {
 }
 
 /// A collider contact at the start of a step, as lagged friction keeps it
-/// ([`crate::sim::terms::ContactTerm::friction_lag`]).
+/// ([`crate::sim::terms::ContactTerm::friction_lag`]), with the derivatives of what it keeps
+/// with respect to the point's start position x0 (for the reverse pass).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ColliderLag {
     /// The cubature point (index into the term's points).
     pub point: usize,
+    /// The collider (index into the environment's obstacles).
+    pub obstacle: usize,
+    /// The penalty's normal force kappa v d at the start of the step, N.
+    pub normal_force: f64,
     /// Friction coefficient times the normal force, N.
     pub mu_lambda: f64,
-    /// I - n n^T of the contact normal at the start of the step.
+    /// d(mu lambda)/dx0, N/m: mu kappa v times the depth's gradient.
+    pub mu_lambda_gradient: [f64; 3],
+    /// The contact normal n at the start of the step (unit).
+    pub normal: [f64; 3],
+    /// dn/dx0, 1/m ([`crate::sim::collider::Penetration::normal_jacobian`]).
+    pub normal_jacobian: Mat3,
+    /// I - n n^T.
     pub projector: Mat3,
     /// Where the obstacle would carry the point by the end of the step, metres.
     pub carried: Point3,
+    /// d(carried)/dx0: the obstacle's rotation over the step, R1 R0^T.
+    pub carry: Mat3,
+}
+
+/// What the reverse pass of one lagged contact gives, for an adjoint `lam` (3 values, the
+/// step's adjoint mapped to the contact's point) of its friction force g = mu lambda phi(s),
+/// phi(s) = f1(|s|) s / |s|.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LagAdjoint {
+    /// lam . phi(s): -this is dL/d(mu lambda), per N.
+    pub per_mu_lambda: f64,
+    /// -(dg/dx0)^T lam: dL/dx0 through the lagged normal force, normal and carried point.
+    pub start: [f64; 3],
+}
+
+/// The reverse pass of one lagged contact at the end position `x` (metres), eps the
+/// smoothing displacement. With d = x - carried(x0) and s = P(x0) d,
+/// dg/dx0 = phi(s) (d mu lambda/dx0)^T + mu lambda Jphi(s) (dP[d] - P A), A the carry and
+/// dP[d] = -(n . d) dn - n (dn^T d)^T.
+pub fn lag_adjoint(lag: &ColliderLag, eps: f64, x: &Point3, lam: &[f64; 3]) -> LagAdjoint {
+    let d: [f64; 3] = std::array::from_fn(|k| x[k] - lag.carried[k]);
+    let s = project(&lag.projector, &d);
+    let identity: Mat3 = std::array::from_fn(|r| std::array::from_fn(|c| f64::from(r == c)));
+    let phi = gradient(1.0, eps, &identity, &s);
+    let per_mu_lambda = dot(&phi, lam);
+    // w = Jphi(s) lam (Jphi symmetric).
+    let w = mat_vec(&hessian(1.0, eps, &identity, &s), lam);
+    let (n, dn) = (&lag.normal, &lag.normal_jacobian);
+    let (nd, nw) = (dot(n, &d), dot(n, &w));
+    let dn_t_w = mat_t_vec(dn, &w);
+    let dn_t_d = mat_t_vec(dn, &d);
+    let a_t_pw = mat_t_vec(&lag.carry, &project(&lag.projector, &w));
+    // (ds/dx0)^T w = -(n . d) dn^T w - (dn^T d)(n . w) - A^T P w.
+    let start = std::array::from_fn(|k| {
+        let ds_t_w = -nd * dn_t_w[k] - dn_t_d[k] * nw - a_t_pw[k];
+        -(per_mu_lambda * lag.mu_lambda_gradient[k] + lag.mu_lambda * ds_t_w)
+    });
+    LagAdjoint {
+        per_mu_lambda,
+        start,
+    }
 }
 
 #[cfg(test)]

@@ -27,6 +27,7 @@ mod extremes;
 mod fem;
 mod geometry;
 mod gradient;
+mod gradient_friction;
 mod images;
 mod matrix_free;
 mod options;

@@ -196,9 +196,15 @@ fn every_term_matches_finite_differences_and_a_toy_term_joins_with_one_call() {
     // One lagged friction contact (normal y) whose point the obstacle carries elsewhere.
     let lag = [ColliderLag {
         point: 3,
+        obstacle: 0,
+        normal_force: 80.0,
         mu_lambda: 40.0,
+        mu_lambda_gradient: [0.0, -4e3, 0.0],
+        normal: [0.0, 1.0, 0.0],
+        normal_jacobian: [[0.0; 3]; 3],
         projector: freeform::sim::friction::tangent_projector(&[0.0, 1.0, 0.0]),
         carried: [0.3, 0.0, 0.1],
+        carry: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
     }];
     let at = StepAt {
         layout,

@@ -1,6 +1,6 @@
 //! What a reverse pass returns ([`Gradients`]): dL/d(parameter) for the initial state, the
 //! materials (per cubature point, as the simulation uses them; per integration point or per
-//! region by summing) and gravity.
+//! region by summing), gravity and the colliders' friction and stiffness.
 
 use crate::precompute::sampling::IntegrationPoints;
 use crate::precompute::skinning::SkinningWeights;
@@ -28,6 +28,12 @@ pub struct Gradients {
     /// dL/dg, per (m/s^2); None when the object has no gravity term (gravity is not a
     /// parameter of this run).
     pub gravity: Option<[f64; 3]>,
+    /// dL/dmu per collider (its friction coefficient), the loss's unit; None when the object
+    /// has no collider friction (then mu is not a parameter of this run). A collider with
+    /// mu = 0 among others with friction gets its one-sided derivative.
+    pub friction: Option<Vec<f64>>,
+    /// dL/dkappa per collider (its penalty stiffness), per Pa/m^2; empty without colliders.
+    pub collider_stiffness: Vec<f64>,
     /// The density's bilinear form: dL/drho_i = v_i (b_i^T Q b_i + q . b_i).
     density_quadratic: Mat<f64>,
     density_linear: Vec<f64>,
@@ -78,6 +84,8 @@ impl Gradients {
             poisson,
             cubature_source: source.to_vec(),
             gravity: adj.gravity,
+            friction: (!adj.friction.is_empty()).then_some(adj.friction),
+            collider_stiffness: adj.collider_stiffness,
             density_quadratic: adj.density_quadratic,
             density_linear: adj.density_linear,
             steps,

@@ -33,9 +33,9 @@ use faer::{Mat, Side};
 /// A recorded run of one object: start it on the object, step the object through it, then
 /// take the reverse pass ([`Recording::backward`]) once.
 ///
-/// Collider friction is refused: its contacts are lagged from each step's start, which the
-/// reverse pass does not yet differentiate. Object-object contact is a world's and is not
-/// recorded here.
+/// Collider friction is differentiated as it is lagged: from each step's start, which the
+/// reverse pass follows back (dL/dz_n through the lagged normal forces, normals and carried
+/// points). Object-object contact is a world's and is not recorded here.
 #[derive(Debug, Clone)]
 pub struct Recording {
     dofs: usize,
@@ -44,6 +44,8 @@ pub struct Recording {
     revision: u64,
     /// The object's step count at the start.
     first_step: usize,
+    /// The object's time at the start, s (where the first step's friction is lagged from).
+    start_time: f64,
     /// zdot_0, 12 (m + 1).
     zdot0: Vec<f64>,
     /// z_0 .. z_T, (T + 1) x 12 (m + 1).
@@ -70,15 +72,8 @@ impl Recording {
     /// 12 (m + 1) square matrices) is checked against the memory available first.
     ///
     /// # Errors
-    /// [`Error::Gradient`] for collider friction, or a tape that would not fit.
+    /// [`Error::Gradient`] for a tape that would not fit.
     pub fn start(sim: &ReducedSim, steps: usize) -> Result<Recording> {
-        if sim.has_collider_friction() {
-            return Err(Error::Gradient(
-                "the object has collider friction, whose lagged contacts the reverse pass does \
-                 not differentiate yet; record a frictionless run"
-                    .into(),
-            ));
-        }
         let dofs = sim.z().len();
         let estimate = (steps as u64)
             .saturating_add(1)
@@ -105,6 +100,7 @@ impl Recording {
             dt: sim.dt(),
             revision: sim.revision(),
             first_step: sim.steps(),
+            start_time: sim.time(),
             zdot0: sim.zdot().to_vec(),
             states,
             times: Vec::with_capacity(reserve),
@@ -219,12 +215,13 @@ impl Recording {
         for t in (1..=steps).rev() {
             add(&mut zbar, &dl_dz[t]);
             let z = self.state(t).unwrap_or_default();
-            let start = self.step_start(t);
+            let start = self.step_start(sim, t);
             let pot = sim.potential(&start);
             // The adjoint of z_t collects the loss, later steps' predictors and zdot_t.
             let rhs: Vec<f64> = zbar.iter().zip(&vbar).map(|(a, b)| a + b / h).collect();
             let lambda = solve_exact(&pot, z, &rhs, t)?;
             adj.zpred.fill(0.0);
+            adj.start.fill(0.0);
             adj.inverted = 0;
             pot.parameter_adjoint(z, &lambda, &mut adj);
             if adj.inverted > 0 {
@@ -235,9 +232,10 @@ impl Recording {
                     adj.inverted
                 )));
             }
-            // z_pred = z_{t-1} + h zdot_{t-1}; zdot_t = (z_t - z_{t-1}) / h.
+            // z_pred = z_{t-1} + h zdot_{t-1}; zdot_t = (z_t - z_{t-1}) / h; the lagged
+            // friction reads z_{t-1} itself.
             for i in 0..n {
-                zbar[i] = adj.zpred[i] - vbar[i] / h;
+                zbar[i] = adj.zpred[i] - vbar[i] / h + adj.start[i];
                 vbar[i] = h * adj.zpred[i];
             }
         }
@@ -281,8 +279,9 @@ impl Recording {
     }
 
     /// The start of recorded step t (1-based) as the object began it: z_pred from z_{t-1}
-    /// and zdot_{t-1} (zdot_0 recorded, later ones as the step computed them).
-    fn step_start(&self, t: usize) -> StepStart {
+    /// and zdot_{t-1} (zdot_0 recorded, later ones as the step computed them), and the
+    /// collider friction lagged from z_{t-1} at the step's start time.
+    fn step_start(&self, sim: &ReducedSim, t: usize) -> StepStart {
         let prev = self.state(t - 1).unwrap_or_default();
         let zpred = if t == 1 {
             prev.iter()
@@ -296,11 +295,17 @@ impl Recording {
                 .map(|(z, b)| z + self.dt * ((z - b) / self.dt))
                 .collect()
         };
+        // The time the step began at, as the object held it (the previous step's end).
+        let t0 = if t == 1 {
+            self.start_time
+        } else {
+            self.times[t - 2]
+        };
         StepStart {
             guess: Vec::new(),
             zpred,
             t: self.times[t - 1],
-            friction: None,
+            friction: sim.lagged_friction(t0, prev),
         }
     }
 }

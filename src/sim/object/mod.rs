@@ -216,16 +216,23 @@ impl ReducedSim {
                 guess[i] += self.dt * (self.zdot[i] - self.zdot_prev[i]);
             }
         }
-        let friction = self.terms.colliders.as_ref().and_then(|c| {
-            let kin = self.env.kinematics();
-            c.step_friction(kin, self.layout, self.time, self.dt, &self.z)
-        });
         StepStart {
             zpred,
             guess,
             t,
-            friction,
+            friction: self.lagged_friction(self.time, &self.z),
         }
+    }
+
+    /// The collider friction a step from time `t0` (s) at state `z` lags, and the smoothing
+    /// displacement; None when frictionless.
+    pub(crate) fn lagged_friction(
+        &self,
+        t0: f64,
+        z: &[f64],
+    ) -> Option<(Vec<crate::sim::friction::ColliderLag>, f64)> {
+        let c = self.terms.colliders.as_ref()?;
+        c.step_friction(self.env.kinematics(), self.layout, t0, self.dt, z)
     }
 
     /// Lagged Coulomb friction against the colliders from the next step on: `mu` per

@@ -11,6 +11,16 @@ use faer::Mat;
 pub struct ParameterAdjoint {
     /// dL/dz_pred of the step being reversed, 12 (m + 1) (set to zero before each step).
     pub zpred: Vec<f64>,
+    /// dL/dz_n of the step being reversed through what the step lags from its start z_n
+    /// (collider friction's normal forces, normals and carried points), 12 (m + 1) (set to
+    /// zero before each step).
+    pub start: Vec<f64>,
+    /// dL/dmu per collider (friction coefficient; empty until a collider term with friction
+    /// adds it), the loss's unit.
+    pub friction: Vec<f64>,
+    /// dL/dkappa per collider (penalty stiffness; empty until a collider term adds it), the
+    /// loss's unit per Pa/m^2.
+    pub collider_stiffness: Vec<f64>,
     /// dL/dmu per cubature point, 1/Pa times the loss's unit.
     pub mu: Vec<f64>,
     /// dL/dlambda per cubature point, 1/Pa times the loss's unit.
@@ -33,6 +43,9 @@ impl ParameterAdjoint {
         let n4 = dofs / 3;
         ParameterAdjoint {
             zpred: vec![0.0; dofs],
+            start: vec![0.0; dofs],
+            friction: Vec::new(),
+            collider_stiffness: Vec::new(),
             mu: vec![0.0; cubature],
             lambda: vec![0.0; cubature],
             density_quadratic: Mat::zeros(n4, n4),

@@ -1,9 +1,10 @@
 //! One-sided collider penalties on the cubature points, their swept step bound and lagged
 //! friction against the colliders.
 
+use super::adjoint::ParameterAdjoint;
 use super::moments::add_outer_blocks;
 use super::term::{EnergySum, HessianKind, StepAt, Term, TermKind};
-use crate::linalg3::dot;
+use crate::linalg3::{dot, mul, transpose};
 use crate::precompute::skinning::SkinningWeights;
 use crate::sim::collider::{Kinematics, Obstacle, Penetration};
 use crate::sim::elastic::Layout;
@@ -336,10 +337,11 @@ impl ContactTerm {
     }
 
     /// The collider contacts at the start of a step (`z`, time `t0`) as friction sees them
-    /// for the step to `t1`: per penetrating (point, obstacle) with friction coefficient
-    /// `mu[o]` > 0, mu times the penalty force kappa v d (N), the tangent projector of the
-    /// normal, and the point's position carried along by the obstacle's motion over the step
-    /// (the point the obstacle's surface would take it to if it stuck).
+    /// for the step to `t1`: per penetrating (point, obstacle), mu[o] times the penalty force
+    /// kappa v d (N), the tangent projector of the normal, and the point's position carried
+    /// along by the obstacle's motion over the step (the point the obstacle's surface would
+    /// take it to if it stuck), with their derivatives in the start position. Colliders with
+    /// mu = 0 keep their contacts (with no force), so that a gradient sees them.
     pub fn friction_lag(
         &self,
         kin: &Kinematics,
@@ -352,7 +354,6 @@ impl ContactTerm {
         let (p0, p1) = (kin.poses(t0), kin.poses(t1));
         self.penetrations(kin, layout, t0, z)
             .into_iter()
-            .filter(|(_, o, _)| mu[*o] > 0.0)
             .map(|(c, o, p)| {
                 let x = self.position(layout, c, z);
                 let (a, b) = (&p0[o], &p1[o]);
@@ -362,11 +363,19 @@ impl ContactTerm {
                         .map(|m| a.rotation[m][k] * (x[m] - a.translation[m]))
                         .sum()
                 });
+                let mu_kv = mu[o] * self.stiffness[o] * self.volumes[c];
                 ColliderLag {
                     point: c,
-                    mu_lambda: mu[o] * self.stiffness[o] * self.volumes[c] * p.depth,
+                    obstacle: o,
+                    normal_force: self.stiffness[o] * self.volumes[c] * p.depth,
+                    mu_lambda: mu_kv * p.depth,
+                    // The depth's gradient is -n.
+                    mu_lambda_gradient: p.normal.map(|v| -mu_kv * v),
+                    normal: p.normal,
+                    normal_jacobian: p.normal_jacobian(),
                     projector: crate::sim::friction::tangent_projector(&p.normal),
                     carried: b.apply(&local),
+                    carry: mul(&b.rotation, &transpose(&a.rotation)),
                 }
             })
             .collect()
@@ -500,6 +509,53 @@ impl Term for ContactTerm {
         self.add_penalty_hessian(at.env.kinematics(), at.layout, at.t, z, which, h);
         if let Some((lag, eps)) = at.friction {
             self.add_friction_hessian(at.layout, lag, eps, z, h);
+        }
+    }
+
+    /// The penalties are linear in kappa: dL/dkappa_o = lambda_x . (v d n) summed over the
+    /// penetrating points (lambda_x = B_c adjoint). Friction is linear in mu lambda =
+    /// mu kappa v d(x0), lagged from the step's start x0: it adds to dL/dmu and dL/dkappa, and
+    /// its dependence on x0 to the start's adjoint ([`crate::sim::friction::lag_adjoint`]).
+    fn add_parameter_adjoint(
+        &self,
+        at: &StepAt<'_>,
+        z: &[f64],
+        adjoint: &[f64],
+        out: &mut ParameterAdjoint,
+    ) {
+        let n4 = at.layout.row_len();
+        let colliders = self.len();
+        out.collider_stiffness.resize(colliders, 0.0);
+        let at_point = |c: usize| -> [f64; 3] {
+            let mut l = [0.0; 3];
+            for (k, bk) in self.b(c) {
+                for (r, v) in l.iter_mut().enumerate() {
+                    *v += bk * adjoint[r * n4 + k];
+                }
+            }
+            l
+        };
+        for (c, o, p) in self.penetrations(at.env.kinematics(), at.layout, at.t, z) {
+            let lam = at_point(c);
+            out.collider_stiffness[o] += self.volumes[c] * p.depth * dot(&p.normal, &lam);
+        }
+        let (Some((lag, eps)), Some((mu, _))) = (at.friction, self.friction.as_ref()) else {
+            return;
+        };
+        out.friction.resize(colliders, 0.0);
+        for l in lag {
+            let x = self.position(at.layout, l.point, z);
+            let lam = at_point(l.point);
+            let r = crate::sim::friction::lag_adjoint(l, eps, &x, &lam);
+            let o = l.obstacle;
+            out.friction[o] -= r.per_mu_lambda * l.normal_force;
+            out.collider_stiffness[o] -=
+                r.per_mu_lambda * mu[o] * l.normal_force / self.stiffness[o];
+            for (k, bk) in self.b(l.point) {
+                for (r_, v) in r.start.iter().enumerate() {
+                    out.start[r_ * n4 + k] += bk * v;
+                }
+            }
         }
     }
 
