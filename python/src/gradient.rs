@@ -34,8 +34,9 @@ fn used(py: Python<'_>) -> PyErr {
 #[pymethods]
 impl PyRecording {
     /// Start recording every object of ``world`` from its current state, for about ``steps``
-    /// steps. Refused (InvalidInputError): object-object contact, collider friction, tapes
-    /// that would not fit in memory.
+    /// steps (a ``[contact]`` scene too: its objects' collider contact and friction are
+    /// differentiated; ``backward`` refuses a run with a step that solved objects together).
+    /// Refused (InvalidInputError): tapes that would not fit in memory.
     #[new]
     fn new(py: Python<'_>, world: PyRef<'_, PyWorld>, steps: i128) -> PyResult<PyRecording> {
         let steps = crate::convert::count(py, steps, "steps", usize::MAX)?;
@@ -87,8 +88,9 @@ impl PyRecording {
     /// dict: ``youngs``, ``poisson``, ``density`` (the sums over the object: dL/dE, dL/dnu,
     /// dL/drho of a homogeneous object), ``youngs_per_point``, ``poisson_per_point``,
     /// ``density_per_point`` (per integration point: a region's gradient is the sum over its
-    /// points), ``gravity`` (3 values, or None without gravity), ``z0``, ``zdot0``,
-    /// ``forward_s``, ``backward_s``, ``tape_bytes``. Consumes the recording once it succeeds
+    /// points), ``gravity`` (3 values, or None without gravity), ``friction`` (dL/dmu per
+    /// collider, or None without collider friction), ``collider_stiffness`` (dL/dkappa per
+    /// collider, per Pa/m^2), ``z0``, ``zdot0``, ``forward_s``, ``backward_s``, ``tape_bytes``. Consumes the recording once it succeeds
     /// (a refused loss leaves it for a corrected call).
     fn backward<'py>(
         &mut self,
@@ -162,6 +164,11 @@ impl PyRecording {
             d.set_item("poisson_per_point", array1(py, poisson))?;
             d.set_item("density_per_point", array1(py, density))?;
             d.set_item("gravity", g.gravity.map(|v| array1(py, v.to_vec())))?;
+            d.set_item("friction", g.friction.clone().map(|v| array1(py, v)))?;
+            d.set_item(
+                "collider_stiffness",
+                array1(py, g.collider_stiffness.clone()),
+            )?;
             d.set_item("z0", array1(py, g.z0.clone()))?;
             d.set_item("zdot0", array1(py, g.zdot0.clone()))?;
             d.set_item("forward_s", tapes[i].0)?;

@@ -1,6 +1,7 @@
 //! A world's run recorded for gradients: one [`Recording`] per object
-//! (docs/gradients.md). Objects that step alone are recorded; object-object contact is not
-//! differentiated yet and is refused.
+//! (docs/gradients.md). Objects that step alone are recorded, in a `[contact]` scene too (with
+//! its collider friction); a step that solved objects together as an island (object-object
+//! contact) is not differentiated yet, and the reverse pass refuses it, naming the step.
 
 use crate::sim::gradient::{Gradients, Recording};
 use crate::sim::StepReport;
@@ -12,30 +13,30 @@ use super::world::World;
 #[derive(Debug, Clone)]
 pub struct WorldRecording {
     objects: Vec<Recording>,
+    /// The first recorded step (1-based) that solved objects as an island, and their count.
+    island_step: Option<(usize, usize)>,
 }
 
 impl World {
     /// Start recording every object from its current state for about `steps` steps (the
-    /// tapes' memory is checked first, [`Recording::start`]).
+    /// tapes' memory is checked first, [`Recording::start`]). A `[contact]` scene is
+    /// recorded too: its objects' steps are differentiated where they stepped alone (collider
+    /// contact and friction included), and [`WorldRecording::backward`] refuses a run with a
+    /// step that solved objects together.
     ///
     /// # Errors
-    /// [`Error::Gradient`]: a scene with object-object contact, an object with collider
-    /// friction, or tapes that would not fit in memory.
+    /// [`Error::Gradient`]: tapes that would not fit in memory.
     pub fn record(&self, steps: usize) -> Result<WorldRecording> {
-        if self.contact_summary().is_some() {
-            return Err(Error::Gradient(
-                "the scene has object-object contact ([contact]), whose island solves the \
-                 reverse pass does not differentiate yet; record a scene without it"
-                    .into(),
-            ));
-        }
         let objects = self
             .objects()
             .iter()
             .enumerate()
             .map(|(i, o)| Recording::start(o.sim(), steps).map_err(|e| self.object_error(i, e)))
             .collect::<Result<Vec<_>>>()?;
-        Ok(WorldRecording { objects })
+        Ok(WorldRecording {
+            objects,
+            island_step: None,
+        })
     }
 
     /// One [`World::step`], recorded in `rec`: every object is checked against its tape
@@ -60,6 +61,13 @@ impl World {
         for (i, (r, rep)) in rec.objects.iter_mut().zip(&reports).enumerate() {
             r.record_step(self.objects()[i].sim(), rep)
                 .map_err(|e| self.object_error(i, e))?;
+        }
+        let island = self
+            .contact_summary()
+            .and_then(|c| c.steps.last())
+            .and_then(|row| row.islands.first().copied());
+        if let (None, Some(size)) = (rec.island_step, island) {
+            rec.island_step = Some((rec.steps(), size));
         }
         Ok(reports)
     }
@@ -94,8 +102,17 @@ impl WorldRecording {
     /// an empty list for an object the loss does not see. Consumes the recording.
     ///
     /// # Errors
-    /// [`Recording::backward`]'s, naming the object; a list of the wrong length.
+    /// [`Recording::backward`]'s, naming the object; a list of the wrong length; a run with a
+    /// step that solved objects together as an island (named).
     pub fn backward(self, world: &World, dl_dz: &[Vec<Vec<f64>>]) -> Result<Vec<Gradients>> {
+        if let Some((step, size)) = self.island_step {
+            return Err(Error::Gradient(format!(
+                "recorded step {step} solved {size} objects together as an island \
+                 (object-object contact, or an object touching itself), whose solve the reverse \
+                 pass does not differentiate yet; record a run whose objects do not touch each \
+                 other"
+            )));
+        }
         if dl_dz.len() != self.objects.len() {
             return Err(Error::Gradient(format!(
                 "the loss gradient has {} objects, the world {}",

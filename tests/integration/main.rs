@@ -28,6 +28,7 @@ mod fem;
 mod geometry;
 mod gradient;
 mod gradient_friction;
+mod gradient_placement;
 mod images;
 mod matrix_free;
 mod options;

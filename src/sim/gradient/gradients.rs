@@ -4,6 +4,7 @@
 
 use crate::precompute::sampling::IntegrationPoints;
 use crate::precompute::skinning::SkinningWeights;
+use crate::sim::object::{Placement, PlacementGradient, ReducedSim};
 use crate::sim::terms::ParameterAdjoint;
 use crate::{Error, Result};
 use faer::Mat;
@@ -37,6 +38,8 @@ pub struct Gradients {
     /// The density's bilinear form: dL/drho_i = v_i (b_i^T Q b_i + q . b_i).
     density_quadratic: Mat<f64>,
     density_linear: Vec<f64>,
+    /// The recording's start state (z_0, zdot_0), for [`Gradients::placement`].
+    start: (Vec<f64>, Vec<f64>),
     /// Steps reversed.
     pub steps: usize,
     /// Wall time of the reverse pass, seconds.
@@ -63,6 +66,7 @@ impl Gradients {
     pub(crate) fn new(
         adj: ParameterAdjoint,
         state: (Vec<f64>, Vec<f64>),
+        start: (Vec<f64>, Vec<f64>),
         cubature: (&[f64], &[f64], &[usize]),
         steps: usize,
         backward_s: f64,
@@ -88,9 +92,25 @@ impl Gradients {
             collider_stiffness: adj.collider_stiffness,
             density_quadratic: adj.density_quadratic,
             density_linear: adj.density_linear,
+            start,
             steps,
             backward_s,
         }
+    }
+
+    /// dL/d(placement): translation, rotation, velocity and angular velocity of `placement`,
+    /// the placement `sim` (the object recorded) started the recording at
+    /// ([`ReducedSim::placement_gradient`]).
+    ///
+    /// # Errors
+    /// [`Error::Gradient`] for a recording that did not start at `placement`, or an object
+    /// with held regions.
+    pub fn placement(&self, sim: &ReducedSim, placement: &Placement) -> Result<PlacementGradient> {
+        sim.placement_gradient(
+            placement,
+            (&self.start.0, &self.start.1),
+            (&self.z0, &self.zdot0),
+        )
     }
 
     /// dL/dE of a homogeneous object (every point's E the one parameter): the sum over the

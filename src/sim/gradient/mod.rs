@@ -18,6 +18,7 @@
 mod gradients;
 mod positions;
 
+pub use crate::sim::object::PlacementGradient;
 pub use gradients::{lame_derivatives, Gradients};
 pub use positions::positions_adjoint;
 
@@ -240,9 +241,11 @@ impl Recording {
             }
         }
         add(&mut zbar, &dl_dz[0]);
+        let start = (self.state(0).unwrap_or_default().to_vec(), self.zdot0);
         Ok(Gradients::new(
             adj,
             (zbar, vbar),
+            start,
             (&cub.lambda, &cub.mu, &cub.source),
             steps,
             sw.elapsed(),

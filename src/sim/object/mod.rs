@@ -33,6 +33,7 @@ use faer::linalg::solvers::Llt;
 use faer::Mat;
 use options::placement_transform;
 pub use options::{Boundary, Placement, SimOptions, StepReport, PENALTY_FACTOR, SWEEP_DEPTH};
+pub use placement::PlacementGradient;
 pub(crate) use potential::{StepPotential, StepStart};
 use setup::positive;
 pub use start::{check_start_outside_colliders, START_DEPTH_FRACTION};
@@ -498,6 +499,42 @@ impl ReducedSim {
             b.placement = rigid;
         }
         Ok(())
+    }
+
+    /// dL/d(placement) from dL/dz_0 and dL/dzdot_0 (`bar`, 12 (m + 1) each) of a run that
+    /// started at `start` = (z_0, zdot_0), which must be the state `placement` gives this
+    /// object (as built or reset to it; checked).
+    ///
+    /// # Errors
+    /// [`Error::Gradient`] when `start` is not that state (a recording begun after steps or
+    /// a setter), or when the object has held regions (their targets move with the placement,
+    /// which is not differentiated); the placement's own errors.
+    pub fn placement_gradient(
+        &self,
+        placement: &Placement,
+        start: (&[f64], &[f64]),
+        bar: (&[f64], &[f64]),
+    ) -> Result<PlacementGradient> {
+        if !self.terms.boundaries.is_empty() {
+            return Err(Error::Gradient(
+                "the object has held regions, whose targets move with the placement: its \
+                 gradient is not differentiated through them; fit z0 and zdot0 instead"
+                    .into(),
+            ));
+        }
+        let rigid = placement_transform(placement)?;
+        let mut z = vec![0.0; self.z.len()];
+        let mut zdot = vec![0.0; self.z.len()];
+        let mass = &self.terms.inertia.mass;
+        placement::place(self.layout, mass, placement, &rigid, &mut z, &mut zdot)?;
+        if z != start.0 || zdot != start.1 {
+            return Err(Error::Gradient(
+                "the recording did not start at this placement (it began after steps, a \
+                 setter or another placement): record from the object as placed"
+                    .into(),
+            ));
+        }
+        placement::place_adjoint(self.layout, mass, placement, &rigid, bar.0, bar.1)
     }
 
     /// Reduced coordinates z, 12 (m + 1): the affine handles' 3 x 4 matrices, row-major.

@@ -131,3 +131,68 @@ pub(super) fn place(
     }
     Ok(())
 }
+
+/// dL/d(placement) of a loss whose gradients at the placed state are dL/dz_0 and dL/dzdot_0
+/// ([`place_adjoint`]). Units: the loss's unit per metre, per radian, per m/s, per rad/s.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PlacementGradient {
+    /// dL/dt, the translation.
+    pub translation: [f64; 3],
+    /// dL/ddelta for a small rotation delta (radians, world axes) applied on top of the
+    /// placement's rotation about the origin: R -> exp([delta]x) R.
+    pub rotation: [f64; 3],
+    /// dL/dv, the initial linear velocity.
+    pub velocity: [f64; 3],
+    /// dL/dw, the initial angular velocity about the placed centre of mass.
+    pub angular_velocity: [f64; 3],
+}
+
+fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
+    crate::linalg3::cross(a, b)
+}
+
+/// The reverse of [`place`]: dL/d(placement) from `zbar` = dL/dz_0 and `zdotbar` = dL/dzdot_0
+/// (12 (m + 1) each) at the state `place` wrote for `p` (rigid transform `rigid`). Per handle
+/// j (alpha_j of [`unity`]), column a of Z_j is alpha_j (R e_a - e_a), its last column
+/// alpha_j t; zdot's are alpha_j w x R e_a and alpha_j (v - w x R c0) (c0 the rest centre of
+/// mass), so with w x y . b = w . (y x b) every derivative is a sum of cross products.
+pub(super) fn place_adjoint(
+    layout: Layout,
+    mass: &Moments,
+    p: &Placement,
+    rigid: &Rigid,
+    zbar: &[f64],
+    zdotbar: &[f64],
+) -> Result<PlacementGradient> {
+    let alpha = unity(layout, mass)?;
+    let r = &rigid.rotation;
+    let com0: Point3 = std::array::from_fn(|d| mass.xx[d][3] / mass.total);
+    // R c0: the centre of mass's offset from the translation.
+    let rc: Point3 = std::array::from_fn(|i| (0..3).map(|k| r[i][k] * com0[k]).sum());
+    let w = p.angular_velocity;
+    let mut out = PlacementGradient::default();
+    let add = |acc: &mut [f64; 3], v: [f64; 3], s: f64| {
+        for d in 0..3 {
+            acc[d] += s * v[d];
+        }
+    };
+    for (j, &aj) in alpha.iter().enumerate() {
+        let col = |v: &[f64], a: usize| -> [f64; 3] {
+            std::array::from_fn(|row| v[layout.index(row, j, a)])
+        };
+        let (zt, vt) = (col(zbar, 3), col(zdotbar, 3));
+        add(&mut out.translation, zt, aj);
+        add(&mut out.velocity, vt, aj);
+        // zdot's last column: -w x (R c0).
+        add(&mut out.angular_velocity, cross(&rc, &vt), -aj);
+        add(&mut out.rotation, cross(&rc, &cross(&vt, &w)), -aj);
+        for a in 0..3 {
+            let ra: [f64; 3] = std::array::from_fn(|row| r[row][a]);
+            let (za, va) = (col(zbar, a), col(zdotbar, a));
+            add(&mut out.angular_velocity, cross(&ra, &va), aj);
+            add(&mut out.rotation, cross(&ra, &za), aj);
+            add(&mut out.rotation, cross(&ra, &cross(&va, &w)), aj);
+        }
+    }
+    Ok(out)
+}
