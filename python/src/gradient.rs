@@ -90,7 +90,11 @@ impl PyRecording {
     /// ``density_per_point`` (per integration point: a region's gradient is the sum over its
     /// points), ``gravity`` (3 values, or None without gravity), ``friction`` (dL/dmu per
     /// collider, or None without collider friction), ``collider_stiffness`` (dL/dkappa per
-    /// collider, per Pa/m^2), ``z0``, ``zdot0``, ``forward_s``, ``backward_s``, ``tape_bytes``. Consumes the recording once it succeeds
+    /// collider, per Pa/m^2), ``placement`` (a dict of ``translation``, ``rotation`` (a small
+    /// world rotation on top of the placement's, radians), ``velocity``, ``angular_velocity``,
+    /// 3 values each; None when the recording did not start at the object's placement, as
+    /// built or set by ``set_placement``, or the object has held regions), ``z0``, ``zdot0``,
+    /// ``forward_s``, ``backward_s``, ``tape_bytes``. Consumes the recording once it succeeds
     /// (a refused loss leaves it for a corrected call).
     fn backward<'py>(
         &mut self,
@@ -169,6 +173,20 @@ impl PyRecording {
                 "collider_stiffness",
                 array1(py, g.collider_stiffness.clone()),
             )?;
+            // None where the gradient does not apply (documented above), not an error: the
+            // other gradients of the run stand.
+            let placement = match g.placement(o.sim(), &o.spec().placement) {
+                Ok(p) => {
+                    let pd = PyDict::new(py);
+                    pd.set_item("translation", array1(py, p.translation.to_vec()))?;
+                    pd.set_item("rotation", array1(py, p.rotation.to_vec()))?;
+                    pd.set_item("velocity", array1(py, p.velocity.to_vec()))?;
+                    pd.set_item("angular_velocity", array1(py, p.angular_velocity.to_vec()))?;
+                    Some(pd)
+                }
+                Err(_) => None,
+            };
+            d.set_item("placement", placement)?;
             d.set_item("z0", array1(py, g.z0.clone()))?;
             d.set_item("zdot0", array1(py, g.zdot0.clone()))?;
             d.set_item("forward_s", tapes[i].0)?;

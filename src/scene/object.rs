@@ -330,6 +330,12 @@ impl SceneObject {
         &self.spec
     }
 
+    /// The object was put back at `placement` ([`super::World::set_placement`]): its spec
+    /// says so from now on (the placement a gradient is taken at).
+    pub(super) fn placed_at(&mut self, placement: &crate::sim::Placement) {
+        self.spec.placement = *placement;
+    }
+
     /// The reduced model: state `z` and `zdot` (12 (m + 1) each), time, terms, cubature.
     pub fn sim(&self) -> &ReducedSim {
         &self.sim

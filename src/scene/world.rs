@@ -398,7 +398,10 @@ impl World {
     /// Put object `object` back into its rest shape at `placement`, with the placement's
     /// velocities (see [`ReducedSim::reset_placement`]).
     pub fn set_placement(&mut self, object: usize, placement: &Placement) -> Result<()> {
-        self.checked(object)?.sim_mut().reset_placement(placement)
+        let o = self.checked(object)?;
+        o.sim_mut().reset_placement(placement)?;
+        o.placed_at(placement);
+        Ok(())
     }
 
     /// The kinematic pose of collider `index`: its shape as defined in the scene, moved by
