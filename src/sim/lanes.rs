@@ -256,6 +256,122 @@ impl LaneData {
     }
 }
 
+impl LaneData {
+    /// Add H(z) v of blocks `range` to `out` (12 (m + 1)): the elastic Hessian along `v`
+    /// without forming it, as the gradient with v dP = v dP/dF : dF in place of v P.
+    pub fn hessian_product(
+        &self,
+        range: std::ops::Range<usize>,
+        z: &[f64],
+        v: &[f64],
+        out: &mut [f64],
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if crate::simd::avx2_fma() {
+                // SAFETY: the CPU supports the features the function is compiled for.
+                return unsafe { self.hessian_product_avx2(range, z, v, out) };
+            }
+        }
+        self.hessian_product_generic::<Plain>(range, z, v, out)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn hessian_product_avx2(
+        &self,
+        range: std::ops::Range<usize>,
+        z: &[f64],
+        v: &[f64],
+        out: &mut [f64],
+    ) {
+        self.hessian_product_generic::<Fused>(range, z, v, out)
+    }
+
+    /// Lane-wise v dP of block `b` at F = `f` along dF = `df`:
+    /// dP = mu dF + (lambda + mu) ((cof F : dF) cof F + (J - gamma) dcof), with
+    /// dcof the cofactor's derivative (each entry a difference of two 2 x 2 minors' changes).
+    #[inline(always)]
+    fn stress_change(
+        &self,
+        b: usize,
+        f: &[[Lane; 3]; 3],
+        df: &[[Lane; 3]; 3],
+        dp: &mut [[Lane; 3]; 3],
+    ) {
+        let (lam, mu, vol) = (&self.lambda[b], &self.mu[b], &self.vol[b]);
+        let mut cof = [[[0.0; LANES]; 3]; 3];
+        let mut dcof = [[[0.0; LANES]; 3]; 3];
+        for r in 0..3 {
+            let (r1, r2) = ((r + 1) % 3, (r + 2) % 3);
+            for c in 0..3 {
+                let (c1, c2) = ((c + 1) % 3, (c + 2) % 3);
+                for l in 0..LANES {
+                    cof[r][c][l] = f[r1][c1][l] * f[r2][c2][l] - f[r1][c2][l] * f[r2][c1][l];
+                    dcof[r][c][l] = df[r1][c1][l] * f[r2][c2][l] + f[r1][c1][l] * df[r2][c2][l]
+                        - df[r1][c2][l] * f[r2][c1][l]
+                        - f[r1][c2][l] * df[r2][c1][l];
+                }
+            }
+        }
+        for l in 0..LANES {
+            let j =
+                f[0][0][l] * cof[0][0][l] + f[0][1][l] * cof[0][1][l] + f[0][2][l] * cof[0][2][l];
+            let mut dj = 0.0;
+            for r in 0..3 {
+                for c in 0..3 {
+                    dj += cof[r][c][l] * df[r][c][l];
+                }
+            }
+            let lm = lam[l] + mu[l];
+            let gamma = 1.0 + mu[l] / lm;
+            let (a, sj, sc) = (vol[l] * mu[l], vol[l] * lm * dj, vol[l] * lm * (j - gamma));
+            for r in 0..3 {
+                for c in 0..3 {
+                    dp[r][c][l] = a * df[r][c][l] + sj * cof[r][c][l] + sc * dcof[r][c][l];
+                }
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn hessian_product_generic<M: MulAdd>(
+        &self,
+        range: std::ops::Range<usize>,
+        z: &[f64],
+        v: &[f64],
+        out: &mut [f64],
+    ) {
+        let nh = self.handles;
+        let mut acc: Vec<[Lane; 4]> = vec![[[0.0; LANES]; 4]; 3 * nh];
+        let mut f = [[[0.0; LANES]; 3]; 3];
+        let mut df = [[[0.0; LANES]; 3]; 3];
+        let mut dp = [[[0.0; LANES]; 3]; 3];
+        for b in range {
+            let x = &self.x[b];
+            self.deformation_gradients::<M>(b, z, &mut f);
+            // F is affine in z: its change along v is F(v) - I.
+            self.deformation_gradients::<M>(b, v, &mut df);
+            for (r, row) in df.iter_mut().enumerate() {
+                row[r].iter_mut().for_each(|d| *d -= 1.0);
+            }
+            self.stress_change(b, &f, &df, &mut dp);
+            for j in 0..nh {
+                let w = &self.w[b * nh + j];
+                let gw = &self.gw[b * nh + j];
+                for r in 0..3 {
+                    accumulate::<M>(&mut acc[r * nh + j], &dp[r], gw, w, x);
+                }
+            }
+        }
+        for (gi, a) in out.chunks_exact_mut(4).zip(&acc) {
+            for k in 0..4 {
+                gi[k] += a[k].iter().sum::<f64>();
+            }
+        }
+    }
+}
+
 /// a[k] += dF/dZ_j[r][k] : v P_r for one handle j and row r, lane-wise. A separate function
 /// so the `&mut` accumulator is known not to alias the inputs (LLVM kept the loop scalar
 /// when it was written inline).

@@ -117,6 +117,21 @@ fn gradient_and_hessian_match_finite_differences() {
     let check = check_derivatives(elastic, Some(&exact), &z, &columns, 1e-6, floors);
     // Column norms instead of entries: up to sqrt(n) ~ 5 times the entrywise 1e-6.
     assert!(check.hessian <= 5e-6, "elastic Hessian: {check:?}");
+    // The matrix-free product H v equals the formed Hessian times v: the same sums in another
+    // order, so to rounding (1e-12 of max |H_ii| |v|: ~1e4 ulps).
+    let mut rng = SplitMix64::new(29);
+    for _ in 0..3 {
+        let v: Vec<f64> = (0..n).map(|_| rng.next_f64() - 0.5).collect();
+        let hv = el.hessian_product(&z, &v);
+        let vnorm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let worst = (0..n)
+            .map(|i| (hv[i] - (0..n).map(|j| hess[(i, j)] * v[j]).sum::<f64>()).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            worst <= 1e-12 * hscale * vnorm,
+            "H v differs by {worst:e} (|H| ~ {hscale:e})"
+        );
+    }
     // The projected Hessian is symmetric and PSD; the full step Hessian is SPD.
     let hp = el.hessian(&z, Projection::PerPoint);
     let evd = hp.self_adjoint_eigen(faer::Side::Lower).unwrap();

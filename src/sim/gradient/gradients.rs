@@ -44,6 +44,11 @@ pub struct Gradients {
     pub steps: usize,
     /// Wall time of the reverse pass, seconds.
     pub backward_s: f64,
+    /// Exact Hessians the reverse pass formed and factorized (the other steps' solves were
+    /// conjugate gradients preconditioned by the last factor).
+    pub exact_hessians: usize,
+    /// Matrix-free Hessian-vector products those conjugate gradients took.
+    pub hessian_products: usize,
 }
 
 /// (dmu/dE, dlambda/dE, dmu/dnu, dlambda/dnu) at Lame parameters (lambda, mu), Pa, from
@@ -69,7 +74,7 @@ impl Gradients {
         start: (Vec<f64>, Vec<f64>),
         cubature: (&[f64], &[f64], &[usize]),
         steps: usize,
-        backward_s: f64,
+        (backward_s, exact_hessians, hessian_products): (f64, usize, usize),
     ) -> Gradients {
         let (lambda, mu, source) = cubature;
         let (youngs, poisson) = (0..mu.len())
@@ -95,6 +100,8 @@ impl Gradients {
             start,
             steps,
             backward_s,
+            exact_hessians,
+            hessian_products,
         }
     }
 

@@ -9,27 +9,28 @@
 //! zdot_{n+1} = (z_{n+1} - z_n) / h carry the adjoint back to the step before.
 //!
 //! [`Recording`] is the tape: the states z_0..z_T and zdot_0 (12 (m + 1) values per step,
-//! so no checkpointing is needed: a million steps at m = 16 take 1.6 GB). The exact Hessian is
-//! built in the reverse pass, once per step.
+//! so no checkpointing is needed: a million steps at m = 16 take 1.6 GB). The solves run in
+//! the reverse pass (`solve`): conjugate gradients on matrix-free exact Hessian products,
+//! preconditioned by the factor of an earlier step's exact Hessian, formed again where they
+//! do not converge.
 //!
 //! Leaves first: `positions` (a loss on positions as a loss on z), `gradients` (what the pass
-//! returns), then this file (the tape and the pass).
+//! returns), `solve` (the adjoint solves), then this file (the tape and the pass).
 
 mod gradients;
 mod positions;
+mod solve;
 
 pub use crate::sim::object::PlacementGradient;
 pub use gradients::{lame_derivatives, Gradients};
 pub use positions::positions_adjoint;
+pub use solve::{CG_TOL, MAX_CG};
 
 use crate::precompute::memory::available_memory;
 use crate::report::Stopwatch;
-use crate::sim::newton::Potential;
 use crate::sim::object::{ReducedSim, StepReport, StepStart};
 use crate::sim::terms::ParameterAdjoint;
 use crate::{Error, Result};
-use faer::linalg::solvers::{Llt, Solve};
-use faer::{Mat, Side};
 
 /// A recorded run of one object: start it on the object, step the object through it, then
 /// take the reverse pass ([`Recording::backward`]) once.
@@ -199,6 +200,20 @@ impl Recording {
     /// a step that did not converge or ended with inverted points (named), a step whose exact
     /// Hessian is not positive definite.
     pub fn backward(self, sim: &ReducedSim, dl_dz: &[Vec<f64>]) -> Result<Gradients> {
+        self.reverse(sim, dl_dz, false)
+    }
+
+    /// [`Recording::backward`] with the exact Hessian formed and factorized at every step
+    /// instead of conjugate gradients preconditioned by an earlier step's factor: the
+    /// reference the default pass is checked against, several times slower.
+    ///
+    /// # Errors
+    /// As [`Recording::backward`].
+    pub fn backward_direct(self, sim: &ReducedSim, dl_dz: &[Vec<f64>]) -> Result<Gradients> {
+        self.reverse(sim, dl_dz, true)
+    }
+
+    fn reverse(self, sim: &ReducedSim, dl_dz: &[Vec<f64>], direct: bool) -> Result<Gradients> {
         let sw = Stopwatch::start();
         self.check_object(sim)?;
         let (n, steps, h) = (self.dofs, self.steps(), self.dt);
@@ -213,6 +228,7 @@ impl Recording {
         let mut adj = ParameterAdjoint::new(n, cub.len());
         let mut zbar = vec![0.0; n];
         let mut vbar = vec![0.0; n];
+        let mut solver = solve::AdjointSolver::new(direct);
         for t in (1..=steps).rev() {
             add(&mut zbar, &dl_dz[t]);
             let z = self.state(t).unwrap_or_default();
@@ -220,7 +236,7 @@ impl Recording {
             let pot = sim.potential(&start);
             // The adjoint of z_t collects the loss, later steps' predictors and zdot_t.
             let rhs: Vec<f64> = zbar.iter().zip(&vbar).map(|(a, b)| a + b / h).collect();
-            let lambda = solve_exact(&pot, z, &rhs, t)?;
+            let lambda = solver.solve(&pot, z, &rhs, t)?;
             adj.zpred.fill(0.0);
             adj.start.fill(0.0);
             adj.inverted = 0;
@@ -248,7 +264,7 @@ impl Recording {
             start,
             (&cub.lambda, &cub.mu, &cub.source),
             steps,
-            sw.elapsed(),
+            (sw.elapsed(), solver.hessians, solver.products),
         ))
     }
 
@@ -316,20 +332,4 @@ impl Recording {
 /// a += b (b empty: nothing).
 fn add(a: &mut [f64], b: &[f64]) {
     a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
-}
-
-/// Solve H x = rhs with the exact Hessian H of `pot` at `z` (the end of recorded step `t`).
-fn solve_exact(pot: &impl Potential, z: &[f64], rhs: &[f64], t: usize) -> Result<Vec<f64>> {
-    let h = pot
-        .exact_hessian(z)
-        .ok_or_else(|| Error::Gradient("the potential has no exact Hessian".into()))?;
-    let factor = Llt::new(h.as_ref(), Side::Lower).map_err(|_| {
-        Error::Gradient(format!(
-            "the exact Hessian at the end of recorded step {t} is not positive definite: the \
-             step did not end at a strict minimum (tighten the solver's tol)"
-        ))
-    })?;
-    let mut x = Mat::from_fn(rhs.len(), 1, |i, _| rhs[i]);
-    factor.solve_in_place(x.as_mut());
-    Ok((0..rhs.len()).map(|i| x[(i, 0)]).collect())
 }

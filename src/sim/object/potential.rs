@@ -54,6 +54,18 @@ impl<'a> StepPotential<'a> {
         self.at.layout.dofs()
     }
 
+    /// The exact Hessian at `z` of every term but the elastic one, for
+    /// [`StepPotential::exact_product`].
+    pub(crate) fn exact_without_elastic(&self, z: &[f64]) -> Mat<f64> {
+        self.terms.exact_hessian_without_elastic(&self.at, z)
+    }
+
+    /// H(z) v for the exact Hessian, with `others` from
+    /// [`StepPotential::exact_without_elastic`] at the same `z` ([`Terms::exact_product`]).
+    pub(crate) fn exact_product(&self, others: &Mat<f64>, z: &[f64], v: &[f64]) -> Vec<f64> {
+        self.terms.exact_product(others, z, v)
+    }
+
     /// The terms' parameter adjoints at the step's end `z` ([`Terms::parameter_adjoint`]).
     pub(crate) fn parameter_adjoint(&self, z: &[f64], adjoint: &[f64], out: &mut ParameterAdjoint) {
         self.terms.parameter_adjoint(&self.at, z, adjoint, out);

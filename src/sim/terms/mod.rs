@@ -48,9 +48,14 @@ impl Terms {
     pub fn iter(&self) -> impl Iterator<Item = &dyn Term> + '_ {
         let inertia: &dyn Term = &self.inertia;
         let elastic: &dyn Term = &self.elastic;
-        [inertia, elastic]
-            .into_iter()
-            .chain(self.gravity.iter().map(|t| t as &dyn Term))
+        [inertia, elastic].into_iter().chain(self.after_elastic())
+    }
+
+    /// The terms after inertia and elasticity, in evaluation order.
+    fn after_elastic(&self) -> impl Iterator<Item = &dyn Term> + '_ {
+        self.gravity
+            .iter()
+            .map(|t| t as &dyn Term)
             .chain(self.boundaries.iter().map(|t| t as &dyn Term))
             .chain(self.colliders.iter().map(|t| t as &dyn Term))
             .chain(self.added.iter().map(|t| t.as_ref()))
@@ -81,6 +86,30 @@ impl Terms {
             term.add_hessian(at, z, kind, &mut h);
         }
         h
+    }
+
+    /// The exact Hessian at `z` of every term but the elastic one (which has a matrix-free
+    /// product, [`ElasticTerm::hessian_product`]): with it, H v without forming the elastic
+    /// part, the costly one ([`Terms::exact_product`]).
+    pub fn exact_hessian_without_elastic(&self, at: &StepAt<'_>, z: &[f64]) -> Mat<f64> {
+        let n = at.layout.dofs();
+        let mut h = Mat::zeros(n, n);
+        let inertia: &dyn Term = &self.inertia;
+        for term in std::iter::once(inertia).chain(self.after_elastic()) {
+            term.add_hessian(at, z, HessianKind::Exact, &mut h);
+        }
+        h
+    }
+
+    /// H(z) v for the exact Hessian H at `z`, from `others` (the rest of the terms' exact
+    /// Hessian at `z`, [`Terms::exact_hessian_without_elastic`]) and the elastic term's
+    /// matrix-free product.
+    pub fn exact_product(&self, others: &Mat<f64>, z: &[f64], v: &[f64]) -> Vec<f64> {
+        let mut out = self.elastic.hessian_product(z, v);
+        let vm = faer::ColRef::from_slice(v);
+        let hv = others * vm;
+        out.iter_mut().zip(hv.iter()).for_each(|(a, b)| *a += b);
+        out
     }
 
     /// The rest system: every term's [`Term::add_rest_hessian`] for the time step `dt`, s.

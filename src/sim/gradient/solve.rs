@@ -1,0 +1,136 @@
+//! The reverse pass's linear solves H lambda = r, one per recorded step, H the exact Hessian
+//! at the step's end. Forming H costs C (4 (m + 1))^2 dense products per step (90% of a
+//! reverse pass when each step formed it); consecutive steps' Hessians differ little, so
+//! [`AdjointSolver`] keeps the Cholesky factor of one step's H and solves the next steps by
+//! conjugate gradients on matrix-free products H v (about two elastic gradients each),
+//! preconditioned by that factor. When they do not converge within [`MAX_CG`] iterations,
+//! or meet a direction of non-positive curvature, H is formed and factorized at that step,
+//! and its factor preconditions the steps after it.
+
+use crate::sim::newton::Potential;
+use crate::sim::object::StepPotential;
+use crate::{Error, Result};
+use faer::linalg::solvers::{Llt, Solve};
+use faer::{Mat, Side};
+
+/// Conjugate-gradient iterations per step before H is formed there instead: a formed H costs
+/// about as much as 20 to 40 products at m = 16 (docs/gradients.md, "Cost"), and a factor
+/// that needs more than a dozen iterations has drifted from the step's H.
+pub const MAX_CG: usize = 12;
+
+/// The backward error the conjugate gradients stop at: |b - H x| <= CG_TOL |H| |x|, |H| the
+/// largest diagonal entry of the factorized Hessian. x then solves a system within a relative
+/// 1e-9 of H's. Tighter is out of reach: a matrix-free product and the formed Hessian's
+/// product differ by 3e-11 to 3e-10 of |H| |x| on the beam (the volumetric terms, ~10x the
+/// shear ones at nu = 0.45, cancel along bending), the rounding floor of either.
+pub const CG_TOL: f64 = 1e-9;
+
+/// The solves of one reverse pass and what they cost.
+#[derive(Default)]
+pub(super) struct AdjointSolver {
+    /// Form and factorize H at every step (no conjugate gradients).
+    direct: bool,
+    /// The last factorized Hessian's factor and its largest diagonal entry.
+    factor: Option<(Llt<f64>, f64)>,
+    /// Exact Hessians formed and factorized.
+    pub(super) hessians: usize,
+    /// Matrix-free products H v taken.
+    pub(super) products: usize,
+}
+
+impl AdjointSolver {
+    /// A solver for one reverse pass; `direct`: form and factorize H at every step.
+    pub(super) fn new(direct: bool) -> AdjointSolver {
+        AdjointSolver {
+            direct,
+            ..AdjointSolver::default()
+        }
+    }
+
+    /// Solve H x = rhs with the exact Hessian H of `pot` at `z` (the end of recorded step
+    /// `t`).
+    pub(super) fn solve(
+        &mut self,
+        pot: &StepPotential<'_>,
+        z: &[f64],
+        rhs: &[f64],
+        t: usize,
+    ) -> Result<Vec<f64>> {
+        if let (Some((factor, scale)), false) = (&self.factor, self.direct) {
+            let others = pot.exact_without_elastic(z);
+            let apply = |v: &[f64]| pot.exact_product(&others, z, v);
+            let (x, products) = conjugate_gradients(&apply, factor, *scale, rhs);
+            self.products += products;
+            if let Some(x) = x {
+                return Ok(x);
+            }
+        }
+        let h = pot
+            .exact_hessian(z)
+            .ok_or_else(|| Error::Gradient("the potential has no exact Hessian".into()))?;
+        let factor = Llt::new(h.as_ref(), Side::Lower).map_err(|_| {
+            Error::Gradient(format!(
+                "the exact Hessian at the end of recorded step {t} is not positive definite: \
+                 the step did not end at a strict minimum (tighten the solver's tol)"
+            ))
+        })?;
+        self.hessians += 1;
+        let x = solve_with(&factor, rhs);
+        let scale = (0..h.nrows()).map(|i| h[(i, i)]).fold(0.0, f64::max);
+        self.factor = Some((factor, scale));
+        Ok(x)
+    }
+}
+
+/// x = P^-1 r for the Cholesky factor `p`.
+fn solve_with(p: &Llt<f64>, r: &[f64]) -> Vec<f64> {
+    let mut x = Mat::from_fn(r.len(), 1, |i, _| r[i]);
+    p.solve_in_place(x.as_mut());
+    (0..r.len()).map(|i| x[(i, 0)]).collect()
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// Preconditioned conjugate gradients for `apply(x) = b` from x = P^-1 b, |H| ~ `scale`:
+/// the solution, or None when [`MAX_CG`] iterations do not reach [`CG_TOL`] or a direction
+/// has p^T H p <= 0; and the products taken.
+fn conjugate_gradients(
+    apply: &dyn Fn(&[f64]) -> Vec<f64>,
+    p: &Llt<f64>,
+    scale: f64,
+    b: &[f64],
+) -> (Option<Vec<f64>>, usize) {
+    let mut x = solve_with(p, b);
+    let ax = apply(&x);
+    let mut products = 1;
+    let mut r: Vec<f64> = b.iter().zip(&ax).map(|(a, c)| a - c).collect();
+    let converged = |r: &[f64], x: &[f64]| dot(r, r).sqrt() <= CG_TOL * scale * dot(x, x).sqrt();
+    let mut s = solve_with(p, &r);
+    let mut rs = dot(&r, &s);
+    let mut d = s.clone();
+    for _ in 0..MAX_CG {
+        if converged(&r, &x) {
+            return (Some(x), products);
+        }
+        let ad = apply(&d);
+        products += 1;
+        let curvature = dot(&d, &ad);
+        // Non-positive or NaN curvature: not a direction of a positive definite H.
+        if curvature.is_nan() || curvature <= 0.0 {
+            return (None, products);
+        }
+        let alpha = rs / curvature;
+        x.iter_mut().zip(&d).for_each(|(xi, di)| *xi += alpha * di);
+        r.iter_mut().zip(&ad).for_each(|(ri, ai)| *ri -= alpha * ai);
+        s = solve_with(p, &r);
+        let next = dot(&r, &s);
+        let beta = next / rs;
+        rs = next;
+        d.iter_mut()
+            .zip(&s)
+            .for_each(|(di, si)| *di = si + beta * *di);
+    }
+    (converged(&r, &x).then_some(x), products)
+}
