@@ -93,22 +93,27 @@ fn placement_gradients_match_finite_differences() {
         (run_loss(&mut sim(&run, &f(h)), &c) - run_loss(&mut sim(&run, &f(-h)), &c)) / (2.0 * h)
     };
     let add = |a: [f64; 3], b: [f64; 3]| -> [f64; 3] { std::array::from_fn(|d| a[d] + b[d]) };
-    let mut fd = [[0.0; 3]; 4];
-    for k in 0..3 {
-        fd[0][k] = moved(&|e| Placement {
-            translation: add(p.translation, unit(k, e)),
-            ..p
-        });
-        fd[1][k] = moved(&|e| turned(&p, unit(k, e)));
-        fd[2][k] = moved(&|e| Placement {
-            velocity: add(p.velocity, unit(k, e)),
-            ..p
-        });
-        fd[3][k] = moved(&|e| Placement {
-            angular_velocity: add(p.angular_velocity, unit(k, e)),
-            ..p
-        });
-    }
+    let fd: [[f64; 3]; 4] = [
+        std::array::from_fn(|k| {
+            moved(&|e| Placement {
+                translation: add(p.translation, unit(k, e)),
+                ..p
+            })
+        }),
+        std::array::from_fn(|k| moved(&|e| turned(&p, unit(k, e)))),
+        std::array::from_fn(|k| {
+            moved(&|e| Placement {
+                velocity: add(p.velocity, unit(k, e)),
+                ..p
+            })
+        }),
+        std::array::from_fn(|k| {
+            moved(&|e| Placement {
+                angular_velocity: add(p.angular_velocity, unit(k, e)),
+                ..p
+            })
+        }),
+    ];
     let adjoint = [
         got.translation,
         got.rotation,
