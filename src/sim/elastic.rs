@@ -15,7 +15,7 @@ use crate::elasticity::{hessian, hessian_psd, Mat9};
 use crate::linalg3::Mat3;
 use crate::precompute::skinning::SkinningWeights;
 use crate::sim::cubature::Cubature;
-use crate::sim::lanes::{LaneData, Partial, LANES};
+use crate::sim::lanes::{LaneData, LaneMat, Partial, LANES};
 use crate::simd::multiversion;
 use crate::{Error, Point3, Result};
 use faer::linalg::matmul::triangular::BlockStructure;
@@ -84,6 +84,39 @@ pub struct ElasticTerm {
     rest_vectors: std::sync::OnceLock<Vec<f64>>,
     /// The same in single precision, for [`Precision::Single`].
     rest_vectors_single: std::sync::OnceLock<Vec<f32>>,
+}
+
+/// The elastic term's exact Hessian at one state, as an operator ([`ElasticTerm::hessian_at`]).
+pub struct ElasticHessian<'a> {
+    term: &'a ElasticTerm,
+    /// F at every cubature point, per block of lanes.
+    f: Vec<LaneMat>,
+}
+
+impl ElasticHessian<'_> {
+    /// H v, 12 (m + 1): about one elastic gradient's work (F(v) - I, the stress change
+    /// dP/dF : dF and its transpose map).
+    pub fn product(&self, v: &[f64]) -> Vec<f64> {
+        let lanes = &self.term.lanes;
+        let nb = lanes.blocks();
+        let per = CHUNK / LANES;
+        let dofs = self.term.layout.dofs();
+        let parts: Vec<Vec<f64>> = (0..nb.div_ceil(per))
+            .into_par_iter()
+            .map(|k| {
+                let mut out = vec![0.0; dofs];
+                let range = k * per..((k + 1) * per).min(nb);
+                lanes.hessian_product(range, &self.f, v, &mut out);
+                out
+            })
+            .collect();
+        // Sum in chunk order: deterministic for any thread count.
+        let mut out = vec![0.0; dofs];
+        for p in &parts {
+            out.iter_mut().zip(p).for_each(|(a, b)| *a += b);
+        }
+        out
+    }
 }
 
 /// Per-call statistics of an energy evaluation.
@@ -224,27 +257,19 @@ impl ElasticTerm {
         inverted
     }
 
-    /// The exact Hessian at `z` along `v` (12 (m + 1) each), H(z) v, without forming H:
-    /// about two gradients' work ([`LaneData::hessian_product`]).
-    pub fn hessian_product(&self, z: &[f64], v: &[f64]) -> Vec<f64> {
-        let nb = self.lanes.blocks();
-        let per = CHUNK / LANES;
-        let dofs = self.layout.dofs();
-        let parts: Vec<Vec<f64>> = (0..nb.div_ceil(per))
-            .into_par_iter()
-            .map(|k| {
-                let mut out = vec![0.0; dofs];
-                let range = k * per..((k + 1) * per).min(nb);
-                self.lanes.hessian_product(range, z, v, &mut out);
-                out
-            })
-            .collect();
-        // Sum in chunk order: deterministic for any thread count.
-        let mut out = vec![0.0; dofs];
-        for p in &parts {
-            out.iter_mut().zip(p).for_each(|(a, b)| *a += b);
+    /// The exact Hessian at `z` (12 (m + 1)) as an operator: F at every cubature point,
+    /// kept for its products ([`ElasticHessian::product`]).
+    pub fn hessian_at(&self, z: &[f64]) -> ElasticHessian<'_> {
+        ElasticHessian {
+            term: self,
+            f: self.lanes.deformation_gradient_blocks(z),
         }
-        out
+    }
+
+    /// H(z) v (12 (m + 1) each) without forming H ([`ElasticTerm::hessian_at`] for several
+    /// products at one z).
+    pub fn hessian_product(&self, z: &[f64], v: &[f64]) -> Vec<f64> {
+        self.hessian_at(z).product(v)
     }
 
     fn evaluate(&self, z: &[f64], grad: Option<&mut [f64]>) -> (f64, ElasticStats) {

@@ -13,6 +13,9 @@ pub const LANES: usize = 8;
 
 type Lane = [f64; LANES];
 
+/// A 3 x 3 matrix per lane of a block: m[r][c][lane].
+pub type LaneMat = [[Lane; 3]; 3];
+
 /// Cubature data in blocks of LANES points; padding lanes have zero volume and zero weights.
 #[derive(Debug, Clone)]
 pub struct LaneData {
@@ -257,12 +260,40 @@ impl LaneData {
 }
 
 impl LaneData {
+    /// F of every block at `z`, for [`LaneData::hessian_product`] (one per block).
+    pub fn deformation_gradient_blocks(&self, z: &[f64]) -> Vec<LaneMat> {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if crate::simd::avx2_fma() {
+                // SAFETY: the CPU supports the features the function is compiled for.
+                return unsafe { self.deformation_gradient_blocks_avx2(z) };
+            }
+        }
+        self.deformation_gradient_blocks_generic::<Plain>(z)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn deformation_gradient_blocks_avx2(&self, z: &[f64]) -> Vec<LaneMat> {
+        self.deformation_gradient_blocks_generic::<Fused>(z)
+    }
+
+    #[inline(always)]
+    fn deformation_gradient_blocks_generic<M: MulAdd>(&self, z: &[f64]) -> Vec<LaneMat> {
+        let mut out = vec![[[[0.0; LANES]; 3]; 3]; self.blocks()];
+        for (b, f) in out.iter_mut().enumerate() {
+            self.deformation_gradients::<M>(b, z, f);
+        }
+        out
+    }
+
     /// Add H(z) v of blocks `range` to `out` (12 (m + 1)): the elastic Hessian along `v`
-    /// without forming it, as the gradient with v dP = v dP/dF : dF in place of v P.
+    /// without forming it, as the gradient with v dP = v dP/dF : dF in place of v P; `f`
+    /// holds F at z of every block ([`LaneData::deformation_gradient_blocks`]).
     pub fn hessian_product(
         &self,
         range: std::ops::Range<usize>,
-        z: &[f64],
+        f: &[LaneMat],
         v: &[f64],
         out: &mut [f64],
     ) {
@@ -270,10 +301,10 @@ impl LaneData {
         {
             if crate::simd::avx2_fma() {
                 // SAFETY: the CPU supports the features the function is compiled for.
-                return unsafe { self.hessian_product_avx2(range, z, v, out) };
+                return unsafe { self.hessian_product_avx2(range, f, v, out) };
             }
         }
-        self.hessian_product_generic::<Plain>(range, z, v, out)
+        self.hessian_product_generic::<Plain>(range, f, v, out)
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -281,11 +312,11 @@ impl LaneData {
     unsafe fn hessian_product_avx2(
         &self,
         range: std::ops::Range<usize>,
-        z: &[f64],
+        f: &[LaneMat],
         v: &[f64],
         out: &mut [f64],
     ) {
-        self.hessian_product_generic::<Fused>(range, z, v, out)
+        self.hessian_product_generic::<Fused>(range, f, v, out)
     }
 
     /// Lane-wise v dP of block `b` at F = `f` along dF = `df`:
@@ -338,24 +369,22 @@ impl LaneData {
     fn hessian_product_generic<M: MulAdd>(
         &self,
         range: std::ops::Range<usize>,
-        z: &[f64],
+        f: &[LaneMat],
         v: &[f64],
         out: &mut [f64],
     ) {
         let nh = self.handles;
         let mut acc: Vec<[Lane; 4]> = vec![[[0.0; LANES]; 4]; 3 * nh];
-        let mut f = [[[0.0; LANES]; 3]; 3];
         let mut df = [[[0.0; LANES]; 3]; 3];
         let mut dp = [[[0.0; LANES]; 3]; 3];
         for b in range {
             let x = &self.x[b];
-            self.deformation_gradients::<M>(b, z, &mut f);
             // F is affine in z: its change along v is F(v) - I.
             self.deformation_gradients::<M>(b, v, &mut df);
             for (r, row) in df.iter_mut().enumerate() {
                 row[r].iter_mut().for_each(|d| *d -= 1.0);
             }
-            self.stress_change(b, &f, &df, &mut dp);
+            self.stress_change(b, &f[b], &df, &mut dp);
             for j in 0..nh {
                 let w = &self.w[b * nh + j];
                 let gw = &self.gw[b * nh + j];

@@ -24,7 +24,7 @@ mod solve;
 pub use crate::sim::object::PlacementGradient;
 pub use gradients::{lame_derivatives, Gradients};
 pub use positions::positions_adjoint;
-pub use solve::{CG_TOL, MAX_CG};
+pub use solve::{CG_TOL, FORMED_PER_COLUMN, MAX_CG};
 
 use crate::precompute::memory::available_memory;
 use crate::report::Stopwatch;

@@ -3,9 +3,12 @@
 //! reverse pass when each step formed it); consecutive steps' Hessians differ little, so
 //! [`AdjointSolver`] keeps the Cholesky factor of one step's H and solves the next steps by
 //! conjugate gradients on matrix-free products H v (about two elastic gradients each),
-//! preconditioned by that factor. When they do not converge within [`MAX_CG`] iterations,
-//! or meet a direction of non-positive curvature, H is formed and factorized at that step,
-//! and its factor preconditions the steps after it.
+//! preconditioned by that factor. The iterations grow as the state moves away from the
+//! factor's; H is formed and factorized again when a step's iterations cost more than the
+//! average step since the last factor (the factor included), the renewal that minimises the
+//! average cost when costs rise, or when they do not converge within [`MAX_CG`] iterations or
+//! meet a direction of non-positive curvature. Decisions count products, not seconds, so a
+//! pass is deterministic.
 
 use crate::sim::newton::Potential;
 use crate::sim::object::StepPotential;
@@ -13,10 +16,14 @@ use crate::{Error, Result};
 use faer::linalg::solvers::{Llt, Solve};
 use faer::{Mat, Side};
 
-/// Conjugate-gradient iterations per step before H is formed there instead: a formed H costs
-/// about as much as 20 to 40 products at m = 16 (docs/gradients.md, "Cost"), and a factor
-/// that needs more than a dozen iterations has drifted from the step's H.
-pub const MAX_CG: usize = 12;
+/// Conjugate-gradient iterations per step before H is formed there instead: a factor that
+/// needs more has drifted far from the step's H.
+pub const MAX_CG: usize = 30;
+
+/// What forming and factorizing H costs in matrix-free products, per column of one row of z
+/// (4 (m + 1)): the dense products scale with (4 (m + 1))^2 and a product with 4 (m + 1).
+/// Measured at m = 16 (2 cores): 7.2 ms against 0.30 ms, 24 = 0.35 x 68.
+pub const FORMED_PER_COLUMN: f64 = 0.35;
 
 /// The backward error the conjugate gradients stop at: |b - H x| <= CG_TOL |H| |x|, |H| the
 /// largest diagonal entry of the factorized Hessian. x then solves a system within a relative
@@ -32,6 +39,11 @@ pub(super) struct AdjointSolver {
     direct: bool,
     /// The last factorized Hessian's factor and its largest diagonal entry.
     factor: Option<(Llt<f64>, f64)>,
+    /// Steps solved since the last factor (it included) and their cost in products (the
+    /// factor counted as [`FORMED_PER_COLUMN`] x 4 (m + 1)).
+    cycle: (usize, f64),
+    /// Form H at the next step.
+    refresh: bool,
     /// Exact Hessians formed and factorized.
     pub(super) hessians: usize,
     /// Matrix-free products H v taken.
@@ -56,12 +68,16 @@ impl AdjointSolver {
         rhs: &[f64],
         t: usize,
     ) -> Result<Vec<f64>> {
-        if let (Some((factor, scale)), false) = (&self.factor, self.direct) {
-            let others = pot.exact_without_elastic(z);
-            let apply = |v: &[f64]| pot.exact_product(&others, z, v);
+        if let (Some((factor, scale)), false) = (&self.factor, self.direct || self.refresh) {
+            let op = pot.exact_operator(z);
+            let apply = |v: &[f64]| op.product(v);
             let (x, products) = conjugate_gradients(&apply, factor, *scale, rhs);
             self.products += products;
             if let Some(x) = x {
+                let (steps, cost) = &mut self.cycle;
+                *steps += 1;
+                *cost += products as f64;
+                self.refresh = products as f64 > *cost / *steps as f64;
                 return Ok(x);
             }
         }
@@ -78,6 +94,8 @@ impl AdjointSolver {
         let x = solve_with(&factor, rhs);
         let scale = (0..h.nrows()).map(|i| h[(i, i)]).fold(0.0, f64::max);
         self.factor = Some((factor, scale));
+        self.cycle = (1, FORMED_PER_COLUMN * (h.nrows() / 3) as f64);
+        self.refresh = false;
         Ok(x)
     }
 }

@@ -5,7 +5,7 @@ use crate::sim::elastic::{Layout, Precision};
 use crate::sim::environment::Environment;
 use crate::sim::friction::ColliderLag;
 use crate::sim::newton::{EvalInfo, Potential};
-use crate::sim::terms::{HessianKind, ParameterAdjoint, StepAt, Terms};
+use crate::sim::terms::{ExactHessian, HessianKind, ParameterAdjoint, StepAt, Terms};
 use faer::Mat;
 
 /// Where a step starts: the inertial predictor z_pred = z_n + h zdot_n, the initial guess
@@ -54,16 +54,9 @@ impl<'a> StepPotential<'a> {
         self.at.layout.dofs()
     }
 
-    /// The exact Hessian at `z` of every term but the elastic one, for
-    /// [`StepPotential::exact_product`].
-    pub(crate) fn exact_without_elastic(&self, z: &[f64]) -> Mat<f64> {
-        self.terms.exact_hessian_without_elastic(&self.at, z)
-    }
-
-    /// H(z) v for the exact Hessian, with `others` from
-    /// [`StepPotential::exact_without_elastic`] at the same `z` ([`Terms::exact_product`]).
-    pub(crate) fn exact_product(&self, others: &Mat<f64>, z: &[f64], v: &[f64]) -> Vec<f64> {
-        self.terms.exact_product(others, z, v)
+    /// The exact Hessian at `z` as an operator ([`Terms::exact_operator`]).
+    pub(crate) fn exact_operator(&self, z: &[f64]) -> ExactHessian<'_> {
+        self.terms.exact_operator(&self.at, z)
     }
 
     /// The terms' parameter adjoints at the step's end `z` ([`Terms::parameter_adjoint`]).

@@ -27,10 +27,27 @@ pub use inertia::InertiaTerm;
 pub use moments::{add_block_diagonal, add_block_product, add_outer_blocks, Moments};
 pub use term::{EnergySum, HessianKind, StepAt, Term, TermKind};
 
-use crate::sim::elastic::{ElasticTerm, Layout};
+use crate::sim::elastic::{ElasticHessian, ElasticTerm, Layout};
 use crate::sim::environment::Environment;
 use crate::sim::newton::EvalInfo;
 use faer::Mat;
+
+/// The exact Hessian of a potential at one state as an operator ([`Terms::exact_operator`]).
+pub struct ExactHessian<'a> {
+    /// Every term's exact Hessian but the elastic one, 12 (m + 1) square.
+    others: Mat<f64>,
+    elastic: ElasticHessian<'a>,
+}
+
+impl ExactHessian<'_> {
+    /// H v, 12 (m + 1).
+    pub fn product(&self, v: &[f64]) -> Vec<f64> {
+        let mut out = self.elastic.product(v);
+        let hv = &self.others * faer::ColRef::from_slice(v);
+        out.iter_mut().zip(hv.iter()).for_each(|(a, b)| *a += b);
+        out
+    }
+}
 
 /// The terms one object was built with, in evaluation order: inertia, elastic, gravity (if
 /// any), boundaries, colliders (if any), then the caller's.
@@ -88,28 +105,20 @@ impl Terms {
         h
     }
 
-    /// The exact Hessian at `z` of every term but the elastic one (which has a matrix-free
-    /// product, [`ElasticTerm::hessian_product`]): with it, H v without forming the elastic
-    /// part, the costly one ([`Terms::exact_product`]).
-    pub fn exact_hessian_without_elastic(&self, at: &StepAt<'_>, z: &[f64]) -> Mat<f64> {
+    /// The exact Hessian at `z` as an operator ([`ExactHessian`]): every term but the
+    /// elastic one formed (they are cheap), the elastic one matrix-free (forming it is the
+    /// costly part).
+    pub fn exact_operator(&self, at: &StepAt<'_>, z: &[f64]) -> ExactHessian<'_> {
         let n = at.layout.dofs();
-        let mut h = Mat::zeros(n, n);
+        let mut others = Mat::zeros(n, n);
         let inertia: &dyn Term = &self.inertia;
         for term in std::iter::once(inertia).chain(self.after_elastic()) {
-            term.add_hessian(at, z, HessianKind::Exact, &mut h);
+            term.add_hessian(at, z, HessianKind::Exact, &mut others);
         }
-        h
-    }
-
-    /// H(z) v for the exact Hessian H at `z`, from `others` (the rest of the terms' exact
-    /// Hessian at `z`, [`Terms::exact_hessian_without_elastic`]) and the elastic term's
-    /// matrix-free product.
-    pub fn exact_product(&self, others: &Mat<f64>, z: &[f64], v: &[f64]) -> Vec<f64> {
-        let mut out = self.elastic.hessian_product(z, v);
-        let vm = faer::ColRef::from_slice(v);
-        let hv = others * vm;
-        out.iter_mut().zip(hv.iter()).for_each(|(a, b)| *a += b);
-        out
+        ExactHessian {
+            others,
+            elastic: self.elastic.hessian_at(z),
+        }
     }
 
     /// The rest system: every term's [`Term::add_rest_hessian`] for the time step `dt`, s.
