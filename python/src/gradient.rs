@@ -94,7 +94,8 @@ impl PyRecording {
     /// world rotation on top of the placement's, radians), ``velocity``, ``angular_velocity``,
     /// 3 values each; None when the recording did not start at the object's placement, as
     /// built or set by ``set_placement``, or the object has held regions), ``z0``, ``zdot0``,
-    /// ``forward_s``, ``backward_s``, ``tape_bytes``. Consumes the recording once it succeeds
+    /// ``forward_s``, ``backward_s``, ``exact_hessians`` and ``hessian_products`` (what the
+    /// reverse pass's solves took), ``tape_bytes``. Consumes the recording once it succeeds
     /// (a refused loss leaves it for a corrected call).
     fn backward<'py>(
         &mut self,
@@ -191,6 +192,8 @@ impl PyRecording {
             d.set_item("zdot0", array1(py, g.zdot0.clone()))?;
             d.set_item("forward_s", tapes[i].0)?;
             d.set_item("backward_s", g.backward_s)?;
+            d.set_item("exact_hessians", g.exact_hessians)?;
+            d.set_item("hessian_products", g.hessian_products)?;
             d.set_item("tape_bytes", tapes[i].1)?;
             out.set_item(&self.names[i], d)?;
         }

@@ -99,23 +99,33 @@ pub struct ColliderLag {
     pub carried: Point3,
     /// d(carried)/dx0: the obstacle's rotation over the step, R1 R0^T.
     pub carry: Mat3,
+    /// The point's position at the start of the step, x0, metres.
+    pub start_position: Point3,
+    /// The obstacle's pose translations at the start and the end of the step, metres (the
+    /// points its pose gradients' rotations turn about).
+    pub origins: [Point3; 2],
 }
 
 /// What the reverse pass of one lagged contact gives, for an adjoint `lam` (3 values, the
 /// step's adjoint mapped to the contact's point) of its friction force g = mu lambda phi(s),
-/// phi(s) = f1(|s|) s / |s|.
+/// phi(s) = f1(|s|) s / |s|, s = P(n) (x - carried): dL through each lagged quantity.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LagAdjoint {
     /// lam . phi(s): -this is dL/d(mu lambda), per N.
     pub per_mu_lambda: f64,
-    /// -(dg/dx0)^T lam: dL/dx0 through the lagged normal force, normal and carried point.
+    /// dL/dn through the projector P = I - n n^T.
+    pub normal: [f64; 3],
+    /// dL/d(carried), per metre.
+    pub carried: [f64; 3],
+    /// dL/dx0 through all three: the lag's dependence on the start position.
     pub start: [f64; 3],
 }
 
 /// The reverse pass of one lagged contact at the end position `x` (metres), eps the
-/// smoothing displacement. With d = x - carried(x0) and s = P(x0) d,
-/// dg/dx0 = phi(s) (d mu lambda/dx0)^T + mu lambda Jphi(s) (dP[d] - P A), A the carry and
-/// dP[d] = -(n . d) dn - n (dn^T d)^T.
+/// smoothing displacement. With d = x - carried and w = Jphi(s) lam: dL/ds = -mu lambda w,
+/// so dL/d(carried) = mu lambda P w and dL/dn = mu lambda ((n . d) w + (n . w) d) (from
+/// dP[d] = -(dn (n . d) + n (dn . d))); x0 enters through mu lambda, n (its Jacobian) and
+/// carried (the carry A).
 pub fn lag_adjoint(lag: &ColliderLag, eps: f64, x: &Point3, lam: &[f64; 3]) -> LagAdjoint {
     let d: [f64; 3] = std::array::from_fn(|k| x[k] - lag.carried[k]);
     let s = project(&lag.projector, &d);
@@ -124,18 +134,20 @@ pub fn lag_adjoint(lag: &ColliderLag, eps: f64, x: &Point3, lam: &[f64; 3]) -> L
     let per_mu_lambda = dot(&phi, lam);
     // w = Jphi(s) lam (Jphi symmetric).
     let w = mat_vec(&hessian(1.0, eps, &identity, &s), lam);
-    let (n, dn) = (&lag.normal, &lag.normal_jacobian);
+    let n = &lag.normal;
     let (nd, nw) = (dot(n, &d), dot(n, &w));
-    let dn_t_w = mat_t_vec(dn, &w);
-    let dn_t_d = mat_t_vec(dn, &d);
-    let a_t_pw = mat_t_vec(&lag.carry, &project(&lag.projector, &w));
-    // (ds/dx0)^T w = -(n . d) dn^T w - (dn^T d)(n . w) - A^T P w.
+    let ml = lag.mu_lambda;
+    let carried = project(&lag.projector, &w).map(|v| ml * v);
+    let normal: [f64; 3] = std::array::from_fn(|k| ml * (nd * w[k] + nw * d[k]));
+    let through_n = mat_t_vec(&lag.normal_jacobian, &normal);
+    let through_carried = mat_t_vec(&lag.carry, &carried);
     let start = std::array::from_fn(|k| {
-        let ds_t_w = -nd * dn_t_w[k] - dn_t_d[k] * nw - a_t_pw[k];
-        -(per_mu_lambda * lag.mu_lambda_gradient[k] + lag.mu_lambda * ds_t_w)
+        -per_mu_lambda * lag.mu_lambda_gradient[k] + through_n[k] + through_carried[k]
     });
     LagAdjoint {
         per_mu_lambda,
+        normal,
+        carried,
         start,
     }
 }

@@ -7,32 +7,40 @@ use super::gradient::{
 };
 use freeform::precompute::BasisRun;
 use freeform::random::SplitMix64;
-use freeform::sim::gradient::Recording;
+use freeform::sim::gradient::{Gradients, Recording};
 use freeform::sim::motion::Motion;
-use freeform::sim::terms::ColliderShape;
+use freeform::sim::terms::{ColliderShape, PoseGradient, StepPoseGradient};
 use freeform::sim::{Collider, ReducedSim};
 
 /// Friction's smoothing velocity, m/s: sticking below eps_v h = 0.2 mm per step.
 const EPS_V: f64 = 0.01;
 
-/// Friction coefficient and penalty stiffness (Pa/m^2) of the two colliders.
+/// Friction coefficient and penalty stiffness (Pa/m^2) of the two colliders, the plane's
+/// velocity (m/s) and the sphere's spin (degrees per second).
 #[derive(Clone, Copy)]
 struct Contact {
     mu: [f64; 2],
     kappa: [f64; 2],
+    belt: [f64; 3],
+    spin: f64,
 }
 
 const CONTACT: Contact = Contact {
     mu: [0.5, 0.3],
     kappa: [1e7, 2e7],
+    belt: [0.3, 0.05, 0.0],
+    spin: 90.0,
 };
 
-/// The bar's underside (y = 0) presses 3 cm into a plane, and its free half rests on a sphere
-/// (radius 0.5 m) that spins about its own centre at 90 degrees per second, dragging the bar
-/// along: a flat contact (constant normal) and a curved, moving one (the normal's Jacobian
-/// and the carried point's rotation enter the lagged friction).
+const CENTRE: [f64; 3] = [0.75, -0.49, 0.1];
+const SPIN_AXIS: [f64; 3] = [0.0, 0.3, 1.0];
+
+/// The bar's underside (y = 0) presses 3 cm into a plane that moves like a rising conveyor
+/// belt, and its free half rests on a sphere (radius 0.5 m) that spins about its own centre,
+/// dragging the bar along: a flat contact (constant normal) and a curved, moving one (the
+/// normal's Jacobian and the carried point's rotation enter the lagged friction).
 fn colliders(k: Contact) -> Vec<Collider> {
-    let centre = [0.75, -0.49, 0.1];
+    let centre = CENTRE;
     vec![
         Collider {
             shape: ColliderShape::Plane {
@@ -41,7 +49,7 @@ fn colliders(k: Contact) -> Vec<Collider> {
             },
             stiffness: Some(k.kappa[0]),
             name: None,
-            motion: Motion::Fixed,
+            motion: Motion::Translate { velocity: k.belt },
             parent: None,
         },
         Collider {
@@ -53,8 +61,8 @@ fn colliders(k: Contact) -> Vec<Collider> {
             name: None,
             motion: Motion::Rotate {
                 pivot: centre,
-                axis: [0.0, 0.3, 1.0],
-                degrees_per_second: 90.0,
+                axis: SPIN_AXIS,
+                degrees_per_second: k.spin,
             },
             parent: None,
         },
@@ -72,7 +80,49 @@ fn sim(run: &BasisRun, case: &Case, k: Contact) -> ReducedSim {
     s
 }
 
-/// Every gradient the colliders bring (mu and kappa of each, relative moves), with the ones
+/// Each step's (start time, end time) and the plane's and sphere's pose gradients there.
+fn step_times(g: &Gradients) -> impl Iterator<Item = ([f64; 2], [StepPoseGradient; 2])> + '_ {
+    let dt = options(G).dt;
+    g.collider_poses
+        .iter()
+        .enumerate()
+        .map(move |(k, poses)| ([k as f64 * dt, (k + 1) as f64 * dt], [poses[0], poses[1]]))
+}
+
+/// dL/dv_j of the plane's constant velocity: its pose at time t is translated by t v.
+fn belt_gradient(g: &Gradients, j: usize) -> f64 {
+    step_times(g)
+        .map(|([t0, t1], [plane, _])| {
+            t0 * plane.start.translation[j] + t1 * plane.end.translation[j]
+        })
+        .sum()
+}
+
+/// dL/d(spin rate) (per degree per second): a turn dtheta about the axis a through the
+/// centre c is the small rotation dtheta a about the pose's origin o plus the translation
+/// dtheta a x (o - c), and theta = rate t.
+fn spin_gradient(g: &Gradients) -> f64 {
+    let n = SPIN_AXIS.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let a = SPIN_AXIS.map(|v| v / n);
+    let motion = colliders(CONTACT)[1].motion.clone();
+    let dot = |u: &[f64; 3], v: &[f64; 3]| u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
+    let at = |t: f64, p: &PoseGradient| {
+        let o = motion.at(t).translation;
+        let oc = [o[0] - CENTRE[0], o[1] - CENTRE[1], o[2] - CENTRE[2]];
+        let shift = [
+            a[1] * oc[2] - a[2] * oc[1],
+            a[2] * oc[0] - a[0] * oc[2],
+            a[0] * oc[1] - a[1] * oc[0],
+        ];
+        t.to_radians() * (dot(&a, &p.rotation) + dot(&shift, &p.translation))
+    };
+    step_times(g)
+        .map(|([t0, t1], [_, sphere])| at(t0, &sphere.start) + at(t1, &sphere.end))
+        .sum()
+}
+
+/// Every gradient the colliders bring (mu and kappa of each, the plane's velocity and the
+/// sphere's spin rate through the per-step pose gradients; relative moves), with the ones
 /// whose path now runs through the lagged friction (E of both regions together, gravity, the
 /// initial velocity along a random direction).
 ///
@@ -118,6 +168,9 @@ fn friction_and_stiffness_gradients_match_finite_differences() {
         e_scaled,
         g.gravity.unwrap()[1],
         dot(&g.zdot0, &dv),
+        belt_gradient(&g, 0) * CONTACT.belt[0],
+        belt_gradient(&g, 1) * CONTACT.belt[1],
+        spin_gradient(&g) * CONTACT.spin,
     ];
 
     let loss_of = |case: Case, k: Contact| run_loss(&mut sim(&run, &case, k), &c);
@@ -165,6 +218,18 @@ fn friction_and_stiffness_gradients_match_finite_differences() {
                 .for_each(|(v, d)| *v += h * d);
             loss_of(case, CONTACT)
         }),
+        Box::new(|h| {
+            let belt = [CONTACT.belt[0] * (1.0 + h), CONTACT.belt[1], 0.0];
+            loss_of(base_case(dofs), Contact { belt, ..CONTACT })
+        }),
+        Box::new(|h| {
+            let belt = [CONTACT.belt[0], CONTACT.belt[1] * (1.0 + h), 0.0];
+            loss_of(base_case(dofs), Contact { belt, ..CONTACT })
+        }),
+        Box::new(|h| {
+            let spin = CONTACT.spin * (1.0 + h);
+            loss_of(base_case(dofs), Contact { spin, ..CONTACT })
+        }),
     ];
     // Relative steps of 1e-4 (1e-3 m/s^2 for gravity, 1e-4 along the velocity's direction):
     // as gradient.rs, the truncation and the solves' rounding stay near 1e-8 of the gradient.
@@ -178,7 +243,11 @@ fn friction_and_stiffness_gradients_match_finite_differences() {
         "E",
         "g_y",
         "zdot0",
+        "belt v_x",
+        "belt v_y",
+        "spin",
     ];
+    assert_eq!((names.len(), got.len()), (fd.len(), fd.len()));
     for ((name, a), b) in names.iter().zip(&got).zip(&fd) {
         let rel = (a - b).abs() / b.abs().max(1e-30);
         println!("{name}: adjoint {a:.10e}, central differences {b:.10e}, relative {rel:.2e}");

@@ -220,6 +220,8 @@ fn every_term_matches_finite_differences_and_a_toy_term_joins_with_one_call() {
         projector: freeform::sim::friction::tangent_projector(&[0.0, 1.0, 0.0]),
         carried: [0.3, 0.0, 0.1],
         carry: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        start_position: [0.3, 0.01, 0.1],
+        origins: [[0.0; 3]; 2],
     }];
     let at = StepAt {
         layout,

@@ -5,7 +5,7 @@
 use crate::precompute::sampling::IntegrationPoints;
 use crate::precompute::skinning::SkinningWeights;
 use crate::sim::object::{Placement, PlacementGradient, ReducedSim};
-use crate::sim::terms::ParameterAdjoint;
+use crate::sim::terms::{ParameterAdjoint, StepPoseGradient};
 use crate::{Error, Result};
 use faer::Mat;
 use rayon::prelude::*;
@@ -49,6 +49,12 @@ pub struct Gradients {
     pub exact_hessians: usize,
     /// Matrix-free Hessian-vector products those conjugate gradients took.
     pub hessian_products: usize,
+    /// dL/d(pose) of every collider in every recorded step, steps x colliders (empty
+    /// without colliders): at the pose the step began with and at its end. For a pose that
+    /// follows a motion, dL/d(pose at the end of step t) = `[t - 1][o].end` +
+    /// `[t][o].start`; for a pose set between steps (the live API, held through the step),
+    /// dL/d(pose of step t) = its `start` + `end`.
+    pub collider_poses: Vec<Vec<StepPoseGradient>>,
 }
 
 /// (dmu/dE, dlambda/dE, dmu/dnu, dlambda/dnu) at Lame parameters (lambda, mu), Pa, from
@@ -75,6 +81,7 @@ impl Gradients {
         cubature: (&[f64], &[f64], &[usize]),
         steps: usize,
         (backward_s, exact_hessians, hessian_products): (f64, usize, usize),
+        collider_poses: Vec<Vec<StepPoseGradient>>,
     ) -> Gradients {
         let (lambda, mu, source) = cubature;
         let (youngs, poisson) = (0..mu.len())
@@ -102,6 +109,7 @@ impl Gradients {
             backward_s,
             exact_hessians,
             hessian_products,
+            collider_poses,
         }
     }
 

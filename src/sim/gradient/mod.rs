@@ -3,7 +3,7 @@
 //! A converged backward-Euler step ends at a minimum z* of the incremental potential
 //! E(z; z_pred, p), so grad E(z*) = 0 and, by the implicit function theorem,
 //! dz*/dq = -H^-1 d(grad E)/dq with H the exact Hessian at z*. The reverse pass solves
-//! H lambda = dL/dz* once per step (12 (m + 1) unknowns, one dense Cholesky factor) and each
+//! H lambda = dL/dz* once per step (12 (m + 1) unknowns, `solve`) and each
 //! term adds -lambda^T d(its gradient)/dq for its parameters
 //! ([`crate::sim::terms::Term::add_parameter_adjoint`]). z_pred = z_n + h zdot_n and
 //! zdot_{n+1} = (z_{n+1} - z_n) / h carry the adjoint back to the step before.
@@ -29,7 +29,7 @@ pub use solve::{CG_TOL, FORMED_PER_COLUMN, MAX_CG};
 use crate::precompute::memory::available_memory;
 use crate::report::Stopwatch;
 use crate::sim::object::{ReducedSim, StepReport, StepStart};
-use crate::sim::terms::ParameterAdjoint;
+use crate::sim::terms::{ParameterAdjoint, StepPoseGradient};
 use crate::{Error, Result};
 
 /// A recorded run of one object: start it on the object, step the object through it, then
@@ -229,6 +229,7 @@ impl Recording {
         let mut zbar = vec![0.0; n];
         let mut vbar = vec![0.0; n];
         let mut solver = solve::AdjointSolver::new(direct);
+        let mut poses = vec![Vec::new(); steps];
         for t in (1..=steps).rev() {
             add(&mut zbar, &dl_dz[t]);
             let z = self.state(t).unwrap_or_default();
@@ -239,8 +240,10 @@ impl Recording {
             let lambda = solver.solve(&pot, z, &rhs, t)?;
             adj.zpred.fill(0.0);
             adj.start.fill(0.0);
+            adj.collider_pose.fill(StepPoseGradient::default());
             adj.inverted = 0;
             pot.parameter_adjoint(z, &lambda, &mut adj);
+            poses[t - 1].clone_from(&adj.collider_pose);
             if adj.inverted > 0 {
                 return Err(Error::Gradient(format!(
                     "recorded step {t} ended with {} inverted cubature points (det F <= 0): \
@@ -265,6 +268,7 @@ impl Recording {
             (&cub.lambda, &cub.mu, &cub.source),
             steps,
             (sw.elapsed(), solver.hessians, solver.products),
+            poses,
         ))
     }
 

@@ -5,6 +5,27 @@
 
 use faer::Mat;
 
+/// dL/d(pose) of a rigid pose: along a small world translation tau (metres) and a small
+/// rotation delta (radians, world axes) about the pose's origin (its translation), applied
+/// on top of the pose.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PoseGradient {
+    /// dL/dtau, the loss's unit per metre.
+    pub translation: [f64; 3],
+    /// dL/ddelta, the loss's unit per radian.
+    pub rotation: [f64; 3],
+}
+
+/// dL/d(pose) of one collider in one step: at the pose the step began with (which lagged
+/// friction reads) and the pose at its end (the penalties' and the carried points').
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StepPoseGradient {
+    /// At the step's start time.
+    pub start: PoseGradient,
+    /// At the step's end time.
+    pub end: PoseGradient,
+}
+
 /// The parameter adjoints of a run, summed over its steps by the terms
 /// ([`super::Term::add_parameter_adjoint`]).
 #[derive(Debug, Clone)]
@@ -21,6 +42,9 @@ pub struct ParameterAdjoint {
     /// dL/dkappa per collider (penalty stiffness; empty until a collider term adds it), the
     /// loss's unit per Pa/m^2.
     pub collider_stiffness: Vec<f64>,
+    /// dL/d(pose) per collider at the start and the end of the step being reversed (empty
+    /// until a collider term adds it; set to zero before each step).
+    pub collider_pose: Vec<StepPoseGradient>,
     /// dL/dmu per cubature point, 1/Pa times the loss's unit.
     pub mu: Vec<f64>,
     /// dL/dlambda per cubature point, 1/Pa times the loss's unit.
@@ -46,6 +70,7 @@ impl ParameterAdjoint {
             start: vec![0.0; dofs],
             friction: Vec::new(),
             collider_stiffness: Vec::new(),
+            collider_pose: Vec::new(),
             mu: vec![0.0; cubature],
             lambda: vec![0.0; cubature],
             density_quadratic: Mat::zeros(n4, n4),

@@ -376,6 +376,8 @@ impl ContactTerm {
                     projector: crate::sim::friction::tangent_projector(&p.normal),
                     carried: b.apply(&local),
                     carry: mul(&b.rotation, &transpose(&a.rotation)),
+                    start_position: x,
+                    origins: [a.translation, b.translation],
                 }
             })
             .collect()
@@ -516,6 +518,14 @@ impl Term for ContactTerm {
     /// penetrating points (lambda_x = B_c adjoint). Friction is linear in mu lambda =
     /// mu kappa v d(x0), lagged from the step's start x0: it adds to dL/dmu and dL/dkappa, and
     /// its dependence on x0 to the start's adjoint ([`crate::sim::friction::lag_adjoint`]).
+    ///
+    /// The obstacles' poses: a small world motion (tau, delta) of an obstacle (translation,
+    /// rotation about its pose's origin o) moves its penalty as if the point moved by
+    /// u = -(tau + delta x (x - o)), so with the penalty's gradient g and exact Hessian H at
+    /// the point, dL/dtau = H lambda_x and dL/ddelta = (x - o) x H lambda_x - g x lambda_x at
+    /// the step's end pose. Friction sees the end pose through the carried point
+    /// (carried + tau + delta x (carried - o)) and the start pose as if x0 moved by u, its
+    /// normal turning with delta.
     fn add_parameter_adjoint(
         &self,
         at: &StepAt<'_>,
@@ -523,9 +533,11 @@ impl Term for ContactTerm {
         adjoint: &[f64],
         out: &mut ParameterAdjoint,
     ) {
+        use crate::linalg3::{cross, mat_vec};
         let n4 = at.layout.row_len();
         let colliders = self.len();
         out.collider_stiffness.resize(colliders, 0.0);
+        out.collider_pose.resize(colliders, Default::default());
         let at_point = |c: usize| -> [f64; 3] {
             let mut l = [0.0; 3];
             for (k, bk) in self.b(c) {
@@ -535,9 +547,23 @@ impl Term for ContactTerm {
             }
             l
         };
-        for (c, o, p) in self.penetrations(at.env.kinematics(), at.layout, at.t, z) {
+        let add = |acc: &mut [f64], v: [f64; 3], s: f64| {
+            acc.iter_mut().zip(v).for_each(|(a, b)| *a += s * b);
+        };
+        let kin = at.env.kinematics();
+        let poses = kin.poses(at.t);
+        for (c, o, p) in self.penetrations(kin, at.layout, at.t, z) {
             let lam = at_point(c);
+            let kv = self.stiffness[o] * self.volumes[c];
             out.collider_stiffness[o] += self.volumes[c] * p.depth * dot(&p.normal, &lam);
+            let h_lam = mat_vec(&p.hessian, &lam).map(|v| kv * v);
+            let g = p.normal.map(|v| -kv * p.depth * v);
+            let x = self.position(at.layout, c, z);
+            let y: [f64; 3] = std::array::from_fn(|k| x[k] - poses[o].translation[k]);
+            let end = &mut out.collider_pose[o].end;
+            add(&mut end.translation, h_lam, 1.0);
+            add(&mut end.rotation, cross(&y, &h_lam), 1.0);
+            add(&mut end.rotation, cross(&g, &lam), -1.0);
         }
         let (Some((lag, eps)), Some((mu, _))) = (at.friction, self.friction.as_ref()) else {
             return;
@@ -552,10 +578,18 @@ impl Term for ContactTerm {
             out.collider_stiffness[o] -=
                 r.per_mu_lambda * mu[o] * l.normal_force / self.stiffness[o];
             for (k, bk) in self.b(l.point) {
-                for (r_, v) in r.start.iter().enumerate() {
-                    out.start[r_ * n4 + k] += bk * v;
+                for (row, v) in r.start.iter().enumerate() {
+                    out.start[row * n4 + k] += bk * v;
                 }
             }
+            let pose = &mut out.collider_pose[o];
+            let yc: [f64; 3] = std::array::from_fn(|k| l.carried[k] - l.origins[1][k]);
+            add(&mut pose.end.translation, r.carried, 1.0);
+            add(&mut pose.end.rotation, cross(&yc, &r.carried), 1.0);
+            let y0: [f64; 3] = std::array::from_fn(|k| l.start_position[k] - l.origins[0][k]);
+            add(&mut pose.start.translation, r.start, -1.0);
+            add(&mut pose.start.rotation, cross(&y0, &r.start), -1.0);
+            add(&mut pose.start.rotation, cross(&l.normal, &r.normal), 1.0);
         }
     }
 

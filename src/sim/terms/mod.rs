@@ -19,7 +19,7 @@ mod term;
 pub use crate::derivatives::{check_derivatives, DerivativeCheck, Floors, HessianFn};
 pub use crate::sim::collider::ColliderShape;
 pub use crate::sim::friction::ColliderLag;
-pub use adjoint::ParameterAdjoint;
+pub use adjoint::{ParameterAdjoint, PoseGradient, StepPoseGradient};
 pub use boundary::BoundaryTerm;
 pub use collider::{ContactHessian, ContactInfo, ContactTerm, SWEEP_SAMPLES};
 pub use gravity::GravityTerm;
