@@ -10,7 +10,7 @@ use freeform::scene::WorldRecording;
 use freeform::sim::gradient::positions_adjoint as adjoint_of_positions;
 use freeform::sim::object::map_points as map_rest_points;
 use freeform::sim::ReducedSim;
-use numpy::{PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{IntoPyArray, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
@@ -90,7 +90,10 @@ impl PyRecording {
     /// ``density_per_point`` (per integration point: a region's gradient is the sum over its
     /// points), ``gravity`` (3 values, or None without gravity), ``friction`` (dL/dmu per
     /// collider, or None without collider friction), ``collider_stiffness`` (dL/dkappa per
-    /// collider, per Pa/m^2), ``placement`` (a dict of ``translation``, ``rotation`` (a small
+    /// collider, per Pa/m^2), ``collider_pose`` ((steps, colliders, 2, 6): per recorded step
+    /// and collider, at the pose the step began with ``[..., 0, :]`` and at its end
+    /// ``[..., 1, :]``, dL/d(translation) then dL/d(rotation), a small world rotation about
+    /// the pose's origin; docs/gradients.md), ``placement`` (a dict of ``translation``, ``rotation`` (a small
     /// world rotation on top of the placement's, radians), ``velocity``, ``angular_velocity``,
     /// 3 values each; None when the recording did not start at the object's placement, as
     /// built or set by ``set_placement``, or the object has held regions), ``z0``, ``zdot0``,
@@ -188,6 +191,25 @@ impl PyRecording {
                 Err(_) => None,
             };
             d.set_item("placement", placement)?;
+            // (steps, colliders, 2, 6): per step and collider, at the step's start and end, the
+            // translation's and the rotation's gradient.
+            let colliders = g.collider_poses.first().map_or(0, Vec::len);
+            let flat: Vec<f64> = g
+                .collider_poses
+                .iter()
+                .flatten()
+                .flat_map(|p| {
+                    [p.start, p.end]
+                        .into_iter()
+                        .flat_map(|q| q.translation.into_iter().chain(q.rotation))
+                })
+                .collect();
+            let poses = numpy::ndarray::Array4::from_shape_vec(
+                (g.collider_poses.len(), colliders, 2, 6),
+                flat,
+            )
+            .map_err(|e| invalid(py, format!("collider pose gradients: {e}")))?;
+            d.set_item("collider_pose", poses.into_pyarray(py))?;
             d.set_item("z0", array1(py, g.z0.clone()))?;
             d.set_item("zdot0", array1(py, g.zdot0.clone()))?;
             d.set_item("forward_s", tapes[i].0)?;
