@@ -550,3 +550,100 @@ fn gradients_with_a_frictionless_collider_match_finite_differences() {
     let rel = relative_error(&got, &fd);
     assert!(rel < 1e-3, "with a collider: relative error {rel:e}");
 }
+
+/// The bar's left end driven along a velocity and its right end turned about the bar's axis:
+/// the per-step target pose gradients, chained to the velocity and the turning rate, and the
+/// two penalty stiffnesses, against central differences (relative moves of 1e-4; bound 1e-5,
+/// the bound without contact).
+#[test]
+fn boundary_motion_gradients_match_finite_differences() {
+    use freeform::sim::motion::Motion;
+    let run = bar();
+    let dofs = base_case(0).sim(&run).z().len();
+    let c = loss_coefficients(&run, dofs);
+    let pivot = [1.0, 0.1, 0.1];
+    let axis = [1.0, 0.0, 0.0];
+    let sim = |velocity: [f64; 3], rate: f64, stiffness: [f64; 2]| {
+        let case = base_case(dofs);
+        let m = material(&run, case.e, case.nu, case.rho);
+        let mut opts = options(case.g);
+        opts.boundaries = vec![
+            Boundary {
+                motion: Motion::Translate { velocity },
+                stiffness: Some(stiffness[0]),
+                ..held_left()
+            },
+            Boundary {
+                region: freeform::material::Region::HalfSpace {
+                    point: [0.9, 0.0, 0.0],
+                    normal: [1.0, 0.0, 0.0],
+                },
+                motion: Motion::Rotate {
+                    pivot,
+                    axis,
+                    degrees_per_second: rate,
+                },
+                stiffness: Some(stiffness[1]),
+            },
+        ];
+        let mut s = ReducedSim::new(&run.basis, &run.points, &m, &opts).unwrap();
+        let z0 = s.z().to_vec();
+        s.set_state(&z0, &case.zdot0).unwrap();
+        s
+    };
+    let (v, rate, k) = ([0.0, 0.2, 0.1], 60.0, [1e8, 5e7]);
+    let mut s = sim(v, rate, k);
+    let mut rec = Recording::start(&s, STEPS).unwrap();
+    for _ in 0..STEPS {
+        assert!(rec.step(&mut s).unwrap().solve.converged);
+    }
+    let g = rec.backward(&s, &c).unwrap();
+    let dt = options(G).dt;
+    let turn = Motion::Rotate {
+        pivot,
+        axis,
+        degrees_per_second: rate,
+    };
+    let mut got = [0.0; 5];
+    for (k, poses) in g.boundary_poses.iter().enumerate() {
+        let t = (k + 1) as f64 * dt;
+        // The left target is translated by t v.
+        got[0] += t * poses[0].translation[1] * v[1];
+        got[1] += t * poses[0].translation[2] * v[2];
+        // A turn dtheta about the axis through the pivot: the rotation dtheta a about the
+        // target's origin o plus the translation dtheta a x (o - pivot); theta = rate t.
+        let o = turn.at(t).translation;
+        let shift = [0.0, -(o[2] - pivot[2]), o[1] - pivot[1]];
+        let dtheta = poses[1].rotation[0]
+            + (0..3)
+                .map(|d| shift[d] * poses[1].translation[d])
+                .sum::<f64>();
+        got[2] += t.to_radians() * dtheta * rate;
+    }
+    got[3] = g.boundary_stiffness[0] * k[0];
+    got[4] = g.boundary_stiffness[1] * k[1];
+    let loss_of = |v: [f64; 3], rate: f64, k: [f64; 2]| run_loss(&mut sim(v, rate, k), &c);
+    let h = 1e-4;
+    let fd = [
+        (loss_of([0.0, v[1] * (1.0 + h), v[2]], rate, k)
+            - loss_of([0.0, v[1] * (1.0 - h), v[2]], rate, k))
+            / (2.0 * h),
+        (loss_of([0.0, v[1], v[2] * (1.0 + h)], rate, k)
+            - loss_of([0.0, v[1], v[2] * (1.0 - h)], rate, k))
+            / (2.0 * h),
+        (loss_of(v, rate * (1.0 + h), k) - loss_of(v, rate * (1.0 - h), k)) / (2.0 * h),
+        (loss_of(v, rate, [k[0] * (1.0 + h), k[1]]) - loss_of(v, rate, [k[0] * (1.0 - h), k[1]]))
+            / (2.0 * h),
+        (loss_of(v, rate, [k[0], k[1] * (1.0 + h)]) - loss_of(v, rate, [k[0], k[1] * (1.0 - h)]))
+            / (2.0 * h),
+    ];
+    for (name, (a, b)) in ["v_y", "v_z", "rate", "kappa left", "kappa right"]
+        .iter()
+        .zip(got.iter().zip(&fd))
+    {
+        let rel = (a - b).abs() / b.abs().max(1e-30);
+        println!("{name}: adjoint {a:.10e}, central differences {b:.10e}, relative {rel:.2e}");
+        assert!(b.abs() > 1e-9, "{name}: no signal");
+        assert!(rel < 1e-5, "{name}: relative error {rel:e}");
+    }
+}

@@ -5,7 +5,7 @@
 use crate::precompute::sampling::IntegrationPoints;
 use crate::precompute::skinning::SkinningWeights;
 use crate::sim::object::{Placement, PlacementGradient, ReducedSim};
-use crate::sim::terms::{ParameterAdjoint, StepPoseGradient};
+use crate::sim::terms::{ParameterAdjoint, PoseGradient, StepPoseGradient};
 use crate::{Error, Result};
 use faer::Mat;
 use rayon::prelude::*;
@@ -55,6 +55,13 @@ pub struct Gradients {
     /// `[t][o].start`; for a pose set between steps (the live API, held through the step),
     /// dL/d(pose of step t) = its `start` + `end`.
     pub collider_poses: Vec<Vec<StepPoseGradient>>,
+    /// dL/d(target pose) of every held region at the end of every recorded step, steps x
+    /// regions (empty without held regions): the target transform of rest positions (its
+    /// motion after the placement) along a small world translation and rotation about its
+    /// origin.
+    pub boundary_poses: Vec<Vec<PoseGradient>>,
+    /// dL/dkappa per held region (its penalty stiffness), per Pa/m^2.
+    pub boundary_stiffness: Vec<f64>,
 }
 
 /// (dmu/dE, dlambda/dE, dmu/dnu, dlambda/dnu) at Lame parameters (lambda, mu), Pa, from
@@ -81,7 +88,7 @@ impl Gradients {
         cubature: (&[f64], &[f64], &[usize]),
         steps: usize,
         (backward_s, exact_hessians, hessian_products): (f64, usize, usize),
-        collider_poses: Vec<Vec<StepPoseGradient>>,
+        (collider_poses, boundary_poses): (Vec<Vec<StepPoseGradient>>, Vec<Vec<PoseGradient>>),
     ) -> Gradients {
         let (lambda, mu, source) = cubature;
         let (youngs, poisson) = (0..mu.len())
@@ -110,6 +117,8 @@ impl Gradients {
             exact_hessians,
             hessian_products,
             collider_poses,
+            boundary_poses,
+            boundary_stiffness: adj.boundary_stiffness,
         }
     }
 

@@ -29,7 +29,7 @@ pub use solve::{CG_TOL, FORMED_PER_COLUMN, MAX_CG};
 use crate::precompute::memory::available_memory;
 use crate::report::Stopwatch;
 use crate::sim::object::{ReducedSim, StepReport, StepStart};
-use crate::sim::terms::{ParameterAdjoint, StepPoseGradient};
+use crate::sim::terms::{ParameterAdjoint, PoseGradient, StepPoseGradient};
 use crate::{Error, Result};
 
 /// A recorded run of one object: start it on the object, step the object through it, then
@@ -230,6 +230,7 @@ impl Recording {
         let mut vbar = vec![0.0; n];
         let mut solver = solve::AdjointSolver::new(direct);
         let mut poses = vec![Vec::new(); steps];
+        let mut targets = vec![Vec::new(); steps];
         for t in (1..=steps).rev() {
             add(&mut zbar, &dl_dz[t]);
             let z = self.state(t).unwrap_or_default();
@@ -241,9 +242,11 @@ impl Recording {
             adj.zpred.fill(0.0);
             adj.start.fill(0.0);
             adj.collider_pose.fill(StepPoseGradient::default());
+            adj.boundary_pose.fill(PoseGradient::default());
             adj.inverted = 0;
             pot.parameter_adjoint(z, &lambda, &mut adj);
             poses[t - 1].clone_from(&adj.collider_pose);
+            targets[t - 1].clone_from(&adj.boundary_pose);
             if adj.inverted > 0 {
                 return Err(Error::Gradient(format!(
                     "recorded step {t} ended with {} inverted cubature points (det F <= 0): \
@@ -268,7 +271,7 @@ impl Recording {
             (&cub.lambda, &cub.mu, &cub.source),
             steps,
             (sw.elapsed(), solver.hessians, solver.products),
-            poses,
+            (poses, targets),
         ))
     }
 

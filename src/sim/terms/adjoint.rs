@@ -45,6 +45,12 @@ pub struct ParameterAdjoint {
     /// dL/d(pose) per collider at the start and the end of the step being reversed (empty
     /// until a collider term adds it; set to zero before each step).
     pub collider_pose: Vec<StepPoseGradient>,
+    /// dL/d(target pose) per held region (index in the boundaries) at the end of the step
+    /// being reversed (empty until a boundary term adds it; set to zero before each step).
+    pub boundary_pose: Vec<PoseGradient>,
+    /// dL/dkappa per held region, the loss's unit per Pa/m^2 (empty until a boundary term
+    /// adds it).
+    pub boundary_stiffness: Vec<f64>,
     /// dL/dmu per cubature point, 1/Pa times the loss's unit.
     pub mu: Vec<f64>,
     /// dL/dlambda per cubature point, 1/Pa times the loss's unit.
@@ -71,6 +77,8 @@ impl ParameterAdjoint {
             friction: Vec::new(),
             collider_stiffness: Vec::new(),
             collider_pose: Vec::new(),
+            boundary_pose: Vec::new(),
+            boundary_stiffness: Vec::new(),
             mu: vec![0.0; cubature],
             lambda: vec![0.0; cubature],
             density_quadratic: Mat::zeros(n4, n4),

@@ -1,6 +1,7 @@
 //! Kinematic boundary penalties: a held or driven region pulled to a prescribed rigid motion
 //! of its rest positions, a quadratic in z from the region's moments ([`super::moments`]).
 
+use super::adjoint::{ParameterAdjoint, PoseGradient};
 use super::moments::{add_block_diagonal, Moments};
 use super::term::{EnergySum, HessianKind, StepAt, Term, TermKind};
 use crate::sim::elastic::Layout;
@@ -158,6 +159,48 @@ impl Term for BoundaryTerm {
         let (e, size) = self.energy_gradient(at.layout, at.t, z, sum.grad);
         sum.energy += e;
         sum.add_magnitude(size);
+    }
+
+    /// The gradient is kappa-linear (the moments are kappa-weighted): dL/dkappa =
+    /// -adjoint . grad / kappa. Its target enters as -bx G_r^T per row r, G = [R - I, t] the
+    /// target's offset at the step's end, so dL/dG = Lambda bx (Lambda: the adjoint's rows);
+    /// a small world motion (tau, delta about the target's origin t) changes G by
+    /// [[delta]x R, tau], so dL/dtau = dL/dG's last column and
+    /// dL/ddelta = sum_a R e_a x dL/dG e_a.
+    fn add_parameter_adjoint(
+        &self,
+        at: &StepAt<'_>,
+        z: &[f64],
+        adjoint: &[f64],
+        out: &mut ParameterAdjoint,
+    ) {
+        let n4 = at.layout.row_len();
+        if out.boundary_pose.len() <= self.index {
+            out.boundary_pose
+                .resize(self.index + 1, PoseGradient::default());
+            out.boundary_stiffness.resize(self.index + 1, 0.0);
+        }
+        let mut grad = vec![0.0; z.len()];
+        self.energy_gradient(at.layout, at.t, z, &mut grad);
+        let along: f64 = grad.iter().zip(adjoint).map(|(g, a)| g * a).sum();
+        out.boundary_stiffness[self.index] -= along / self.stiffness;
+        let dg: [[f64; 4]; 3] = std::array::from_fn(|r| {
+            let lam = &adjoint[r * n4..(r + 1) * n4];
+            std::array::from_fn(|a| (0..n4).map(|i| lam[i] * self.moments.bx[(i, a)]).sum())
+        });
+        let rot = self.target(at.t).rotation;
+        let pose = &mut out.boundary_pose[self.index];
+        for r in 0..3 {
+            pose.translation[r] += dg[r][3];
+        }
+        for a in 0..3 {
+            let ra = [rot[0][a], rot[1][a], rot[2][a]];
+            let ga = [dg[0][a], dg[1][a], dg[2][a]];
+            let c = crate::linalg3::cross(&ra, &ga);
+            for r in 0..3 {
+                pose.rotation[r] += c[r];
+            }
+        }
     }
 
     /// Quadratic in z: the moments' block on the diagonal.
