@@ -262,7 +262,8 @@ class Recording:
     ) -> dict[str, dict[str, Any]]:
         """The reverse pass: dL/dz per object, (steps + 1, 12 (m + 1)); per object the
         gradients (youngs, poisson, density, their per-point arrays, gravity, friction and
-        collider_stiffness per collider, collider_pose (steps, colliders, 2, 6), placement,
+        collider_stiffness per collider, collider_pose (steps, colliders, 2, 6), boundary_pose
+        (steps, regions, 6), boundary_stiffness, placement,
         z0, zdot0) and what the reverse pass took."""
 
 def map_points(world: World, object: ObjectRef, points: ArrayLike) -> npt.NDArray[np.float64]:

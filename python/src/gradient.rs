@@ -93,7 +93,9 @@ impl PyRecording {
     /// collider, per Pa/m^2), ``collider_pose`` ((steps, colliders, 2, 6): per recorded step
     /// and collider, at the pose the step began with ``[..., 0, :]`` and at its end
     /// ``[..., 1, :]``, dL/d(translation) then dL/d(rotation), a small world rotation about
-    /// the pose's origin; docs/gradients.md), ``placement`` (a dict of ``translation``, ``rotation`` (a small
+    /// the pose's origin; docs/gradients.md), ``boundary_pose`` ((steps, regions, 6): each
+    /// held region's target at each step's end, translation then rotation),
+    /// ``boundary_stiffness`` (dL/dkappa per held region), ``placement`` (a dict of ``translation``, ``rotation`` (a small
     /// world rotation on top of the placement's, radians), ``velocity``, ``angular_velocity``,
     /// 3 values each; None when the recording did not start at the object's placement, as
     /// built or set by ``set_placement``, or the object has held regions), ``z0``, ``zdot0``,
@@ -210,6 +212,23 @@ impl PyRecording {
             )
             .map_err(|e| invalid(py, format!("collider pose gradients: {e}")))?;
             d.set_item("collider_pose", poses.into_pyarray(py))?;
+            // (steps, regions, 6): per step and held region, the target's translation and
+            // rotation gradients at the step's end.
+            let regions = g.boundary_poses.first().map_or(0, Vec::len);
+            let flat: Vec<f64> = g
+                .boundary_poses
+                .iter()
+                .flatten()
+                .flat_map(|p| p.translation.into_iter().chain(p.rotation))
+                .collect();
+            let targets =
+                numpy::ndarray::Array3::from_shape_vec((g.boundary_poses.len(), regions, 6), flat)
+                    .map_err(|e| invalid(py, format!("boundary pose gradients: {e}")))?;
+            d.set_item("boundary_pose", targets.into_pyarray(py))?;
+            d.set_item(
+                "boundary_stiffness",
+                array1(py, g.boundary_stiffness.clone()),
+            )?;
             d.set_item("z0", array1(py, g.z0.clone()))?;
             d.set_item("zdot0", array1(py, g.zdot0.clone()))?;
             d.set_item("forward_s", tapes[i].0)?;

@@ -9,7 +9,7 @@ import freeform as ff
 STEPS = 5
 
 
-def world(basis, points, volumes, youngs, gravity=(0.0, -9.81, 0.0)):
+def world(basis, points, volumes, youngs, gravity=(0.0, -9.81, 0.0), stiffness=1e8):
     """The bar held at x <= 0.1 m with a fixed penalty stiffness (the default one scales with
     E), each step solved by Newton far below the default tolerance."""
     scene = ff.Scene.from_dict(
@@ -30,7 +30,7 @@ def world(basis, points, volumes, youngs, gravity=(0.0, -9.81, 0.0)):
             {
                 "region": {"half_space": {"point": [0.1, 0, 0], "normal": [-1, 0, 0]}},
                 "motion": "fixed",
-                "stiffness": 1e8,
+                "stiffness": stiffness,
             }
         ],
     )
@@ -83,6 +83,15 @@ def test_youngs_and_gravity_match_central_differences(setup):
         - loss(world(basis, points, volumes, 1e5, (0, -9.81 - gy, 0)), tip, STEPS)
     ) / (2 * gy)
     assert g["gravity"][1] == pytest.approx(fd_g, rel=1e-5)
+    # The held end's stiffness (1e8 Pa/m^2), moved by 1e-4 relative.
+    k = 1e8
+    fd_k = (
+        loss(world(basis, points, volumes, 1e5, stiffness=k * (1 + h)), tip, STEPS)
+        - loss(world(basis, points, volumes, 1e5, stiffness=k * (1 - h)), tip, STEPS)
+    ) / (2 * h * k)
+    assert abs(fd_k * k) > 1e-4  # a real signal: dL/dln(kappa) is -2.3e-3 here
+    assert g["boundary_stiffness"][0] == pytest.approx(fd_k, rel=1e-5)
+    assert g["boundary_pose"].shape == (STEPS, 1, 6)
     assert g["z0"].shape == g["zdot0"].shape == (72,)
     assert g["backward_s"] >= 0 and g["tape_bytes"] > 0
 
