@@ -170,17 +170,22 @@ def slide_loss(w, steps):
     return total
 
 
-def test_friction_gradient_matches_central_differences():
-    steps = 6
-    make = lambda mu: ff.World(ff.Scene.from_toml(SLIDE.format(steps=steps, mu=mu)))
-    w = make(0.4)
+def slide_gradients(w, steps):
+    """Record `steps` steps of a slide world and take the reverse pass of slide_loss."""
     dl_dx = np.zeros_like(CORNERS)
     dl_dx[:, [0, 2]] = 1.0
     row = ff.positions_adjoint(w, "block", CORNERS, dl_dx)
     rec = ff.Recording(w, steps)
     for _ in range(steps):
         rec.step(w)
-    g = rec.backward(w, {"block": np.tile(row, (steps + 1, 1))})["block"]
+    return rec.backward(w, {"block": np.tile(row, (steps + 1, 1))})["block"], row
+
+
+def test_friction_gradient_matches_central_differences():
+    steps = 6
+    make = lambda mu: ff.World(ff.Scene.from_toml(SLIDE.format(steps=steps, mu=mu)))
+    w = make(0.4)
+    g, row = slide_gradients(w, steps)
     h = 1e-4
     fd = (slide_loss(make(0.4 + h), steps) - slide_loss(make(0.4 - h), steps)) / (2 * h)
     # Steps solved to 1e-12 D; the contact set does not switch within +-h (the block stays
@@ -218,13 +223,8 @@ def test_placement_gradient_matches_central_differences():
         return w
 
     w = make(base)
-    dl_dx = np.zeros_like(CORNERS)
-    dl_dx[:, [0, 2]] = 1.0
-    row = ff.positions_adjoint(w, "block", CORNERS, dl_dx)
-    rec = ff.Recording(w, steps)
-    for _ in range(steps):
-        rec.step(w)
-    g = rec.backward(w, {"block": np.tile(row, (steps + 1, 1))})["block"]["placement"]
+    g, row = slide_gradients(w, steps)
+    g = g["placement"]
     h = 1e-5
     for key in ("velocity", "translation", "angular_velocity"):
         for k in range(3):
@@ -253,13 +253,7 @@ def test_collider_pose_gradient_matches_central_differences():
         return w
 
     w = make(0.001)
-    dl_dx = np.zeros_like(CORNERS)
-    dl_dx[:, [0, 2]] = 1.0
-    row = ff.positions_adjoint(w, "block", CORNERS, dl_dx)
-    rec = ff.Recording(w, steps)
-    for _ in range(steps):
-        rec.step(w)
-    g = rec.backward(w, {"block": np.tile(row, (steps + 1, 1))})["block"]
+    g, row = slide_gradients(w, steps)
     assert g["collider_pose"].shape == (steps, 1, 2, 6)
     adjoint = g["collider_pose"][:, 0, :, 1].sum()
     h = 1e-6

@@ -111,6 +111,19 @@ pub(super) fn loss(states: &[Vec<f64>], c: &[Vec<f64>]) -> f64 {
         .sum()
 }
 
+/// Record `STEPS` converged steps of `s` and take the reverse pass of the loss `c`; also the
+/// number of (point, collider) contacts the steps ended with.
+pub(super) fn record(s: &mut ReducedSim, c: &[Vec<f64>]) -> (Gradients, usize) {
+    let mut rec = Recording::start(s, STEPS).unwrap();
+    let mut contacts = 0;
+    for _ in 0..STEPS {
+        let r = rec.step(s).unwrap();
+        assert!(r.solve.converged);
+        contacts += r.solve.info.contacts;
+    }
+    (rec.backward(s, c).unwrap(), contacts)
+}
+
 /// What a forward run starts from and how it is built.
 pub(super) struct Case {
     pub(super) e: [f64; 2],

@@ -3,11 +3,11 @@
 //! re-simulated with each parameter moved (the helpers are `gradient.rs`'s).
 
 use super::gradient::{
-    bar, base_case, loss_coefficients, material, options, regions, run_loss, Case, E, G, STEPS,
+    bar, base_case, loss_coefficients, material, options, record, regions, run_loss, Case, E, G,
 };
 use freeform::precompute::BasisRun;
 use freeform::random::SplitMix64;
-use freeform::sim::gradient::{Gradients, Recording};
+use freeform::sim::gradient::Gradients;
 use freeform::sim::motion::Motion;
 use freeform::sim::terms::{ColliderShape, PoseGradient, StepPoseGradient};
 use freeform::sim::{Collider, ReducedSim};
@@ -138,16 +138,8 @@ fn friction_and_stiffness_gradients_match_finite_differences() {
     let dofs = base_case(0).sim(&run).z().len();
     let c = loss_coefficients(&run, dofs);
     let base = base_case(dofs);
-    let mut s = sim(&run, &base, CONTACT);
-    let mut rec = Recording::start(&s, STEPS).unwrap();
-    let mut contacts = 0;
-    for _ in 0..STEPS {
-        let r = rec.step(&mut s).unwrap();
-        assert!(r.solve.converged);
-        contacts += r.solve.info.contacts;
-    }
+    let (g, contacts) = record(&mut sim(&run, &base, CONTACT), &c);
     assert!(contacts > 0, "the bar must touch the colliders");
-    let g = rec.backward(&s, &c).unwrap();
     let mu = g.friction.clone().expect("the run has friction");
     let kappa = &g.collider_stiffness;
     let e_scaled: f64 = g

@@ -2,7 +2,7 @@
 //! and angular velocity) against central differences of the same discrete model re-built at
 //! the moved placement (the helpers are `gradient.rs`'s).
 
-use super::gradient::{bar, base_case, loss_coefficients, material, options, run_loss, STEPS};
+use super::gradient::{bar, base_case, loss_coefficients, material, options, record, run_loss};
 use freeform::linalg3::{matrix_to_quat, mul};
 use freeform::precompute::BasisRun;
 use freeform::sim::gradient::Recording;
@@ -75,15 +75,8 @@ fn placement_gradients_match_finite_differences() {
     let p = placement();
     let mut s = sim(&run, &p);
     let c = loss_coefficients(&run, s.z().len());
-    let mut rec = Recording::start(&s, STEPS).unwrap();
-    let mut contacts = 0;
-    for _ in 0..STEPS {
-        let r = rec.step(&mut s).unwrap();
-        assert!(r.solve.converged);
-        contacts += r.solve.info.contacts;
-    }
+    let (g, contacts) = record(&mut s, &c);
     assert!(contacts > 0, "the bar must touch the floor");
-    let g = rec.backward(&s, &c).unwrap();
     let got = g.placement(&s, &p).unwrap();
 
     let h = 1e-5;
