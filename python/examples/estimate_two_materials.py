@@ -11,7 +11,7 @@ gradient holds the basis fixed), minimises with scipy's L-BFGS-B over ln E1, ln 
 rebuilds the basis at the moduli found and fits again ("rounds"): the first round's error is
 what holding the basis fixed at the wrong contrast costs, the later rounds remove it.
 
-    python python/examples/estimate_two_materials.py [--rounds 3]
+    python python/examples/estimate_two_materials.py [--rounds 3] [--plot two_materials.png]
 
 The last line printed is a JSON object with the moduli found per round and their relative
 errors (``relative_error``: the last round's larger one).
@@ -37,6 +37,7 @@ def parse():
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--rounds", type=int, default=3, help="basis builds (1: held throughout)")
     p.add_argument("--max-iter", type=int, default=30)
+    p.add_argument("--plot", default=None, help="draw the loss and the moduli per iteration to this PNG")
     return p.parse_args()
 
 
@@ -101,6 +102,37 @@ class Bar:
         return total, np.array([g[~self.right].sum(), g[self.right].sum()])
 
 
+def plot(path, rounds):
+    """The loss and both moduli's errors against the L-BFGS-B iterations, round after round."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print(f"matplotlib is not installed: no plot written to {path}")
+        return
+    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3.6))
+    at = 0
+    for r, history in enumerate(rounds):
+        its = range(at, at + len(history))
+        a.semilogy(its, [h["loss"] for h in history], "o-", ms=3, label=f"round {r + 1}")
+        for k, mark in ((0, "o-"), (1, "s--")):
+            b.semilogy(its, [abs(h["youngs"][k] - TRUTH[k]) / TRUTH[k] for h in history], mark, ms=3,
+                       label=f"E{k + 1}, round {r + 1}")
+        at += len(history)
+    a.set_xlabel("L-BFGS-B iteration (all rounds)")
+    a.set_ylabel("loss (mean squared distance, m^2)")
+    a.set_title("two moduli from (3 E1, E2 / 3)")
+    a.legend(fontsize=7)
+    b.set_xlabel("L-BFGS-B iteration (all rounds)")
+    b.set_ylabel("relative error of E")
+    b.legend(fontsize=6, ncol=2)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    print(f"wrote {path}")
+
+
 def main():
     args = parse()
     clock = time.perf_counter()
@@ -108,27 +140,39 @@ def main():
     observed = bar.run(bar.basis(TRUTH), TRUTH)
     e = np.array([3.0 * TRUTH[0], TRUTH[1] / 3.0])
     rounds = []
+    histories = []
     for r in range(args.rounds):
         basis = bar.basis(e)  # held through this round's fit
         start = e.copy()
         loss0 = bar.loss(basis, start, observed)[0]
 
+        seen = {}
+        history = [{"youngs": start.tolist(), "loss": loss0}]
+
         def objective(p):
             ep = start * np.exp(p)
             loss, de = bar.loss(basis, ep, observed)
+            seen[tuple(p)] = (ep, loss)
             return loss / loss0, de * ep / loss0
 
-        res = minimize(objective, np.zeros(2), jac=True, method="L-BFGS-B",
+        def callback(p):
+            ep, loss = seen[tuple(p)]
+            history.append({"youngs": ep.tolist(), "loss": loss})
+
+        res = minimize(objective, np.zeros(2), jac=True, method="L-BFGS-B", callback=callback,
                        bounds=[(-8.0, 8.0)] * 2,
                        options={"maxiter": args.max_iter, "maxfun": 4 * args.max_iter,
                                 "ftol": 1e-15, "gtol": 1e-9})
         e = start * np.exp(res.x)
+        histories.append(history)
         err = np.abs(e - TRUTH) / TRUTH
         rounds.append({"youngs": e.tolist(), "relative_error": err.tolist(),
                        "iterations": int(res.nit), "evaluations": int(res.nfev),
                        "loss": float(res.fun * loss0)})
         print(f"round {r + 1}: E1 = {e[0]:.6e}, E2 = {e[1]:.6e} Pa (errors {err[0]:.2e}, "
               f"{err[1]:.2e}), {res.nit} iterations", flush=True)
+    if args.plot:
+        plot(args.plot, histories)
     print(json.dumps({"truth": TRUTH.tolist(), "rounds": rounds,
                       "relative_error": max(rounds[-1]["relative_error"]),
                       "seconds": time.perf_counter() - clock}))
