@@ -40,7 +40,9 @@ impl World {
     }
 
     /// One [`World::step`], recorded in `rec`: every object is checked against its tape
-    /// before the step (nothing moves when one was changed).
+    /// before the step (nothing moves when one was changed). A step that solves objects
+    /// together as an island is taken but ends the recording: later calls and
+    /// [`WorldRecording::backward`] refuse it, naming the step.
     ///
     /// # Errors
     /// [`Error::Gradient`] for a recording of another world or of objects changed since;
@@ -53,21 +55,27 @@ impl World {
                 self.objects().len()
             )));
         }
+        if let Some(island) = rec.island_step {
+            return Err(island_error(island));
+        }
         for (i, (r, o)) in rec.objects.iter().zip(self.objects()).enumerate() {
             r.check_object(o.sim())
                 .map_err(|e| self.object_error(i, e))?;
         }
         let reports = self.step()?;
-        for (i, (r, rep)) in rec.objects.iter_mut().zip(&reports).enumerate() {
-            r.record_step(self.objects()[i].sim(), rep)
-                .map_err(|e| self.object_error(i, e))?;
-        }
         let island = self
             .contact_summary()
             .and_then(|c| c.steps.last())
             .and_then(|row| row.islands.first().copied());
-        if let (None, Some(size)) = (rec.island_step, island) {
-            rec.island_step = Some((rec.steps(), size));
+        if let Some(size) = island {
+            // Not recorded (an island's solve may have undone and redone its members'
+            // steps): the recording ends here, and backward refuses it, naming the step.
+            rec.island_step = Some((rec.steps() + 1, size));
+            return Ok(reports);
+        }
+        for (i, (r, rep)) in rec.objects.iter_mut().zip(&reports).enumerate() {
+            r.record_step(self.objects()[i].sim(), rep)
+                .map_err(|e| self.object_error(i, e))?;
         }
         Ok(reports)
     }
@@ -79,6 +87,16 @@ impl World {
             source: Box::new(e),
         }
     }
+}
+
+/// The refusal of a recording whose step `step` (1-based) solved `size` objects together.
+fn island_error((step, size): (usize, usize)) -> Error {
+    Error::Gradient(format!(
+        "recorded step {step} solved {size} objects together as an island (object-object \
+         contact, or an object touching itself), whose solve the reverse pass does not \
+         differentiate yet; the recording ended there: record a run whose objects do not touch \
+         each other"
+    ))
 }
 
 impl WorldRecording {
@@ -105,13 +123,8 @@ impl WorldRecording {
     /// [`Recording::backward`]'s, naming the object; a list of the wrong length; a run with a
     /// step that solved objects together as an island (named).
     pub fn backward(self, world: &World, dl_dz: &[Vec<Vec<f64>>]) -> Result<Vec<Gradients>> {
-        if let Some((step, size)) = self.island_step {
-            return Err(Error::Gradient(format!(
-                "recorded step {step} solved {size} objects together as an island \
-                 (object-object contact, or an object touching itself), whose solve the reverse \
-                 pass does not differentiate yet; record a run whose objects do not touch each \
-                 other"
-            )));
+        if let Some(island) = self.island_step {
+            return Err(island_error(island));
         }
         if dl_dz.len() != self.objects.len() {
             return Err(Error::Gradient(format!(

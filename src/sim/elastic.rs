@@ -180,10 +180,22 @@ impl ElasticTerm {
     /// Deformation gradient F at cubature point `c` for coordinates `z`.
     #[inline]
     pub fn deformation_gradient(&self, c: usize, z: &[f64]) -> Mat3 {
+        let mut f = self.deformation_change(c, z);
+        for (r, row) in f.iter_mut().enumerate() {
+            row[r] += 1.0;
+        }
+        f
+    }
+
+    /// The change of F at cubature point `c` along `v` (F is affine in z: F(v) - I, formed
+    /// without the identity so that a small v keeps its relative precision).
+    #[inline]
+    pub fn deformation_change(&self, c: usize, v: &[f64]) -> Mat3 {
+        let z = v;
         let nh = self.layout.handles;
         let n4 = self.layout.row_len();
         let x = self.points[c];
-        let mut f = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        let mut f = [[0.0; 3]; 3];
         for j in 0..nh {
             let wj = self.w[c * nh + j];
             let g = self.gw[c * nh + j];
@@ -210,8 +222,7 @@ impl ElasticTerm {
 
     /// The reverse pass's material part at a step's end `z`: adds -v_c dP/dmu : G_c to
     /// `mu[c]` and -v_c dP/dlambda : G_c to `lambda[c]` for every cubature point c, where
-    /// G_c = F_c(adjoint) - I is the deformation gradient's change along `adjoint` (F is affine
-    /// in z) and P = mu F + ((lambda + mu)(J - 1) - mu) cof F is linear in (mu, lambda):
+    /// G_c is the deformation gradient's change along `adjoint` (F is affine in z) and P = mu F + ((lambda + mu)(J - 1) - mu) cof F is linear in (mu, lambda):
     /// dP/dmu = F + (J - 2) cof F, dP/dlambda = (J - 1) cof F. Returns the number of
     /// points with det F <= 0.
     pub fn add_material_adjoint(
@@ -226,10 +237,7 @@ impl ElasticTerm {
             .with_min_len(CHUNK)
             .map(|c| {
                 let f = self.deformation_gradient(c, z);
-                let mut g = self.deformation_gradient(c, adjoint);
-                for (r, row) in g.iter_mut().enumerate() {
-                    row[r] -= 1.0;
-                }
+                let g = self.deformation_change(c, adjoint);
                 let j = crate::linalg3::det3(&f);
                 let cof = crate::linalg3::cofactor3(&f);
                 let (mut cof_g, mut f_g) = (0.0, 0.0);

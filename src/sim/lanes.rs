@@ -124,12 +124,25 @@ impl LaneData {
     /// Written with an out-parameter and plain indexing: returning the array by value or
     /// destructuring it kept LLVM from vectorizing the lane loop (measured).
     fn deformation_gradients<M: MulAdd>(&self, b: usize, z: &[f64], f: &mut [[Lane; 3]; 3]) {
+        self.deformation_map::<M>(b, z, 1.0, f);
+    }
+
+    /// `diagonal` I + (dF/dz) z of block `b` (F for 1, its change along z for 0: without the
+    /// identity, so a small change keeps its relative precision).
+    #[inline(always)]
+    fn deformation_map<M: MulAdd>(
+        &self,
+        b: usize,
+        z: &[f64],
+        diagonal: f64,
+        f: &mut [[Lane; 3]; 3],
+    ) {
         let nh = self.handles;
         let n4 = 4 * nh;
         let x = &self.x[b];
         *f = [[[0.0; LANES]; 3]; 3];
         for r in 0..3 {
-            f[r][r] = [1.0; LANES];
+            f[r][r] = [diagonal; LANES];
             let fr = &mut f[r];
             for j in 0..nh {
                 let w = &self.w[b * nh + j];
@@ -379,11 +392,9 @@ impl LaneData {
         let mut dp = [[[0.0; LANES]; 3]; 3];
         for b in range {
             let x = &self.x[b];
-            // F is affine in z: its change along v is F(v) - I.
-            self.deformation_gradients::<M>(b, v, &mut df);
-            for (r, row) in df.iter_mut().enumerate() {
-                row[r].iter_mut().for_each(|d| *d -= 1.0);
-            }
+            // F is affine in z: its change along v is the linear part alone (not F(v) - I,
+            // which would round a small v's diagonal to 1e-16 absolute).
+            self.deformation_map::<M>(b, v, 0.0, &mut df);
             self.stress_change(b, &f[b], &df, &mut dp);
             for j in 0..nh {
                 let w = &self.w[b * nh + j];

@@ -51,8 +51,8 @@ impl Penetration {
 
     /// The Jacobian of the push-out direction with respect to the point, dn/dx (3 x 3, 1/m):
     /// the depth's gradient is -n and the Hessian of d^2/2 is n n^T + d Hess(d), so
-    /// dn/dx = -Hess(d) = (n n^T - H) / d (zero for planes and faces, the projector across n
-    /// over the radius for a sphere).
+    /// dn/dx = -Hess(d) = (n n^T - H) / d (zero for planes and faces; for a sphere, the
+    /// projector across n over the point's distance from the centre, r - d).
     pub fn normal_jacobian(&self) -> Mat3 {
         let nn = outer(&self.normal);
         std::array::from_fn(|i| {

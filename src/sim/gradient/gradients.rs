@@ -40,6 +40,8 @@ pub struct Gradients {
     density_linear: Vec<f64>,
     /// The recording's start state (z_0, zdot_0), for [`Gradients::placement`].
     start: (Vec<f64>, Vec<f64>),
+    /// The recorded object's revision ([`ReducedSim::revision`]) when the pass ran.
+    revision: u64,
     /// Steps reversed.
     pub steps: usize,
     /// Wall time of the reverse pass, seconds.
@@ -52,8 +54,9 @@ pub struct Gradients {
     /// dL/d(pose) of every collider in every recorded step, steps x colliders (empty
     /// without colliders): at the pose the step began with and at its end. For a pose that
     /// follows a motion, dL/d(pose at the end of step t) = `[t - 1][o].end` +
-    /// `[t][o].start`; for a pose set between steps (the live API, held through the step),
-    /// dL/d(pose of step t) = its `start` + `end`.
+    /// `[t][o].start`; for a pose held through the whole run (set before it), the sum of
+    /// every step's `start` and `end`. Setting a pose during a recording changes the object
+    /// (the recording refuses the next step).
     pub collider_poses: Vec<Vec<StepPoseGradient>>,
     /// dL/d(target pose) of every held region at the end of every recorded step, steps x
     /// regions (empty without held regions): the target transform of rest positions (its
@@ -82,6 +85,7 @@ impl Gradients {
     /// The gradients from the terms' summed adjoints `adj` over `steps` steps, the
     /// cubature's Lame parameters (`lambda`, `mu`, Pa) and source indices.
     pub(crate) fn new(
+        revision: u64,
         adj: ParameterAdjoint,
         state: (Vec<f64>, Vec<f64>),
         start: (Vec<f64>, Vec<f64>),
@@ -112,6 +116,7 @@ impl Gradients {
             density_quadratic: adj.density_quadratic,
             density_linear: adj.density_linear,
             start,
+            revision,
             steps,
             backward_s,
             exact_hessians,
@@ -127,9 +132,16 @@ impl Gradients {
     /// ([`ReducedSim::placement_gradient`]).
     ///
     /// # Errors
-    /// [`Error::Gradient`] for a recording that did not start at `placement`, or an object
-    /// with held regions.
+    /// [`Error::Gradient`] for another object or one changed since the pass, a recording
+    /// that did not start at `placement`, or an object with held regions.
     pub fn placement(&self, sim: &ReducedSim, placement: &Placement) -> Result<PlacementGradient> {
+        if sim.revision() != self.revision {
+            return Err(Error::Gradient(
+                "the object is not the one the gradients were taken of, or it was changed \
+                 since (a setter or a reset)"
+                    .into(),
+            ));
+        }
         sim.placement_gradient(
             placement,
             (&self.start.0, &self.start.1),

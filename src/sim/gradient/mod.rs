@@ -70,17 +70,22 @@ fn step_bytes(dofs: usize) -> u64 {
 
 impl Recording {
     /// Start recording `sim` from its current state, for a run of about `steps` steps: the
-    /// tape's memory ((steps + 1) x 12 (m + 1) x 8 bytes, plus the reverse pass's two
-    /// 12 (m + 1) square matrices) is checked against the memory available first.
+    /// tape's memory ((steps + 1) x 12 (m + 1) x 8 bytes, plus the reverse pass's four
+    /// 12 (m + 1) square matrices and F at every cubature point) is checked against the
+    /// memory available first.
     ///
     /// # Errors
     /// [`Error::Gradient`] for a tape that would not fit.
     pub fn start(sim: &ReducedSim, steps: usize) -> Result<Recording> {
         let dofs = sim.z().len();
+        // The tape, and what the reverse pass holds at once: the formed H, its factor, the
+        // factor it replaces and the other terms' dense Hessian (four 12 (m + 1) squares),
+        // and F at every cubature point (9 values each).
         let estimate = (steps as u64)
             .saturating_add(1)
             .saturating_mul(step_bytes(dofs))
-            .saturating_add(2 * step_bytes(dofs * dofs));
+            .saturating_add(4 * step_bytes(dofs * dofs))
+            .saturating_add(step_bytes(9 * sim.cubature().len()));
         if let Some((available, source)) = available_memory()? {
             if estimate > available {
                 return Err(Error::Gradient(format!(
@@ -239,6 +244,12 @@ impl Recording {
             // The adjoint of z_t collects the loss, later steps' predictors and zdot_t.
             let rhs: Vec<f64> = zbar.iter().zip(&vbar).map(|(a, b)| a + b / h).collect();
             let lambda = solver.solve(&pot, z, &rhs, t)?;
+            if let Some(i) = lambda.iter().position(|v| !v.is_finite()) {
+                return Err(Error::Gradient(format!(
+                    "the adjoint of recorded step {t} is not finite at index {i}: the loss \
+                     gradient or the step's state overflowed"
+                )));
+            }
             adj.zpred.fill(0.0);
             adj.start.fill(0.0);
             adj.collider_pose.fill(StepPoseGradient::default());
@@ -265,6 +276,7 @@ impl Recording {
         add(&mut zbar, &dl_dz[0]);
         let start = (self.state(0).unwrap_or_default().to_vec(), self.zdot0);
         Ok(Gradients::new(
+            sim.revision(),
             adj,
             (zbar, vbar),
             start,
