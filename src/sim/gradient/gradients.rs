@@ -85,10 +85,9 @@ impl Gradients {
     /// The gradients from the terms' summed adjoints `adj` over `steps` steps, the
     /// cubature's Lame parameters (`lambda`, `mu`, Pa) and source indices.
     pub(crate) fn new(
-        revision: u64,
         adj: ParameterAdjoint,
         state: (Vec<f64>, Vec<f64>),
-        start: (Vec<f64>, Vec<f64>),
+        (start, revision): ((Vec<f64>, Vec<f64>), u64),
         cubature: (&[f64], &[f64], &[usize]),
         steps: usize,
         (backward_s, exact_hessians, hessian_products): (f64, usize, usize),

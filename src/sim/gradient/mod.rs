@@ -276,10 +276,9 @@ impl Recording {
         add(&mut zbar, &dl_dz[0]);
         let start = (self.state(0).unwrap_or_default().to_vec(), self.zdot0);
         Ok(Gradients::new(
-            sim.revision(),
             adj,
             (zbar, vbar),
-            start,
+            (start, sim.revision()),
             (&cub.lambda, &cub.mu, &cub.source),
             steps,
             (sw.elapsed(), solver.hessians, solver.products),
