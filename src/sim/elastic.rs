@@ -15,7 +15,7 @@ use crate::elasticity::{hessian, hessian_psd, Mat9};
 use crate::linalg3::Mat3;
 use crate::precompute::skinning::SkinningWeights;
 use crate::sim::cubature::Cubature;
-use crate::sim::lanes::{LaneData, LaneMat, Partial, LANES};
+use crate::sim::lanes::{BlockState, LaneData, Partial, LANES};
 use crate::simd::multiversion;
 use crate::{Error, Point3, Result};
 use faer::linalg::matmul::triangular::BlockStructure;
@@ -89,13 +89,13 @@ pub struct ElasticTerm {
 /// The elastic term's exact Hessian at one state, as an operator ([`ElasticTerm::hessian_at`]).
 pub struct ElasticHessian<'a> {
     term: &'a ElasticTerm,
-    /// F at every cubature point, per block of lanes.
-    f: Vec<LaneMat>,
+    /// F and cof F at every cubature point, per block of lanes.
+    f: Vec<BlockState>,
 }
 
 impl ElasticHessian<'_> {
-    /// H v, 12 (m + 1): about one elastic gradient's work (F(v) - I, the stress change
-    /// dP/dF : dF and its transpose map).
+    /// H v, 12 (m + 1): about one elastic gradient's work (F's change along v, the stress
+    /// change dP/dF : dF and its transpose map).
     pub fn product(&self, v: &[f64]) -> Vec<f64> {
         let lanes = &self.term.lanes;
         let nb = lanes.blocks();
@@ -187,11 +187,10 @@ impl ElasticTerm {
         f
     }
 
-    /// The change of F at cubature point `c` along `v` (F is affine in z: F(v) - I, formed
-    /// without the identity so that a small v keeps its relative precision).
+    /// The change of F at cubature point `c` along `z` (F is affine in z: F(z) - I, formed
+    /// without the identity so that a small z keeps its relative precision).
     #[inline]
-    pub fn deformation_change(&self, c: usize, v: &[f64]) -> Mat3 {
-        let z = v;
+    pub fn deformation_change(&self, c: usize, z: &[f64]) -> Mat3 {
         let nh = self.layout.handles;
         let n4 = self.layout.row_len();
         let x = self.points[c];
@@ -222,7 +221,8 @@ impl ElasticTerm {
 
     /// The reverse pass's material part at a step's end `z`: adds -v_c dP/dmu : G_c to
     /// `mu[c]` and -v_c dP/dlambda : G_c to `lambda[c]` for every cubature point c, where
-    /// G_c is the deformation gradient's change along `adjoint` (F is affine in z) and P = mu F + ((lambda + mu)(J - 1) - mu) cof F is linear in (mu, lambda):
+    /// G_c is the deformation gradient's change along `adjoint` (F is affine in z) and
+    /// P = mu F + ((lambda + mu)(J - 1) - mu) cof F is linear in (mu, lambda):
     /// dP/dmu = F + (J - 2) cof F, dP/dlambda = (J - 1) cof F. Returns the number of
     /// points with det F <= 0.
     pub fn add_material_adjoint(
@@ -265,8 +265,8 @@ impl ElasticTerm {
         inverted
     }
 
-    /// The exact Hessian at `z` (12 (m + 1)) as an operator: F at every cubature point,
-    /// kept for its products ([`ElasticHessian::product`]).
+    /// The exact Hessian at `z` (12 (m + 1)) as an operator: F and cof F at every cubature
+    /// point, kept for its products ([`ElasticHessian::product`]).
     pub fn hessian_at(&self, z: &[f64]) -> ElasticHessian<'_> {
         ElasticHessian {
             term: self,

@@ -16,6 +16,14 @@ type Lane = [f64; LANES];
 /// A 3 x 3 matrix per lane of a block: m[r][c][lane].
 pub type LaneMat = [[Lane; 3]; 3];
 
+/// F and its cofactor matrix at one state, per block ([`LaneData::deformation_gradient_blocks`]):
+/// what every Hessian product at that state reuses.
+#[derive(Debug, Clone)]
+pub struct BlockState {
+    f: LaneMat,
+    cof: LaneMat,
+}
+
 /// Cubature data in blocks of LANES points; padding lanes have zero volume and zero weights.
 #[derive(Debug, Clone)]
 pub struct LaneData {
@@ -177,15 +185,7 @@ impl LaneData {
     ) {
         let (lam, mu, vol) = (&self.lambda[b], &self.mu[b], &self.vol[b]);
         let mut cof = [[[0.0; LANES]; 3]; 3];
-        for r in 0..3 {
-            let (r1, r2) = ((r + 1) % 3, (r + 2) % 3);
-            for c in 0..3 {
-                let (c1, c2) = ((c + 1) % 3, (c + 2) % 3);
-                for l in 0..LANES {
-                    cof[r][c][l] = f[r1][c1][l] * f[r2][c2][l] - f[r1][c2][l] * f[r2][c1][l];
-                }
-            }
-        }
+        cofactors(f, &mut cof);
         for l in 0..LANES {
             let j =
                 f[0][0][l] * cof[0][0][l] + f[0][1][l] * cof[0][1][l] + f[0][2][l] * cof[0][2][l];
@@ -273,8 +273,8 @@ impl LaneData {
 }
 
 impl LaneData {
-    /// F of every block at `z`, for [`LaneData::hessian_product`] (one per block).
-    pub fn deformation_gradient_blocks(&self, z: &[f64]) -> Vec<LaneMat> {
+    /// F and cof F of every block at `z`, for [`LaneData::hessian_product`] (one per block).
+    pub fn deformation_gradient_blocks(&self, z: &[f64]) -> Vec<BlockState> {
         #[cfg(target_arch = "x86_64")]
         {
             if crate::simd::avx2_fma() {
@@ -287,26 +287,28 @@ impl LaneData {
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn deformation_gradient_blocks_avx2(&self, z: &[f64]) -> Vec<LaneMat> {
+    unsafe fn deformation_gradient_blocks_avx2(&self, z: &[f64]) -> Vec<BlockState> {
         self.deformation_gradient_blocks_generic::<Fused>(z)
     }
 
     #[inline(always)]
-    fn deformation_gradient_blocks_generic<M: MulAdd>(&self, z: &[f64]) -> Vec<LaneMat> {
-        let mut out = vec![[[[0.0; LANES]; 3]; 3]; self.blocks()];
-        for (b, f) in out.iter_mut().enumerate() {
-            self.deformation_gradients::<M>(b, z, f);
+    fn deformation_gradient_blocks_generic<M: MulAdd>(&self, z: &[f64]) -> Vec<BlockState> {
+        let zero = [[[0.0; LANES]; 3]; 3];
+        let mut out = vec![BlockState { f: zero, cof: zero }; self.blocks()];
+        for (b, state) in out.iter_mut().enumerate() {
+            self.deformation_gradients::<M>(b, z, &mut state.f);
+            cofactors(&state.f, &mut state.cof);
         }
         out
     }
 
     /// Add H(z) v of blocks `range` to `out` (12 (m + 1)): the elastic Hessian along `v`
     /// without forming it, as the gradient with v dP = v dP/dF : dF in place of v P; `f`
-    /// holds F at z of every block ([`LaneData::deformation_gradient_blocks`]).
+    /// holds F and cof F at z of every block ([`LaneData::deformation_gradient_blocks`]).
     pub fn hessian_product(
         &self,
         range: std::ops::Range<usize>,
-        f: &[LaneMat],
+        f: &[BlockState],
         v: &[f64],
         out: &mut [f64],
     ) {
@@ -325,33 +327,26 @@ impl LaneData {
     unsafe fn hessian_product_avx2(
         &self,
         range: std::ops::Range<usize>,
-        f: &[LaneMat],
+        f: &[BlockState],
         v: &[f64],
         out: &mut [f64],
     ) {
         self.hessian_product_generic::<Fused>(range, f, v, out)
     }
 
-    /// Lane-wise v dP of block `b` at F = `f` along dF = `df`:
+    /// Lane-wise v dP of block `b` at the state `at` (F, cof F) along dF = `df`:
     /// dP = mu dF + (lambda + mu) ((cof F : dF) cof F + (J - gamma) dcof), with
     /// dcof the cofactor's derivative (each entry a difference of two 2 x 2 minors' changes).
     #[inline(always)]
-    fn stress_change(
-        &self,
-        b: usize,
-        f: &[[Lane; 3]; 3],
-        df: &[[Lane; 3]; 3],
-        dp: &mut [[Lane; 3]; 3],
-    ) {
+    fn stress_change(&self, b: usize, at: &BlockState, df: &LaneMat, dp: &mut LaneMat) {
         let (lam, mu, vol) = (&self.lambda[b], &self.mu[b], &self.vol[b]);
-        let mut cof = [[[0.0; LANES]; 3]; 3];
+        let (f, cof) = (&at.f, &at.cof);
         let mut dcof = [[[0.0; LANES]; 3]; 3];
         for r in 0..3 {
             let (r1, r2) = ((r + 1) % 3, (r + 2) % 3);
             for c in 0..3 {
                 let (c1, c2) = ((c + 1) % 3, (c + 2) % 3);
                 for l in 0..LANES {
-                    cof[r][c][l] = f[r1][c1][l] * f[r2][c2][l] - f[r1][c2][l] * f[r2][c1][l];
                     dcof[r][c][l] = df[r1][c1][l] * f[r2][c2][l] + f[r1][c1][l] * df[r2][c2][l]
                         - df[r1][c2][l] * f[r2][c1][l]
                         - f[r1][c2][l] * df[r2][c1][l];
@@ -382,7 +377,7 @@ impl LaneData {
     fn hessian_product_generic<M: MulAdd>(
         &self,
         range: std::ops::Range<usize>,
-        f: &[LaneMat],
+        f: &[BlockState],
         v: &[f64],
         out: &mut [f64],
     ) {
@@ -407,6 +402,21 @@ impl LaneData {
         for (gi, a) in out.chunks_exact_mut(4).zip(&acc) {
             for k in 0..4 {
                 gi[k] += a[k].iter().sum::<f64>();
+            }
+        }
+    }
+}
+
+/// The cofactor matrix of `f`, lane-wise: each entry a 2 x 2 minor (row r of cof F is
+/// row r + 1 x row r + 2 of F).
+#[inline(always)]
+fn cofactors(f: &LaneMat, cof: &mut LaneMat) {
+    for r in 0..3 {
+        let (r1, r2) = ((r + 1) % 3, (r + 2) % 3);
+        for c in 0..3 {
+            let (c1, c2) = ((c + 1) % 3, (c + 2) % 3);
+            for l in 0..LANES {
+                cof[r][c][l] = f[r1][c1][l] * f[r2][c2][l] - f[r1][c2][l] * f[r2][c1][l];
             }
         }
     }
