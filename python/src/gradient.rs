@@ -34,8 +34,8 @@ fn used(py: Python<'_>) -> PyErr {
 #[pymethods]
 impl PyRecording {
     /// Start recording every object of ``world`` from its current state, for about ``steps``
-    /// steps (a ``[contact]`` scene too: its objects' collider contact and friction are
-    /// differentiated; ``backward`` refuses a run with a step that solved objects together).
+    /// steps (a ``[contact]`` scene too: collider and object-object contact and friction are
+    /// differentiated; steps that solved objects together as an island are reversed jointly).
     /// Refused (InvalidInputError): tapes that would not fit in memory.
     #[new]
     fn new(py: Python<'_>, world: PyRef<'_, PyWorld>, steps: i128) -> PyResult<PyRecording> {
@@ -95,7 +95,11 @@ impl PyRecording {
     /// ``[..., 1, :]``, dL/d(translation) then dL/d(rotation), a small world rotation about
     /// the pose's origin; docs/gradients.md), ``boundary_pose`` ((steps, regions, 6): each
     /// held region's target at each step's end, translation then rotation),
-    /// ``boundary_stiffness`` (dL/dkappa per held region), ``placement`` (a dict of ``translation``, ``rotation`` (a small
+    /// ``boundary_stiffness`` (dL/dkappa per held region), ``contact_stiffness`` and
+    /// ``contact_friction`` (``[contact]`` scenes, else None: the object's row of dL/dkappa
+    /// and dL/dmu of each pair of objects, per other object in world order, the entry of the
+    /// object itself its self-contact; a pair's value is in both its objects' rows),
+    /// ``placement`` (a dict of ``translation``, ``rotation`` (a small
     /// world rotation on top of the placement's, radians), ``velocity``, ``angular_velocity``,
     /// 3 values each; None when the recording did not start at the object's placement, as
     /// built or set by ``set_placement``, or the object has held regions), ``z0``, ``zdot0``,
@@ -154,7 +158,8 @@ impl PyRecording {
             .map_err(|e| scene_to_py(py, &e))?;
         self.rec = None;
         let out = PyDict::new(py);
-        for (i, g) in grads.iter().enumerate() {
+        let n = grads.objects.len();
+        for (i, g) in grads.objects.iter().enumerate() {
             let o = w.object(i);
             let pts = o.rest_points();
             // The object's own weights at its integration points (kept by the object).
@@ -229,6 +234,10 @@ impl PyRecording {
                 "boundary_stiffness",
                 array1(py, g.boundary_stiffness.clone()),
             )?;
+            // The object's row of the pair matrices (None without [contact]).
+            let row = |m: &[f64]| (!m.is_empty()).then(|| array1(py, m[i * n..(i + 1) * n].to_vec()));
+            d.set_item("contact_stiffness", row(&grads.contact_stiffness))?;
+            d.set_item("contact_friction", row(&grads.contact_friction))?;
             d.set_item("z0", array1(py, g.z0.clone()))?;
             d.set_item("zdot0", array1(py, g.zdot0.clone()))?;
             d.set_item("forward_s", tapes[i].0)?;

@@ -9,7 +9,7 @@ use crate::geometry::{Aabb, Shape};
 use crate::report::{Stopwatch, Warning};
 use crate::sim::contact::pairs::candidates;
 use crate::sim::contact::samples::default_count;
-use crate::sim::contact::step::ContactWorld;
+use crate::sim::contact::step::{ContactWorld, IslandSolve};
 use crate::sim::contact::surface::derived_surface;
 use crate::sim::contact::visible::{deepest_visible, SurfacePoints};
 use crate::sim::contact::{ContactSamples, ContactSettings};
@@ -25,6 +25,8 @@ pub(super) struct WorldContact {
     tolerance: f64,
     warned: std::collections::BTreeSet<(usize, usize)>,
     pub(super) summary: ContactSummary,
+    /// The islands' final solves of the last step (what a recording keeps).
+    pub(super) last_islands: Vec<IslandSolve>,
 }
 
 impl WorldContact {
@@ -192,6 +194,7 @@ impl WorldContact {
             surface,
             tolerance: settings.penetration_tolerance,
             warned: Default::default(),
+            last_islands: Vec::new(),
             summary,
         };
         contact.check_start(objects, &shapes)?;
@@ -273,6 +276,11 @@ impl WorldContact {
         Ok(())
     }
 
+    /// The contact state the steps are solved with.
+    pub(super) fn contact_world(&self) -> &ContactWorld {
+        &self.world
+    }
+
     /// One world step with contact; every object's report, in object order.
     pub(super) fn step(
         &mut self,
@@ -283,6 +291,7 @@ impl WorldContact {
         let n = objects.len();
         let mut sims: Vec<&mut ReducedSim> = objects.iter_mut().map(|o| o.sim_mut()).collect();
         let out = self.world.step(&mut sims);
+        self.last_islands.clone_from(&out.island_solves);
         if out.stiffened > 0 {
             self.summary.stiffness = self.world.stiffness().to_vec();
         }

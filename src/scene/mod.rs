@@ -47,7 +47,7 @@ mod usd_frames;
 mod world;
 
 pub use frames::{FrameObserver, FrameWriter};
-pub use gradient::WorldRecording;
+pub use gradient::{WorldGradients, WorldRecording};
 pub use object::{PreparedObject, SceneObject, CONTACT_SURFACE_SET};
 pub use render_set::RenderSet;
 pub use report::{ContactStepRow, ContactSummary, ObjectSummary, RunSummary, StepRow};

@@ -461,6 +461,11 @@ impl World {
         self.contact.as_ref().map(|c| &c.summary)
     }
 
+    /// The object-object contact state (None without `[contact]`).
+    pub(super) fn contact_state(&self) -> Option<&WorldContact> {
+        self.contact.as_ref()
+    }
+
     /// The summaries of all objects, with the means and counts of the steps taken.
     pub fn summaries(&self) -> Vec<ObjectSummary> {
         self.objects

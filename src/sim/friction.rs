@@ -121,24 +121,39 @@ pub struct LagAdjoint {
     pub start: [f64; 3],
 }
 
-/// The reverse pass of one lagged contact at the end position `x` (metres), eps the
-/// smoothing displacement. With d = x - carried and w = Jphi(s) lam: dL/ds = -mu lambda w,
-/// so dL/d(carried) = mu lambda P w and dL/dn = mu lambda ((n . d) w + (n . w) d) (from
-/// dP[d] = -(dn (n . d) + n (dn . d))); x0 enters through mu lambda, n (its Jacobian) and
-/// carried (the carry A).
-pub fn lag_adjoint(lag: &ColliderLag, eps: f64, x: &Point3, lam: &[f64; 3]) -> LagAdjoint {
-    let d: [f64; 3] = std::array::from_fn(|k| x[k] - lag.carried[k]);
-    let s = project(&lag.projector, &d);
+/// The reverse pass of one lagged force g = mu lambda phi(s), phi(s) = f1(|s|) s / |s|,
+/// s = P(n) d, for an adjoint `lam` (3 values) of g: (lam . phi(s), dL/dn through the
+/// projector P = I - n n^T, dL/dd through P and phi). With w = Jphi(s) lam: dL/dd =
+/// -mu lambda P w, and dL/dn = mu lambda ((n . d) w + (n . w) d) (from dP[d] =
+/// -(dn (n . d) + n (dn . d))). Shared by collider and object-object contacts, whose d differ.
+pub fn lagged_force_adjoint(
+    mu_lambda: f64,
+    eps: f64,
+    normal: &[f64; 3],
+    projector: &Mat3,
+    d: &[f64; 3],
+    lam: &[f64; 3],
+) -> (f64, [f64; 3], [f64; 3]) {
+    let s = project(projector, d);
     let identity: Mat3 = std::array::from_fn(|r| std::array::from_fn(|c| f64::from(r == c)));
     let phi = gradient(1.0, eps, &identity, &s);
     let per_mu_lambda = dot(&phi, lam);
     // w = Jphi(s) lam (Jphi symmetric).
     let w = mat_vec(&hessian(1.0, eps, &identity, &s), lam);
-    let n = &lag.normal;
-    let (nd, nw) = (dot(n, &d), dot(n, &w));
-    let ml = lag.mu_lambda;
-    let carried = project(&lag.projector, &w).map(|v| ml * v);
-    let normal: [f64; 3] = std::array::from_fn(|k| ml * (nd * w[k] + nw * d[k]));
+    let (nd, nw) = (dot(normal, d), dot(normal, &w));
+    let through_normal: [f64; 3] = std::array::from_fn(|k| mu_lambda * (nd * w[k] + nw * d[k]));
+    let through_d = project(projector, &w).map(|v| -mu_lambda * v);
+    (per_mu_lambda, through_normal, through_d)
+}
+
+/// The reverse pass of one lagged contact at the end position `x` (metres), eps the
+/// smoothing displacement: [`lagged_force_adjoint`] with d = x - carried, so dL/d(carried) =
+/// -dL/dd; x0 enters through mu lambda, n (its Jacobian) and carried (the carry A).
+pub fn lag_adjoint(lag: &ColliderLag, eps: f64, x: &Point3, lam: &[f64; 3]) -> LagAdjoint {
+    let d: [f64; 3] = std::array::from_fn(|k| x[k] - lag.carried[k]);
+    let (per_mu_lambda, normal, through_d) =
+        lagged_force_adjoint(lag.mu_lambda, eps, &lag.normal, &lag.projector, &d, lam);
+    let carried = through_d.map(|v| -v);
     let through_n = mat_t_vec(&lag.normal_jacobian, &normal);
     let through_carried = mat_t_vec(&lag.carry, &carried);
     let start = std::array::from_fn(|k| {

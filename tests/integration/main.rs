@@ -27,6 +27,7 @@ mod extremes;
 mod fem;
 mod geometry;
 mod gradient;
+mod gradient_contact;
 mod gradient_friction;
 mod gradient_placement;
 mod images;

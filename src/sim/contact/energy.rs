@@ -83,11 +83,21 @@ pub struct PairLag {
     pub projector: Mat3,
     /// x_i - x_j then, metres.
     pub start: [f64; 3],
+    /// Its direction u = (x_i - x_j) / r then (the normal the projector removes).
+    pub normal: [f64; 3],
+    /// r = |x_i - x_j| then, metres.
+    pub distance: f64,
+    /// Its penetration d - r then, metres.
+    pub depth: f64,
+    /// Its penalty kappa w, N/m^2 (the normal force is kappa w (d - r)).
+    pub kw: f64,
+    /// Its friction coefficient.
+    pub mu: f64,
 }
 
 impl PairLag {
     /// The relative displacement of the pair since the start, at positions `x`.
-    fn displacement(&self, x: &[Vec<Point3>]) -> [f64; 3] {
+    pub fn displacement(&self, x: &[Vec<Point3>]) -> [f64; 3] {
         let (xi, xj) = (x[self.c.a][self.c.i], x[self.c.b][self.c.j]);
         std::array::from_fn(|k| xi[k] - xj[k] - self.start[k])
     }
@@ -101,12 +111,12 @@ pub struct PairContact<'a> {
 
 /// An active pair: its candidate, unit direction u = (x_i - x_j)/r, distance r, contact
 /// distance d and kappa w.
-struct Active {
-    c: Candidate,
-    u: [f64; 3],
-    r: f64,
-    d: f64,
-    kw: f64,
+pub(super) struct Active {
+    pub(super) c: Candidate,
+    pub(super) u: [f64; 3],
+    pub(super) r: f64,
+    pub(super) d: f64,
+    pub(super) kw: f64,
 }
 
 impl<'a> PairContact<'a> {
@@ -120,6 +130,11 @@ impl<'a> PairContact<'a> {
     /// The bodies.
     pub fn bodies(&self) -> &[Body<'a>] {
         &self.bodies
+    }
+
+    /// The penalty stiffness of each pair of bodies (row-major), Pa/m^2.
+    pub fn stiffness(&self) -> &[f64] {
+        &self.stiffness
     }
 
     fn distance(&self, a: usize, b: usize) -> f64 {
@@ -163,7 +178,8 @@ impl<'a> PairContact<'a> {
             .collect()
     }
 
-    fn active(&self, x: &[Vec<Point3>]) -> (Vec<Active>, ContactStats) {
+    /// The pairs closer than their contact distance at positions `x`, and the statistics.
+    pub(super) fn active(&self, x: &[Vec<Point3>]) -> (Vec<Active>, ContactStats) {
         let (cands, broad) = self.candidates(x, &|a, b| self.distance(a, b));
         let n = self.bodies.len();
         let mut stats = ContactStats {
@@ -269,16 +285,30 @@ impl<'a> PairContact<'a> {
     /// pair with coefficient `mu[a * n + b]` > 0, mu times its penalty force
     /// kappa w (d - r) (N), the tangent projector of its direction and x_i - x_j then.
     pub fn friction_lag(&self, z: &[f64], mu: &[f64]) -> Vec<PairLag> {
+        self.lagged_pairs(z, mu, false)
+    }
+
+    /// [`PairContact::friction_lag`], with the frictionless pairs too when `frictionless`
+    /// (their force is zero; the reverse pass reads dL/dmu from them).
+    pub fn lagged_pairs(&self, z: &[f64], mu: &[f64], frictionless: bool) -> Vec<PairLag> {
         let n = self.bodies.len();
         let x = self.positions(z);
         let (act, _) = self.active(&x);
         act.iter()
-            .filter(|p| mu[p.c.a * n + p.c.b] > 0.0)
-            .map(|p| PairLag {
-                c: p.c,
-                mu_lambda: mu[p.c.a * n + p.c.b] * p.kw * (p.d - p.r),
-                projector: crate::sim::friction::tangent_projector(&p.u),
-                start: std::array::from_fn(|k| x[p.c.a][p.c.i][k] - x[p.c.b][p.c.j][k]),
+            .filter(|p| frictionless || mu[p.c.a * n + p.c.b] > 0.0)
+            .map(|p| {
+                let mu = mu[p.c.a * n + p.c.b];
+                PairLag {
+                    c: p.c,
+                    mu_lambda: mu * p.kw * (p.d - p.r),
+                    projector: crate::sim::friction::tangent_projector(&p.u),
+                    start: std::array::from_fn(|k| x[p.c.a][p.c.i][k] - x[p.c.b][p.c.j][k]),
+                    normal: p.u,
+                    distance: p.r,
+                    depth: p.d - p.r,
+                    kw: p.kw,
+                    mu,
+                }
             })
             .collect()
     }

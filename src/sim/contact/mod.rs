@@ -18,6 +18,7 @@
 //! Only scenes with a `[contact]` section build any of it ([`ContactSettings`]); without one
 //! every object steps alone, as before.
 
+pub mod adjoint;
 pub mod coarse;
 pub mod energy;
 pub mod forest;

@@ -39,11 +39,14 @@ pub const MAX_STIFFENING: usize = 4;
 pub struct ContactWorld {
     samples: Vec<ContactSamples>,
     /// Friction coefficient of each object pair (row-major) and the smoothing velocity, m/s.
-    mu: Vec<f64>,
-    eps_v: f64,
+    pub(super) mu: Vec<f64>,
+    pub(super) eps_v: f64,
     /// Penalty stiffness of each object pair (row-major), Pa/m^2; raised where a step went
     /// too deep.
     stiffness: Vec<f64>,
+    /// The stiffnesses as given (before any raise), Pa/m^2: what the reverse pass's
+    /// stiffness gradients are taken with respect to.
+    pub(super) given_stiffness: Vec<f64>,
     tolerance: f64,
     solver: IslandSolver,
     /// Sample positions at the current state, per object.
@@ -63,11 +66,23 @@ struct Swept {
     moved: f64,
 }
 
+/// An island's final solve in a step, as the reverse pass needs it: its members (object
+/// indices, in the order their coordinates were stacked) and the pair stiffnesses it used
+/// (row-major over the members, Pa/m^2; raised where the island went too deep).
+#[derive(Debug, Clone, PartialEq)]
+pub struct IslandSolve {
+    /// Object indices.
+    pub members: Vec<usize>,
+    /// Pair stiffnesses over the members, row-major, Pa/m^2.
+    pub stiffness: Vec<f64>,
+}
+
 /// The result of stepping one group: each object's report, and for an island the contact
-/// statistics with its deepest pair as object indices.
+/// statistics with its deepest pair as object indices, and its final solve.
 pub struct Solved {
     reports: Vec<(usize, StepReport)>,
     stats: Option<ContactStats>,
+    island: Option<IslandSolve>,
     /// For an island: its objects and their pair stiffnesses (row-major over the group) if
     /// any was raised, and the number of raises.
     stiffened: Option<(Vec<usize>, Vec<f64>, usize)>,
@@ -94,6 +109,8 @@ pub struct ContactStepOutcome {
     pub regrouped: usize,
     /// Stiffness raises over every island.
     pub stiffened: usize,
+    /// The islands' final solves (what the reverse pass of a recorded step solves again).
+    pub island_solves: Vec<IslandSolve>,
 }
 
 fn bounds(x: &[Point3], grow: f64) -> (Point3, Point3) {
@@ -138,6 +155,7 @@ impl ContactWorld {
             samples,
             mu,
             eps_v,
+            given_stiffness: stiffness.clone(),
             stiffness,
             tolerance,
             solver,
@@ -262,36 +280,18 @@ impl ContactWorld {
                 return Solved {
                     reports: vec![(only, rep)],
                     stats: None,
+                    island: None,
                     stiffened: None,
                 };
             }
         }
-        let mut offset = 0;
-        let bodies: Vec<Body> = group
-            .iter()
-            .zip(&sims)
-            .map(|(&i, s)| {
-                let body = Body {
-                    samples: &self.samples[i],
-                    layout: s.layout(),
-                    offset,
-                    diagonal: s.diagonal(),
-                    self_exclusion: self.self_exclusion[i],
-                };
-                offset += body.layout.dofs();
-                body
-            })
-            .collect();
-        let n = self.samples.len();
+        let bodies = {
+            let shared: Vec<&ReducedSim> = sims.iter().map(|s| &**s).collect();
+            self.bodies(group, &shared)
+        };
         let m = group.len();
-        let mut stiffness: Vec<f64> = group
-            .iter()
-            .flat_map(|&a| group.iter().map(move |&b| self.stiffness[a * n + b]))
-            .collect();
-        let mu: Vec<f64> = group
-            .iter()
-            .flat_map(|&a| group.iter().map(move |&b| self.mu[a * n + b]))
-            .collect();
+        let mut stiffness = self.over(group, &self.stiffness);
+        let mu = self.over(group, &self.mu);
         let snapshots: Vec<_> = sims.iter().map(|s| s.snapshot()).collect();
         let mut raises = 0;
         let mut start: Option<Vec<f64>> = None;
@@ -337,6 +337,10 @@ impl ContactWorld {
             return Solved {
                 reports: group.iter().copied().zip(reports).collect(),
                 stats: Some(stats),
+                island: Some(IslandSolve {
+                    members: group.to_vec(),
+                    stiffness: stiffness.clone(),
+                }),
                 stiffened: (raises > 0).then(|| (group.to_vec(), stiffness, raises)),
             };
         }
@@ -455,8 +459,10 @@ impl ContactWorld {
             islands: Vec::new(),
             regrouped: 0,
             stiffened: 0,
+            island_solves: Vec::new(),
         };
         for s in solved {
+            out.island_solves.extend(s.island);
             if let Some(st) = s.stats {
                 out.islands.push(s.reports.len());
                 out.sample_pairs_active += st.active;
@@ -476,6 +482,37 @@ impl ContactWorld {
             .map(|r| r.expect("every object is in one group"))
             .collect();
         out
+    }
+
+    /// The bodies of the island `group` (object indices; `sims` its members in that order),
+    /// stacked in that order.
+    pub(super) fn bodies<'s>(&'s self, group: &[usize], sims: &[&ReducedSim]) -> Vec<Body<'s>> {
+        let mut offset = 0;
+        group
+            .iter()
+            .zip(sims)
+            .map(|(&i, s)| {
+                let body = Body {
+                    samples: &self.samples[i],
+                    layout: s.layout(),
+                    offset,
+                    diagonal: s.diagonal(),
+                    self_exclusion: self.self_exclusion[i],
+                };
+                offset += body.layout.dofs();
+                body
+            })
+            .collect()
+    }
+
+    /// The entries of the row-major object-pair matrix `full` between the members of
+    /// `group`, row-major over them.
+    pub(super) fn over(&self, group: &[usize], full: &[f64]) -> Vec<f64> {
+        let n = self.samples.len();
+        group
+            .iter()
+            .flat_map(|&a| group.iter().map(move |&b| full[a * n + b]))
+            .collect()
     }
 
     /// Whether object `a` has self-contact and a pair of its own samples (far apart at rest)

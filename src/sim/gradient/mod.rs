@@ -171,18 +171,21 @@ impl Recording {
     }
 
     /// Record the step `report` that `sim` just took, stepped by its owner (a world): `sim`
-    /// passed [`Recording::check_object`] right before that step.
+    /// passed [`Recording::check_object`] right before that step. The world's own step may
+    /// have undone and redone the object's step (an island solved again, stiffer or merged),
+    /// which moves its revision: the recording follows it.
     ///
     /// # Errors
     /// [`Error::Gradient`] when `sim` took anything but one step since.
     pub fn record_step(&mut self, sim: &ReducedSim, report: &StepReport) -> Result<()> {
-        if sim.revision() != self.revision || sim.steps() != self.first_step + self.steps() + 1 {
+        if sim.steps() != self.first_step + self.steps() + 1 {
             return Err(Error::Gradient(
                 "the object did more than one step since the last recorded one; start a new \
                  recording"
                     .into(),
             ));
         }
+        self.revision = sim.revision();
         self.push(sim, report);
         Ok(())
     }
@@ -219,71 +222,13 @@ impl Recording {
     }
 
     fn reverse(self, sim: &ReducedSim, dl_dz: &[Vec<f64>], direct: bool) -> Result<Gradients> {
-        let sw = Stopwatch::start();
-        self.check_object(sim)?;
-        let (n, steps, h) = (self.dofs, self.steps(), self.dt);
-        self.check_loss(dl_dz)?;
-        if let Some((t, residual)) = self.unconverged {
-            return Err(Error::Gradient(format!(
-                "recorded step {t} did not converge (residual {residual:e}): the gradient is the \
-                 minimiser's only where each step converged; raise the solver's max_iter"
-            )));
+        let mut pass = ObjectReverse::new(self, sim, dl_dz, direct)?;
+        for t in (1..=pass.steps()).rev() {
+            let (start, rhs) = pass.begin(t);
+            let lambda = pass.solve_alone(&start, t, &rhs)?;
+            pass.finish_step(t, &start, &lambda, None)?;
         }
-        let cub = sim.cubature();
-        let mut adj = ParameterAdjoint::new(n, cub.len());
-        let mut zbar = vec![0.0; n];
-        let mut vbar = vec![0.0; n];
-        let mut solver = solve::AdjointSolver::new(direct);
-        let mut poses = vec![Vec::new(); steps];
-        let mut targets = vec![Vec::new(); steps];
-        for t in (1..=steps).rev() {
-            add(&mut zbar, &dl_dz[t]);
-            let z = self.state(t).unwrap_or_default();
-            let start = self.step_start(sim, t);
-            let pot = sim.potential(&start);
-            // The adjoint of z_t collects the loss, later steps' predictors and zdot_t.
-            let rhs: Vec<f64> = zbar.iter().zip(&vbar).map(|(a, b)| a + b / h).collect();
-            let lambda = solver.solve(&pot, z, &rhs, t)?;
-            if let Some(i) = lambda.iter().position(|v| !v.is_finite()) {
-                return Err(Error::Gradient(format!(
-                    "the adjoint of recorded step {t} is not finite at index {i}: the loss \
-                     gradient or the step's state overflowed"
-                )));
-            }
-            adj.zpred.fill(0.0);
-            adj.start.fill(0.0);
-            adj.collider_pose.fill(StepPoseGradient::default());
-            adj.boundary_pose.fill(PoseGradient::default());
-            adj.inverted = 0;
-            pot.parameter_adjoint(z, &lambda, &mut adj);
-            poses[t - 1].clone_from(&adj.collider_pose);
-            targets[t - 1].clone_from(&adj.boundary_pose);
-            if adj.inverted > 0 {
-                return Err(Error::Gradient(format!(
-                    "recorded step {t} ended with {} inverted cubature points (det F <= 0): \
-                     the motion went through a non-physical state, and a gradient would fit \
-                     parameters to it; take a smaller time step or check the material",
-                    adj.inverted
-                )));
-            }
-            // z_pred = z_{t-1} + h zdot_{t-1}; zdot_t = (z_t - z_{t-1}) / h; the lagged
-            // friction reads z_{t-1} itself.
-            for i in 0..n {
-                zbar[i] = adj.zpred[i] - vbar[i] / h + adj.start[i];
-                vbar[i] = h * adj.zpred[i];
-            }
-        }
-        add(&mut zbar, &dl_dz[0]);
-        let start = (self.state(0).unwrap_or_default().to_vec(), self.zdot0);
-        Ok(Gradients::new(
-            adj,
-            (zbar, vbar),
-            (start, sim.revision()),
-            (&cub.lambda, &cub.mu, &cub.source),
-            steps,
-            (sw.elapsed(), solver.hessians, solver.products),
-            (poses, targets),
-        ))
+        Ok(pass.finish())
     }
 
     /// T + 1 entries, each empty or 12 (m + 1) finite values.
@@ -344,6 +289,187 @@ impl Recording {
             t: self.times[t - 1],
             friction: sim.lagged_friction(t0, prev),
         }
+    }
+}
+
+/// One object's reverse pass, a step at a time ([`Recording::backward`] drives it alone; a
+/// world drives its objects' passes together, solving the steps they took as an island
+/// jointly): per recorded step t from T down to 1, [`ObjectReverse::begin`] gives the step's
+/// start and the right-hand side of its adjoint solve, the adjoint lambda comes from
+/// [`ObjectReverse::solve_alone`] or the island's joint solve, and
+/// [`ObjectReverse::finish_step`] adds the object's parameter adjoints and carries the
+/// adjoint to the step before.
+pub struct ObjectReverse<'a> {
+    rec: Recording,
+    sim: &'a ReducedSim,
+    dl_dz: &'a [Vec<f64>],
+    sw: Stopwatch,
+    adj: ParameterAdjoint,
+    /// dL/dz and dL/dzdot of the step being reversed (from later steps and the loss).
+    zbar: Vec<f64>,
+    vbar: Vec<f64>,
+    solver: solve::AdjointSolver,
+    poses: Vec<Vec<StepPoseGradient>>,
+    targets: Vec<Vec<PoseGradient>>,
+}
+
+impl<'a> ObjectReverse<'a> {
+    /// The reverse pass of `rec` on `sim` (the object recorded, unchanged since) for the loss
+    /// gradient `dl_dz` ([`Recording::backward`]'s); `direct`: form and factorize the exact
+    /// Hessian at every step.
+    ///
+    /// # Errors
+    /// As [`Recording::backward`]: a changed object, a loss gradient of the wrong shape or
+    /// with NaN, a step that did not converge.
+    pub fn new(
+        rec: Recording,
+        sim: &'a ReducedSim,
+        dl_dz: &'a [Vec<f64>],
+        direct: bool,
+    ) -> Result<ObjectReverse<'a>> {
+        let sw = Stopwatch::start();
+        rec.check_object(sim)?;
+        rec.check_loss(dl_dz)?;
+        if let Some((t, residual)) = rec.unconverged {
+            return Err(Error::Gradient(format!(
+                "recorded step {t} did not converge (residual {residual:e}): the gradient is the \
+                 minimiser's only where each step converged; raise the solver's max_iter"
+            )));
+        }
+        let n = rec.dofs;
+        let steps = rec.steps();
+        Ok(ObjectReverse {
+            adj: ParameterAdjoint::new(n, sim.cubature().len()),
+            zbar: vec![0.0; n],
+            vbar: vec![0.0; n],
+            solver: solve::AdjointSolver::new(direct),
+            poses: vec![Vec::new(); steps],
+            targets: vec![Vec::new(); steps],
+            rec,
+            sim,
+            dl_dz,
+            sw,
+        })
+    }
+
+    /// Steps recorded (T).
+    pub fn steps(&self) -> usize {
+        self.rec.steps()
+    }
+
+    /// The object.
+    pub fn sim(&self) -> &'a ReducedSim {
+        self.sim
+    }
+
+    /// z after recorded step `t` (0: the start), 12 (m + 1).
+    pub fn state(&self, t: usize) -> &[f64] {
+        self.rec.state(t).unwrap_or_default()
+    }
+
+    /// The start of recorded step `t` (1-based, taken from T down) as the object began it,
+    /// and the right-hand side of its adjoint solve: dL/dz_t from the loss, the later steps'
+    /// predictors and zdot_t.
+    pub(crate) fn begin(&mut self, t: usize) -> (StepStart, Vec<f64>) {
+        add(&mut self.zbar, &self.dl_dz[t]);
+        let h = self.rec.dt;
+        let rhs = self
+            .zbar
+            .iter()
+            .zip(&self.vbar)
+            .map(|(a, b)| a + b / h)
+            .collect();
+        (self.rec.step_start(self.sim, t), rhs)
+    }
+
+    /// The adjoint of recorded step `t` stepped alone: H lambda = rhs with H the exact Hessian
+    /// of the step's potential at its end.
+    ///
+    /// # Errors
+    /// [`Error::Gradient`]: an exact Hessian that is not positive definite.
+    pub(crate) fn solve_alone(
+        &mut self,
+        start: &StepStart,
+        t: usize,
+        rhs: &[f64],
+    ) -> Result<Vec<f64>> {
+        let pot = self.sim.potential(start);
+        let z = self.rec.state(t).unwrap_or_default();
+        self.solver.solve(&pot, z, rhs, t)
+    }
+
+    /// Finish recorded step `t` with its adjoint `lambda`: the object's terms' parameter
+    /// adjoints, and the adjoint carried to z_{t-1} and zdot_{t-1} (plus `start`, dL/dz_{t-1}
+    /// through what an island lagged from it, if given).
+    ///
+    /// # Errors
+    /// [`Error::Gradient`]: a non-finite adjoint, or inverted points at the step's end.
+    pub(crate) fn finish_step(
+        &mut self,
+        t: usize,
+        start: &StepStart,
+        lambda: &[f64],
+        lagged: Option<&[f64]>,
+    ) -> Result<()> {
+        if let Some(i) = lambda.iter().position(|v| !v.is_finite()) {
+            return Err(Error::Gradient(format!(
+                "the adjoint of recorded step {t} is not finite at index {i}: the loss \
+                 gradient or the step's state overflowed"
+            )));
+        }
+        let (n, h) = (self.rec.dofs, self.rec.dt);
+        let pot = self.sim.potential(start);
+        let adj = &mut self.adj;
+        adj.zpred.fill(0.0);
+        adj.start.fill(0.0);
+        adj.collider_pose.fill(StepPoseGradient::default());
+        adj.boundary_pose.fill(PoseGradient::default());
+        adj.inverted = 0;
+        pot.parameter_adjoint(self.rec.state(t).unwrap_or_default(), lambda, adj);
+        self.poses[t - 1].clone_from(&adj.collider_pose);
+        self.targets[t - 1].clone_from(&adj.boundary_pose);
+        if adj.inverted > 0 {
+            return Err(Error::Gradient(format!(
+                "recorded step {t} ended with {} inverted cubature points (det F <= 0): \
+                 the motion went through a non-physical state, and a gradient would fit \
+                 parameters to it; take a smaller time step or check the material",
+                adj.inverted
+            )));
+        }
+        if let Some(l) = lagged {
+            add(&mut adj.start, l);
+        }
+        // z_pred = z_{t-1} + h zdot_{t-1}; zdot_t = (z_t - z_{t-1}) / h; the lagged
+        // friction reads z_{t-1} itself.
+        for i in 0..n {
+            self.zbar[i] = adj.zpred[i] - self.vbar[i] / h + adj.start[i];
+            self.vbar[i] = h * adj.zpred[i];
+        }
+        Ok(())
+    }
+
+    /// The gradients, once every step is finished.
+    pub fn finish(mut self) -> Gradients {
+        add(&mut self.zbar, &self.dl_dz[0]);
+        let steps = self.steps();
+        let cub = self.sim.cubature();
+        let start = (
+            self.rec.state(0).unwrap_or_default().to_vec(),
+            self.rec.zdot0,
+        );
+        Gradients::new(
+            self.adj,
+            (self.zbar, self.vbar),
+            (start, self.sim.revision()),
+            (&cub.lambda, &cub.mu, &cub.source),
+            steps,
+            (
+                self.sw.elapsed(),
+                self.solver.hessians,
+                self.solver.products,
+            ),
+            (self.poses, self.targets),
+        )
     }
 }
 
