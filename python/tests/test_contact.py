@@ -4,6 +4,8 @@ import json
 import subprocess
 from pathlib import Path
 
+import numpy as np
+
 import freeform as ff
 
 STEPS = 8
@@ -121,15 +123,21 @@ def test_no_contact_section_no_contact_report(tmp_path):
     assert world.contact_summary() is None
 
 
-def test_gradients_of_objects_in_contact_are_refused():
-    # A [contact] scene records, but the reverse pass does not differentiate the island
-    # solves yet (docs/gradients.md): the blocks meet within two steps, which ends the
-    # recording, and the next step or backward names that step.
-    import pytest
-
+def test_objects_in_contact_are_differentiated():
+    # The blocks meet within two steps and are solved as an island; its steps are reversed
+    # jointly (docs/gradients.md): every object gets its gradients and its row of the pair
+    # stiffness and friction gradients. (Central differences: test_gradient.py.)
     world = ff.World(ff.Scene.from_toml(SCENE))
     rec = ff.Recording(world, STEPS)
-    with pytest.raises(ff.InvalidInputError, match=r"recorded step \d solved 2 objects together"):
-        for _ in range(STEPS):
-            rec.step(world)
-        rec.backward(world, {})
+    for _ in range(STEPS):
+        rec.step(world)
+    n = len(ff.positions_adjoint(world, "high", np.zeros((1, 3)), np.zeros((1, 3))))
+    dl = np.zeros((STEPS + 1, n))
+    dl[-1, :] = 1.0
+    g = rec.backward(world, {"high": dl})
+    assert set(g) == {"low", "high"}
+    for name in g:
+        assert g[name]["contact_stiffness"].shape == (2,)
+        assert np.all(np.isfinite(g[name]["contact_friction"]))
+    assert g["low"]["contact_stiffness"][1] == g["high"]["contact_stiffness"][0]
+    assert g["high"]["contact_stiffness"][0] != 0.0

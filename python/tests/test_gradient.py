@@ -195,24 +195,58 @@ def test_friction_gradient_matches_central_differences():
     assert g["collider_stiffness"].shape == (1,)
 
 
-def test_a_run_with_objects_in_contact_is_refused_at_backward():
-    scene = SLIDE.format(steps=4, mu=0.3) + """
+# A second block dropped onto the sliding one: the two are solved together as an island, and
+# their pair's friction (a [[contact.pair]] table) drags the top one along.
+TOP = """
 [[object]]
 name = "top"
 shape = "box:0.2,0.1,0.2"
-material = { youngs = 1e6, poisson = 0.3, density = 500.0 }
-basis = { kernels = 30, modes = 3, points = 1500 }
-placement = { translation = [0.0, 0.11, 0.0], velocity = [0.0, -1.0, 0.0] }
+material = {{ youngs = 1e6, poisson = 0.3, density = 500.0 }}
+basis = {{ kernels = 30, modes = 3, points = 1500 }}
+placement = {{ translation = [0.0, 0.11, 0.0], velocity = [0.0, -0.5, 0.0] }}
+
+[[contact.pair]]
+between = ["block", "top"]
+friction = {mu}
 """
-    w = ff.World(ff.Scene.from_toml(scene))
-    rec = ff.Recording(w, 4)
-    # The island's step is taken; the recording ends there: the next step or backward refuses.
-    with pytest.raises(ff.InvalidInputError, match=r"recorded step \d solved 2 objects together"):
-        for _ in range(4):
-            rec.step(w)
-        rec.backward(w, {})
-    with pytest.raises(ff.InvalidInputError, match=r"recorded step \d solved 2 objects together"):
-        rec.backward(w, {})
+
+
+def test_objects_in_contact_give_their_pair_gradients():
+    steps = 4
+    make = lambda mu: ff.World(
+        ff.Scene.from_toml(SLIDE.format(steps=steps, mu=0.3) + TOP.format(mu=mu))
+    )
+
+    def top_loss(w):
+        total = 0.0
+        for t in range(steps + 1):
+            if t > 0:
+                w.step()
+            total += ff.map_points(w, "top", CORNERS)[:, 0].sum()
+        return total
+
+    w = make(0.4)
+    dl_dx = np.zeros_like(CORNERS)
+    dl_dx[:, 0] = 1.0
+    row = ff.positions_adjoint(w, "top", CORNERS, dl_dx)
+    rec = ff.Recording(w, steps)
+    islands = []
+    for _ in range(steps):
+        rec.step(w)
+        islands.append(w.contact["largest_island"])
+    assert max(islands) == 2
+    g = rec.backward(w, {"top": np.tile(row, (steps + 1, 1))})
+    # The pair's entry is in both objects' rows; the block's own entry (no self-contact) is 0.
+    assert g["top"]["contact_friction"].shape == (2,)
+    assert g["block"]["contact_friction"][1] == g["top"]["contact_friction"][0]
+    assert g["block"]["contact_friction"][0] == 0.0
+    h = 1e-5
+    fd = (top_loss(make(0.4 + h)) - top_loss(make(0.4 - h))) / (2 * h)
+    assert fd > 0  # the sliding block drags the top one along x
+    # Steps solved to 1e-12 D; h small enough that no contact switches within it (the Rust
+    # test's bound, tests/integration/gradient_contact.rs).
+    assert g["top"]["contact_friction"][0] == pytest.approx(fd, rel=1e-5)
+    assert g["top"]["contact_stiffness"].shape == (2,)
 
 
 def test_placement_gradient_matches_central_differences():
