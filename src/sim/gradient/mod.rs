@@ -37,7 +37,8 @@ use crate::{Error, Result};
 ///
 /// Collider friction is differentiated as it is lagged: from each step's start, which the
 /// reverse pass follows back (dL/dz_n through the lagged normal forces, normals and carried
-/// points). Object-object contact is a world's and is not recorded here.
+/// points). Object-object contact is a world's: its recording keeps the islands each step
+/// solved and reverses them jointly, driving its objects' [`ObjectReverse`] passes.
 #[derive(Debug, Clone)]
 pub struct Recording {
     dofs: usize,
