@@ -235,7 +235,8 @@ impl PyRecording {
                 array1(py, g.boundary_stiffness.clone()),
             )?;
             // The object's row of the pair matrices (None without [contact]).
-            let row = |m: &[f64]| (!m.is_empty()).then(|| array1(py, m[i * n..(i + 1) * n].to_vec()));
+            let row =
+                |m: &[f64]| (!m.is_empty()).then(|| array1(py, m[i * n..(i + 1) * n].to_vec()));
             d.set_item("contact_stiffness", row(&grads.contact_stiffness))?;
             d.set_item("contact_friction", row(&grads.contact_friction))?;
             d.set_item("z0", array1(py, g.z0.clone()))?;
