@@ -39,9 +39,8 @@ pub struct WorldGradients {
 impl World {
     /// Start recording every object from its current state for about `steps` steps (the
     /// tapes' memory is checked first, [`Recording::start`]). A `[contact]` scene is
-    /// recorded too: its objects' steps are differentiated where they stepped alone (collider
-    /// contact and friction included), and [`WorldRecording::backward`] refuses a run with a
-    /// step that solved objects together.
+    /// recorded too, with the islands of each step: [`WorldRecording::backward`] reverses
+    /// the steps objects took alone one by one and those they took together jointly.
     ///
     /// # Errors
     /// [`Error::Gradient`]: tapes that would not fit in memory.
