@@ -23,8 +23,10 @@ use std::cell::RefCell;
 use std::ffi::{c_char, c_int, CString};
 
 pub mod eigen;
+pub mod gradient;
 pub mod world;
 pub use eigen::*;
+pub use gradient::*;
 pub use world::*;
 
 /// Status codes (the `FF_*` constants of the header).

@@ -17,7 +17,7 @@ use std::path::PathBuf;
 
 /// An open scene being simulated (C type `ff_world`); see [`ff_world_open`].
 pub struct FfWorld {
-    world: World,
+    pub(crate) world: World,
     /// Object names as C strings, in scene order (for [`ff_world_object_name`]).
     names: Vec<CString>,
     /// The world's warnings as C strings; they only grow, so pointers handed out stay valid.
@@ -28,6 +28,29 @@ pub struct FfWorld {
 }
 
 impl FfWorld {
+    /// One step by `step` (the world's own or a recorded one), refused once the world has
+    /// stopped; a strict-mode error stops it for good, an internal error (a panic) too.
+    pub(crate) fn step_with(
+        &mut self,
+        step: impl FnOnce(&mut World) -> freeform::Result<()>,
+    ) -> CResult<()> {
+        if let Some((status, why)) = &self.stopped {
+            return Err((*status, format!("the world has stopped ({why}); free it")));
+        }
+        // Marked until the step returns: a panic in it leaves the objects at unknown times.
+        self.stopped = Some((Status::Panic, "an internal error in a step".into()));
+        let number = self.world.steps() + 1;
+        let r = step(&mut self.world);
+        self.stopped = None;
+        self.sync_warnings();
+        r.map_err(|e| {
+            if matches!(e, freeform::Error::Strict { .. }) {
+                self.stopped = Some((Status::Strict, format!("at step {number}: {e}")));
+            }
+            lib_err(e)
+        })
+    }
+
     /// Append the world's warnings that are not yet kept as C strings.
     fn sync_warnings(&mut self) {
         let all = self.world.warnings();
@@ -135,11 +158,11 @@ pub struct FfVisiblePenetration {
     pub worst_penetration_fraction: f64,
 }
 
-type CResult<T> = Result<T, (Status, String)>;
+pub(crate) type CResult<T> = Result<T, (Status, String)>;
 
 /// [`guard`] with the function's name before every error message. Messages formatted inside
 /// (errors, warnings) name options by their scene keys: a world comes from a scene file.
-fn call(func: &str, f: impl FnOnce() -> CResult<()>) -> c_int {
+pub(crate) fn call(func: &str, f: impl FnOnce() -> CResult<()>) -> c_int {
     guard(|| {
         Front::Scene
             .scope(f)
@@ -147,7 +170,7 @@ fn call(func: &str, f: impl FnOnce() -> CResult<()>) -> c_int {
     })
 }
 
-unsafe fn world_ref<'a>(w: *const FfWorld) -> CResult<&'a FfWorld> {
+pub(crate) unsafe fn world_ref<'a>(w: *const FfWorld) -> CResult<&'a FfWorld> {
     if w.is_null() {
         return Err((Status::NullPointer, "world is NULL".into()));
     }
@@ -166,7 +189,7 @@ unsafe fn peek_object<'a>(w: *const FfWorld, index: usize) -> Option<&'a SceneOb
     unsafe { peek(w) }.and_then(|w| w.world.objects().get(index))
 }
 
-unsafe fn world_mut<'a>(w: *mut FfWorld) -> CResult<&'a mut FfWorld> {
+pub(crate) unsafe fn world_mut<'a>(w: *mut FfWorld) -> CResult<&'a mut FfWorld> {
     if w.is_null() {
         return Err((Status::NullPointer, "world is NULL".into()));
     }
@@ -175,11 +198,11 @@ unsafe fn world_mut<'a>(w: *mut FfWorld) -> CResult<&'a mut FfWorld> {
 }
 
 /// Object `index`, or the library's out-of-range message.
-fn object(w: &World, index: usize) -> CResult<&SceneObject> {
+pub(crate) fn object(w: &World, index: usize) -> CResult<&SceneObject> {
     w.object_at(index).map_err(lib_err)
 }
 
-fn lib_err(e: freeform::Error) -> (Status, String) {
+pub(crate) fn lib_err(e: freeform::Error) -> (Status, String) {
     (status_of(&e), e.to_string())
 }
 
@@ -282,24 +305,7 @@ pub unsafe extern "C" fn ff_world_free(world: *mut FfWorld) {
 pub unsafe extern "C" fn ff_world_step(world: *mut FfWorld) -> c_int {
     call("ff_world_step", || {
         let w = unsafe { world_mut(world)? };
-        if let Some((status, why)) = &w.stopped {
-            return Err((*status, format!("the world has stopped ({why}); free it")));
-        }
-        // Marked until the step returns: a panic in it leaves the objects at unknown times.
-        w.stopped = Some((Status::Panic, "an internal error in a step".into()));
-        let step = w.world.steps() + 1;
-        let r = w.world.step();
-        w.stopped = None;
-        w.sync_warnings();
-        match r {
-            Ok(_) => Ok(()),
-            Err(e) => {
-                if matches!(e, freeform::Error::Strict { .. }) {
-                    w.stopped = Some((Status::Strict, format!("at step {step}: {e}")));
-                }
-                Err(lib_err(e))
-            }
-        }
+        w.step_with(|world| world.step().map(|_| ()))
     })
 }
 

@@ -7,7 +7,8 @@
  * Link:    cc app.c -Iffi/include -Ltarget/release -lfreeform_capi -lm
  * Guide:   docs/c-api.md.
  * Examples: examples/basis.c (a basis from arrays: eigenvalues, weights, gradients);
- *           examples/step.c (steps examples/step.toml, moving a held end and a floor).
+ *           examples/step.c (steps examples/step.toml, moving a held end and a floor);
+ *           examples/gradient.c (a recorded run of two blocks in contact, its gradients).
  *
  * Conventions
  *   - Every function returning int returns FF_OK (0) or an FF_ERR_* code; then
@@ -252,6 +253,53 @@ int ff_world_set_state(ff_world *world, size_t object, const double *z, const do
  * number, and warning i (NULL for NULL or a bad index; valid until ff_world_free). */
 size_t ff_world_warning_count(const ff_world *world);
 const char *ff_world_warning(const ff_world *world, size_t index);
+
+/* ---- Gradients through a recorded run (docs/gradients.md; docs/c-api.md "Gradients") ---- */
+
+typedef struct ff_recording ff_recording;
+typedef struct ff_gradients ff_gradients;
+
+/* Record every object of world from its current state for about steps steps into *out (the
+ * tapes' memory is checked first); step it with ff_recording_step; free with
+ * ff_recording_free. Objects in contact ([contact] scenes) are recorded with their islands. */
+int ff_recording_start(const ff_world *world, size_t steps, ff_recording **out);
+void ff_recording_free(ff_recording *rec);
+/* Steps recorded (0 for NULL or a recording the reverse pass consumed). */
+size_t ff_recording_steps(const ff_recording *rec);
+/* One ff_world_step, recorded; refused (nothing moves) when an object was changed since. */
+int ff_recording_step(ff_recording *rec, ff_world *world);
+
+/* The reverse pass of a loss L(z_0, ..., z_T) into *out (free with ff_gradients_free):
+ * dl_dz[objects] (the world's object count), each NULL (L does not see the object) or dL/dz
+ * per frame, (T + 1) x ff_world_state_len doubles row-major, row 0 the start. Consumes the
+ * recording once it succeeds (a refused loss leaves it). */
+int ff_recording_backward(ff_recording *rec, const ff_world *world, const double *const *dl_dz,
+                          size_t objects, ff_gradients **out);
+void ff_gradients_free(ff_gradients *g);
+
+/* Object object's dL/dE (per Pa) and dL/dnu, summed over it, into out[2]. */
+int ff_gradients_material(const ff_gradients *g, size_t object, double *out);
+/* Object object's dL/dg (per m/s^2) into out[3]; FF_ERR_INVALID_ARGUMENT without gravity. */
+int ff_gradients_gravity(const ff_gradients *g, size_t object, double *out);
+/* Object object's dL/dz_0 and dL/dzdot_0 into z0[len] and zdot0[len]
+ * (len >= ff_world_state_len). */
+int ff_gradients_state(const ff_gradients *g, size_t object, double *z0, double *zdot0,
+                       size_t len);
+/* Object object's dL/dmu (0 without collider friction) and dL/dkappa (per Pa/m^2) of collider
+ * collider into out[2]. */
+int ff_gradients_collider(const ff_gradients *g, size_t object, size_t collider, double *out);
+/* dL/dkappa (per Pa/m^2, of the stiffness the scene gives) and dL/dmu of the pair of objects
+ * (a, b) into out[2] (a == b: self-contact); FF_ERR_INVALID_ARGUMENT without [contact]. */
+int ff_gradients_contact_pair(const ff_gradients *g, size_t a, size_t b, double *out);
+
+/* Positions of count rest points (count x 3, metres) of object object under its current
+ * state into out[len] (len >= 3 count). */
+int ff_world_map_points(const ff_world *world, size_t object, const double *points,
+                        size_t count, double *out, size_t len);
+/* dL/dz of a loss on those positions from dl_dx (count x 3) into out[len]
+ * (len >= ff_world_state_len): the transpose of ff_world_map_points's map. */
+int ff_world_positions_adjoint(const ff_world *world, size_t object, const double *points,
+                               size_t count, const double *dl_dx, double *out, size_t len);
 
 /* ---- The eigensolver over your own operators (docs/c-api.md "Operators") ---- */
 
