@@ -48,7 +48,7 @@ pub struct ContactWorld {
     /// stiffness gradients are taken with respect to.
     pub(super) given_stiffness: Vec<f64>,
     tolerance: f64,
-    solver: IslandSolver,
+    pub(super) solver: IslandSolver,
     /// Sample positions at the current state, per object.
     positions: Vec<Vec<Point3>>,
     /// Self-contact exclusion per object, metres (None: no self-contact).

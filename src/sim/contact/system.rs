@@ -232,6 +232,12 @@ impl BlockSolve {
     /// the iteration cap; every iterate from 0 is a descent direction for -d, as the
     /// conjugate gradients minimise the quadratic model over growing subspaces).
     pub fn solve_with_info(&self, g: &[f64]) -> (Vec<f64>, CgInfo) {
+        self.solve_to(g, CG_TOLERANCE)
+    }
+
+    /// [`BlockSolve::solve_with_info`] to the relative residual `tolerance` (the reverse
+    /// pass asks for a tighter one than Newton).
+    pub fn solve_to(&self, g: &[f64], tolerance: f64) -> (Vec<f64>, CgInfo) {
         let n = g.len();
         let mut x = vec![0.0; n];
         let gnorm = dot(g, g).sqrt();
@@ -273,7 +279,7 @@ impl BlockSolve {
             }
             info.iterations += 1;
             info.relative_residual = dot(&r, &r).sqrt() / gnorm;
-            if info.relative_residual <= CG_TOLERANCE {
+            if info.relative_residual <= tolerance {
                 break;
             }
             self.precondition(&r, &mut z, &mut scratch);
@@ -285,6 +291,13 @@ impl BlockSolve {
             }
         }
         (x, info)
+    }
+}
+
+impl BlockSolve {
+    /// The matrix back, for another solver.
+    pub fn into_matrix(self) -> BlockHessian {
+        self.h
     }
 }
 
