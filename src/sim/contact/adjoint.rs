@@ -65,7 +65,8 @@ impl ContactWorld {
     ) -> Result<IslandAdjoint> {
         let group = &solve.members;
         let m = group.len();
-        let contact = PairContact::new(self.bodies(group, sims), solve.stiffness.clone());
+        let kappas = self.island_stiffness(solve);
+        let contact = PairContact::new(self.bodies(group, sims), kappas.clone());
         let mu = self.over(group, &self.mu);
         let eps = self.eps_v * sims.first().map_or(0.0, |s| s.dt());
         // Every pair active at the start, frictionless ones with a zero force (their blocks
@@ -134,7 +135,7 @@ impl ContactWorld {
         let x = contact.positions(z);
         let (active, _) = contact.active(&x);
         for p in &active {
-            let kappa = solve.stiffness[p.c.a * m + p.c.b];
+            let kappa = kappas[p.c.a * m + p.c.b];
             let rel = relative(p.c.a, p.c.i, p.c.b, p.c.j);
             let along: f64 = (0..3).map(|k| p.u[k] * rel[k]).sum();
             add_pair(
@@ -155,7 +156,7 @@ impl ContactWorld {
             let (per_mu_lambda, dl_dn, dl_dd) =
                 lagged_force_adjoint(l.mu_lambda, eps, &l.normal, &l.projector, &d, &rel);
             let dl_dml = -per_mu_lambda;
-            let kappa = solve.stiffness[a * m + b];
+            let kappa = kappas[a * m + b];
             add_pair(&mut friction, a, b, dl_dml * l.kw * l.depth);
             add_pair(&mut stiffness, a, b, dl_dml * l.mu * l.kw / kappa * l.depth);
             if l.distance <= 0.0 {
@@ -177,7 +178,7 @@ impl ContactWorld {
         contact.scatter(&gx0, &mut start);
         // With respect to the stiffness as given: a raise multiplied it by a fixed factor.
         let given = self.over(group, &self.given_stiffness);
-        for ((g, k), k0) in stiffness.iter_mut().zip(&solve.stiffness).zip(&given) {
+        for ((g, k), k0) in stiffness.iter_mut().zip(&kappas).zip(&given) {
             *g *= k / k0;
         }
         Ok(IslandAdjoint {

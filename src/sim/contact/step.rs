@@ -68,13 +68,15 @@ struct Swept {
 
 /// An island's final solve in a step, as the reverse pass needs it: its members (object
 /// indices, in the order their coordinates were stacked) and the pair stiffnesses it used
-/// (row-major over the members, Pa/m^2; raised where the island went too deep).
+/// where they differ from the given ones (raised in this step or an earlier one), so that a
+/// recording keeps a few numbers per island and step, not a square of its members.
 #[derive(Debug, Clone, PartialEq)]
 pub struct IslandSolve {
     /// Object indices.
     pub members: Vec<usize>,
-    /// Pair stiffnesses over the members, row-major, Pa/m^2.
-    pub stiffness: Vec<f64>,
+    /// (a, b, kappa): the stiffness of the pair of members (a, b) (indices into `members`),
+    /// Pa/m^2, where it is not the given one.
+    pub raised: Vec<(usize, usize, f64)>,
 }
 
 /// The result of stepping one group: each object's report, and for an island the contact
@@ -337,10 +339,7 @@ impl ContactWorld {
             return Solved {
                 reports: group.iter().copied().zip(reports).collect(),
                 stats: Some(stats),
-                island: Some(IslandSolve {
-                    members: group.to_vec(),
-                    stiffness: stiffness.clone(),
-                }),
+                island: Some(self.island_solve(group, &stiffness)),
                 stiffened: (raises > 0).then(|| (group.to_vec(), stiffness, raises)),
             };
         }
@@ -503,6 +502,31 @@ impl ContactWorld {
                 body
             })
             .collect()
+    }
+
+    /// The record of the island `group` solved with the pair stiffnesses `stiffness`
+    /// (row-major over its members).
+    fn island_solve(&self, group: &[usize], stiffness: &[f64]) -> IslandSolve {
+        let m = group.len();
+        let given = self.over(group, &self.given_stiffness);
+        let raised = (0..m * m)
+            .filter(|&k| stiffness[k] != given[k])
+            .map(|k| (k / m, k % m, stiffness[k]))
+            .collect();
+        IslandSolve {
+            members: group.to_vec(),
+            raised,
+        }
+    }
+
+    /// The pair stiffnesses (row-major over its members, Pa/m^2) the island `solve` used.
+    pub(super) fn island_stiffness(&self, solve: &IslandSolve) -> Vec<f64> {
+        let m = solve.members.len();
+        let mut k = self.over(&solve.members, &self.given_stiffness);
+        for &(a, b, v) in &solve.raised {
+            k[a * m + b] = v;
+        }
+        k
     }
 
     /// The entries of the row-major object-pair matrix `full` between the members of
