@@ -263,8 +263,10 @@ class Recording:
         """The reverse pass: dL/dz per object, (steps + 1, 12 (m + 1)); per object the
         gradients (youngs, poisson, density, their per-point arrays, gravity, friction and
         collider_stiffness per collider, collider_pose (steps, colliders, 2, 6), boundary_pose
-        (steps, regions, 6), boundary_stiffness, placement,
-        z0, zdot0) and what the reverse pass took."""
+        (steps, regions, 6), boundary_stiffness, placement, contact_stiffness and
+        contact_friction (the object's row of the pair gradients over the world's objects;
+        None without [contact]), z0, zdot0) and what the reverse pass took. Steps that solved
+        objects together as an island are reversed jointly."""
 
 def map_points(world: World, object: ObjectRef, points: ArrayLike) -> npt.NDArray[np.float64]:
     """Positions (N, 3) of rest points under the object's current state, metres."""
