@@ -294,6 +294,14 @@ pub unsafe extern "C" fn ff_gradients_contact_pair(
     })
 }
 
+/// 3 `count`: the doubles of `count` points, refused when it overflows.
+fn triple(count: usize) -> CResult<usize> {
+    count.checked_mul(3).ok_or((
+        Status::InvalidArgument,
+        format!("count = {count} is too large"),
+    ))
+}
+
 /// The weights of `count` rest points (count x 3 doubles, metres) of object `object`.
 unsafe fn rest_points(
     w: &FfWorld,
@@ -305,7 +313,7 @@ unsafe fn rest_points(
     freeform::precompute::skinning::SkinningWeights,
 )> {
     let o = object(&w.world, object_index)?;
-    let flat = unsafe { slice(points, 3 * count, "points")? };
+    let flat = unsafe { slice(points, triple(count)?, "points")? };
     let rest: Vec<[f64; 3]> = flat.chunks(3).map(|p| [p[0], p[1], p[2]]).collect();
     let weights = o.basis().weights(&rest).map_err(lib_err)?;
     Ok((rest, weights))
@@ -327,7 +335,7 @@ pub unsafe extern "C" fn ff_world_map_points(
         let (rest, weights) = unsafe { rest_points(w, object_index, points, count)? };
         let sim = object(&w.world, object_index)?.sim();
         let x = map_points(sim.layout(), sim.z(), &rest, &weights);
-        let o = out_slice(out, len, 3 * count, "out")?;
+        let o = out_slice(out, len, triple(count)?, "out")?;
         for (dst, p) in o.chunks_mut(3).zip(&x) {
             dst.copy_from_slice(p);
         }
@@ -351,7 +359,7 @@ pub unsafe extern "C" fn ff_world_positions_adjoint(
     call("ff_world_positions_adjoint", || {
         let w = unsafe { world_ref(world)? };
         let (rest, weights) = unsafe { rest_points(w, object_index, points, count)? };
-        let flat = unsafe { slice(dl_dx, 3 * count, "dl_dx")? };
+        let flat = unsafe { slice(dl_dx, triple(count)?, "dl_dx")? };
         let g: Vec<[f64; 3]> = flat.chunks(3).map(|p| [p[0], p[1], p[2]]).collect();
         let sim = object(&w.world, object_index)?.sim();
         let dz = positions_adjoint(sim.layout(), &rest, &weights, &g).map_err(lib_err)?;

@@ -290,6 +290,11 @@ fn gradient_calls_refuse_bad_input() {
             ff_world_map_points(w, 0, pts.as_ptr(), 1, row.as_mut_ptr(), 2),
             Status::BufferTooSmall as i32
         );
+        assert_eq!(
+            ff_world_map_points(w, 0, pts.as_ptr(), usize::MAX, row.as_mut_ptr(), len),
+            Status::InvalidArgument as i32
+        );
+        assert!(last_error().contains("too large"), "{}", last_error());
         ff_gradients_free(g);
         ff_recording_free(rec);
         ff_gradients_free(null_mut());

@@ -14,11 +14,10 @@ use super::step::{ContactWorld, IslandSolve};
 use super::system::BlockHessian;
 use super::IslandSolver;
 use crate::sim::friction::lagged_force_adjoint;
-use crate::sim::newton::Potential;
+use crate::sim::newton::{Potential, RestSolve};
 use crate::sim::object::StepStart;
 use crate::sim::ReducedSim;
 use crate::{Error, Point3, Result};
-use faer::linalg::solvers::Solve;
 use faer::{Mat, Side};
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -154,7 +153,7 @@ impl ContactWorld {
             let rel = relative(a, l.c.i, b, l.c.j);
             let d = l.displacement(&x);
             let (per_mu_lambda, dl_dn, dl_dd) =
-                lagged_force_adjoint(l.mu_lambda, eps, &l.normal, &l.projector, &d, &rel);
+                lagged_force_adjoint(l.mu_lambda(), eps, &l.normal, &l.projector, &d, &rel);
             let dl_dml = -per_mu_lambda;
             let kappa = kappas[a * m + b];
             add_pair(&mut friction, a, b, dl_dml * l.kw * l.depth);
@@ -196,9 +195,7 @@ fn dense_solve(h: &BlockHessian, rhs: &[f64], step: usize) -> Result<Vec<f64>> {
         .to_dense()
         .llt(Side::Lower)
         .map_err(|_| not_positive_definite(step))?;
-    let mut col = Mat::from_fn(rhs.len(), 1, |i, _| rhs[i]);
-    factor.solve_in_place(col.as_mut());
-    Ok((0..rhs.len()).map(|i| col[(i, 0)]).collect())
+    Ok(RestSolve::solve(&factor, rhs))
 }
 
 fn not_positive_definite(step: usize) -> Error {

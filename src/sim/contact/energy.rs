@@ -77,8 +77,6 @@ pub struct ContactStats {
 pub struct PairLag {
     /// The pair.
     pub c: Candidate,
-    /// Friction coefficient times the pair's normal force then, N.
-    pub mu_lambda: f64,
     /// I - u u^T of its direction then.
     pub projector: Mat3,
     /// x_i - x_j then, metres.
@@ -96,6 +94,11 @@ pub struct PairLag {
 }
 
 impl PairLag {
+    /// Friction coefficient times the pair's normal force then, mu kappa w (d - r), N.
+    pub fn mu_lambda(&self) -> f64 {
+        self.mu * self.kw * self.depth
+    }
+
     /// The relative displacement of the pair since the start, at positions `x`.
     pub fn displacement(&self, x: &[Vec<Point3>]) -> [f64; 3] {
         let (xi, xj) = (x[self.c.a][self.c.i], x[self.c.b][self.c.j]);
@@ -130,11 +133,6 @@ impl<'a> PairContact<'a> {
     /// The bodies.
     pub fn bodies(&self) -> &[Body<'a>] {
         &self.bodies
-    }
-
-    /// The penalty stiffness of each pair of bodies (row-major), Pa/m^2.
-    pub fn stiffness(&self) -> &[f64] {
-        &self.stiffness
     }
 
     fn distance(&self, a: usize, b: usize) -> f64 {
@@ -300,7 +298,6 @@ impl<'a> PairContact<'a> {
                 let mu = mu[p.c.a * n + p.c.b];
                 PairLag {
                     c: p.c,
-                    mu_lambda: mu * p.kw * (p.d - p.r),
                     projector: crate::sim::friction::tangent_projector(&p.u),
                     start: std::array::from_fn(|k| x[p.c.a][p.c.i][k] - x[p.c.b][p.c.j][k]),
                     normal: p.u,
@@ -331,8 +328,8 @@ impl<'a> PairContact<'a> {
         let mut e = 0.0;
         for l in lag {
             let d = l.displacement(&x);
-            e += friction::potential(l.mu_lambda, eps, &friction::project(&l.projector, &d));
-            let g = friction::gradient(l.mu_lambda, eps, &l.projector, &d);
+            e += friction::potential(l.mu_lambda(), eps, &friction::project(&l.projector, &d));
+            let g = friction::gradient(l.mu_lambda(), eps, &l.projector, &d);
             for k in 0..3 {
                 gx[l.c.a][l.c.i][k] += g[k];
                 gx[l.c.b][l.c.j][k] -= g[k];
@@ -367,7 +364,7 @@ impl<'a> PairContact<'a> {
                 let d = l.displacement(&x);
                 (
                     l.c,
-                    crate::sim::friction::hessian(l.mu_lambda, eps, &l.projector, &d),
+                    crate::sim::friction::hessian(l.mu_lambda(), eps, &l.projector, &d),
                 )
             })
             .collect();

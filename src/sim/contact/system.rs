@@ -196,6 +196,11 @@ impl BlockSolve {
         &self.h
     }
 
+    /// The matrix back, for another solver.
+    pub fn into_matrix(self) -> BlockHessian {
+        self.h
+    }
+
     /// z = M^-1 r with M^-1 the block-Jacobi inverse B; with a coarse level, the balancing
     /// form z = Q r + (I - Q H) B (I - H Q) r, Q = P E^-1 P^T (symmetric positive definite;
     /// exact on the coarse space), its products with H through the stored H P.
@@ -291,13 +296,6 @@ impl BlockSolve {
             }
         }
         (x, info)
-    }
-}
-
-impl BlockSolve {
-    /// The matrix back, for another solver.
-    pub fn into_matrix(self) -> BlockHessian {
-        self.h
     }
 }
 

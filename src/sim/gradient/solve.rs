@@ -12,11 +12,11 @@
 //! differently, and with them the iteration counts). A step solved by conjugate gradients is
 //! not checked for a positive definite H as a formed one is: only the directions they explore.
 
-use crate::sim::newton::Potential;
+use crate::sim::newton::{dot, Potential, RestSolve};
 use crate::sim::object::StepPotential;
 use crate::{Error, Result};
-use faer::linalg::solvers::{Llt, Solve};
-use faer::{Mat, Side};
+use faer::linalg::solvers::Llt;
+use faer::Side;
 
 /// Conjugate-gradient iterations per step before H is formed there instead: a factor that
 /// needs more has drifted far from the step's H.
@@ -91,23 +91,12 @@ impl AdjointSolver {
             ))
         })?;
         self.hessians += 1;
-        let x = solve_with(&factor, rhs);
+        let x = RestSolve::solve(&factor, rhs);
         self.factor = Some(factor);
         self.cycle = (1, FORMED_PER_COLUMN * (h.nrows() / 3) as f64);
         self.refresh = false;
         Ok(x)
     }
-}
-
-/// x = P^-1 r for the Cholesky factor `p`.
-fn solve_with(p: &Llt<f64>, r: &[f64]) -> Vec<f64> {
-    let mut x = Mat::from_fn(r.len(), 1, |i, _| r[i]);
-    p.solve_in_place(x.as_mut());
-    (0..r.len()).map(|i| x[(i, 0)]).collect()
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 /// Preconditioned conjugate gradients for `apply(x) = b` from x = P^-1 b: the solution, or
@@ -118,7 +107,7 @@ fn conjugate_gradients(
     p: &Llt<f64>,
     b: &[f64],
 ) -> (Option<Vec<f64>>, usize) {
-    let mut x = solve_with(p, b);
+    let mut x = RestSolve::solve(p, b);
     let target = CG_TOL * CG_TOL * dot(b, &x);
     if target == 0.0 {
         return (Some(x), 0);
@@ -126,7 +115,7 @@ fn conjugate_gradients(
     let ax = apply(&x);
     let mut products = 1;
     let mut r: Vec<f64> = b.iter().zip(&ax).map(|(a, c)| a - c).collect();
-    let mut s = solve_with(p, &r);
+    let mut s = RestSolve::solve(p, &r);
     let mut rs = dot(&r, &s);
     let mut d = s.clone();
     for _ in 0..MAX_CG {
@@ -143,7 +132,7 @@ fn conjugate_gradients(
         let alpha = rs / curvature;
         x.iter_mut().zip(&d).for_each(|(xi, di)| *xi += alpha * di);
         r.iter_mut().zip(&ad).for_each(|(ri, ai)| *ri -= alpha * ai);
-        s = solve_with(p, &r);
+        s = RestSolve::solve(p, &r);
         let next = dot(&r, &s);
         let beta = next / rs;
         rs = next;
