@@ -139,8 +139,9 @@ def main():
     if args.gradcheck:
         v = torch.tensor([0.25, -0.45, 0.15], dtype=torch.float64, requires_grad=True)
         mu = torch.tensor(0.5, dtype=torch.float64, requires_grad=True)
-        # Steps solved to 1e-12 D; torch's step 1e-6 switches no contact (the Rust test's
-        # kink lies 1e-4 away), so its central differences are good to about 1e-6.
+        # Steps solved to 1e-12 D; torch's step 1e-6 switches no contact here (a kink lies
+        # 1e-4 to 1e-3 away in the Rust test's scene), so its central differences are good to
+        # about 1e-6.
         ok = torch.autograd.gradcheck(Simulate.apply, (v, mu), eps=1e-6, atol=1e-7, rtol=1e-5)
         print(f"gradcheck: {ok}")
     observed = torch.from_numpy(record(TRUE_V, TRUE_MU)[2])

@@ -123,8 +123,8 @@ fn rel(a: f64, b: f64) -> f64 {
 /// objects stepping alone (docs/gradients.md); measured 1e-9..2e-8 here. The steps are solved
 /// to 1e-12, the run is checked for its island and for no stiffness raise (a jump), and the
 /// differences' steps are small enough that no contact switches within them: the loss has a
-/// kink within 1e-4 of mu = 0.4 (central differences with h = 1e-3 read a quarter of the
-/// slope, with h = 1e-4 the slope to 1e-5, with h = 1e-5 to 7e-8).
+/// kink between 1e-4 and 1e-3 from mu = 0.4 (central differences with h = 1e-3 read a quarter
+/// of the slope, with h = 1e-4 the slope to 1e-5, with h = 1e-5 to 7e-8).
 #[test]
 fn island_gradients_match_finite_differences() {
     let (mu, kappa, g) = (0.4, 1e9, 9.81);
@@ -149,6 +149,14 @@ fn island_gradients_match_finite_differences() {
 
     let d_mu = fd(&|h| run_loss(world(&scene(mu + h, kappa, g))), 1e-5);
     let got = pair(&grads.contact_friction);
+    // The kink near mu (the docs' figures): `--nocapture` prints the wider differences.
+    for h in [1e-3, 1e-4] {
+        let wide = fd(&|h| run_loss(world(&scene(mu + h, kappa, g))), h);
+        eprintln!(
+            "dL/dmu: h {h:e}: central difference / gradient = {:.6}",
+            wide / got
+        );
+    }
     assert!(d_mu.abs() > 1e-6, "friction must matter: {d_mu}");
     assert!(rel(got, d_mu) < 1e-5, "dL/dmu {got} vs {d_mu}");
 
@@ -282,77 +290,139 @@ fn gradients_through_stiffness_raises_match_finite_differences() {
     assert!(rel(got, d_g) < 1e-5, "dL/dg {got} vs {d_g}");
 }
 
-/// Self-contact: the clip of examples/self_contact.toml (its upper arm sagging onto its lower
-/// arm; K = 300, m = 10), stepped 12 steps until its arms touch, then 4 recorded steps, each an
-/// island of one with its own sample pairs active. dL/dg (gravity set after the first 12
-/// steps, so only the recorded steps see the change) against central differences: bound 1e-5
-/// (measured 7e-9). The start state's gradient is right too but needs h = 1e-7 to see it
-/// (hundreds of sample pairs switch within 1e-6: central differences at h = 1e-5, 1e-6 and
-/// 1e-7 read 1.08, 0.99 and 1.0001 times it); the test stays with gravity.
-#[test]
-fn self_contact_gradients_match_finite_differences() {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/self_contact.toml");
-    let text = std::fs::read_to_string(path)
-        .unwrap()
-        .replace(
-            "hessian = \"newton\"",
-            "hessian = \"newton\"\ntol = 1e-12\nmax_iter = 300\ncubature = 400",
-        )
-        .replace(
-            "basis = { kernels = 600, modes = 16 }",
-            "basis = { kernels = 300, modes = 10, points = 6000 }",
-        )
-        .replace("[contact]", "[cache]\nenabled = false\n\n[contact]");
-    let scene = Scene::from_toml(&text).unwrap();
-    let settings = RunSettings::for_scene_file(std::path::Path::new(path));
-    let (pre, steps) = (12, 4);
-    let at = |g: f64| {
-        let mut w = World::new(&scene, &settings, &Silent).unwrap();
-        for _ in 0..pre {
+/// The clip of examples/self_contact.toml (its upper arm sagging onto its lower arm; K = 300,
+/// m = 10, Newton to 1e-12) with `[contact] friction = mu`.
+struct Clip {
+    scene: Scene,
+    settings: RunSettings,
+}
+
+/// Steps before the recording (the arms touch from then on) and steps recorded.
+const CLIP_PRE: usize = 12;
+const CLIP_STEPS: usize = 4;
+/// Rest points whose heights, summed over the frames, are the loss.
+const CLIP_POINTS: [[f64; 3]; 3] = [[0.25, 0.12, 0.02], [0.45, 0.13, 0.03], [0.4, 0.02, 0.02]];
+
+impl Clip {
+    fn new(mu: f64) -> Clip {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/self_contact.toml");
+        let text = std::fs::read_to_string(path)
+            .unwrap()
+            .replace(
+                "hessian = \"newton\"",
+                "hessian = \"newton\"\ntol = 1e-12\nmax_iter = 300\ncubature = 400",
+            )
+            .replace(
+                "basis = { kernels = 600, modes = 16 }",
+                "basis = { kernels = 300, modes = 10, points = 6000 }",
+            )
+            .replace("friction = 0.3", &format!("friction = {mu:?}"))
+            .replace("[contact]", "[cache]\nenabled = false\n\n[contact]");
+        Clip {
+            scene: Scene::from_toml(&text).unwrap(),
+            settings: RunSettings::for_scene_file(std::path::Path::new(path)),
+        }
+    }
+
+    /// The world after the unrecorded steps.
+    fn world(&self) -> World {
+        let mut w = World::new(&self.scene, &self.settings, &Silent).unwrap();
+        for _ in 0..CLIP_PRE {
             w.step().unwrap();
         }
-        w.set_gravity(Some([0.0, -g, 0.0])).unwrap();
         w
-    };
-    let points = [[0.25, 0.12, 0.02], [0.45, 0.13, 0.03], [0.4, 0.02, 0.02]];
-    let heights = |w: &World| -> f64 {
+    }
+
+    /// The summed heights of the loss's points at the world's state.
+    fn heights(w: &World) -> f64 {
         let o = w.object(0);
-        let weights = o.basis().weights(&points).unwrap();
+        let weights = o.basis().weights(&CLIP_POINTS).unwrap();
         let sim = o.sim();
-        freeform::sim::object::map_points(sim.layout(), sim.z(), &points, &weights)
+        freeform::sim::object::map_points(sim.layout(), sim.z(), &CLIP_POINTS, &weights)
             .iter()
             .map(|p| p[1])
             .sum()
-    };
-    let loss = |mut w: World| {
-        let mut total = heights(&w);
-        for _ in 0..steps {
+    }
+
+    /// The loss of the recorded steps' plain run from `w`.
+    fn loss(mut w: World) -> f64 {
+        let mut total = Clip::heights(&w);
+        for _ in 0..CLIP_STEPS {
             w.step().unwrap();
-            total += heights(&w);
+            total += Clip::heights(&w);
         }
         total
-    };
-    let mut w = at(9.81);
-    let row = {
-        let o = w.object(0);
-        let weights = o.basis().weights(&points).unwrap();
-        freeform::sim::gradient::positions_adjoint(
-            o.sim().layout(),
-            &points,
-            &weights,
-            &[[0.0, 1.0, 0.0]; 3],
-        )
-        .unwrap()
-    };
-    let mut rec = w.record(steps).unwrap();
-    for _ in 0..steps {
-        w.step_recorded(&mut rec).unwrap();
-        let row = w.contact_summary().unwrap().steps.last().unwrap().clone();
-        assert!(row.islands == [1] && row.sample_pairs_active > 0, "{row:?}");
     }
-    let grads = rec.backward(&w, &[vec![row; steps + 1]]).unwrap();
+
+    /// The recorded steps' gradients from `w`, each step checked to be an island of one with
+    /// its own sample pairs active.
+    fn gradients(mut w: World) -> freeform::sim::gradient::Gradients {
+        let row = {
+            let o = w.object(0);
+            let weights = o.basis().weights(&CLIP_POINTS).unwrap();
+            freeform::sim::gradient::positions_adjoint(
+                o.sim().layout(),
+                &CLIP_POINTS,
+                &weights,
+                &[[0.0, 1.0, 0.0]; 3],
+            )
+            .unwrap()
+        };
+        let mut rec = w.record(CLIP_STEPS).unwrap();
+        for _ in 0..CLIP_STEPS {
+            w.step_recorded(&mut rec).unwrap();
+            let row = w.contact_summary().unwrap().steps.last().unwrap().clone();
+            assert!(row.islands == [1] && row.sample_pairs_active > 0, "{row:?}");
+        }
+        let mut g = rec.backward(&w, &[vec![row; CLIP_STEPS + 1]]).unwrap();
+        g.objects.remove(0)
+    }
+}
+
+/// Self-contact: the clip stepped until its arms touch, then 4 recorded steps, each an island
+/// of one with its own sample pairs active. dL/dg (gravity set after the unrecorded steps, so
+/// only the recorded steps see the change) against central differences: bound 1e-5 (measured
+/// 7e-9).
+#[test]
+fn self_contact_gradients_match_finite_differences() {
+    let clip = Clip::new(0.3);
+    let grads = Clip::gradients(clip.world());
+    let at = |g: f64| {
+        let mut w = clip.world();
+        w.set_gravity(Some([0.0, -g, 0.0])).unwrap();
+        Clip::loss(w)
+    };
     let h = 1e-5;
-    let fd = (loss(at(9.81 + h)) - loss(at(9.81 - h))) / (2.0 * h);
-    let got = -grads.objects[0].gravity.unwrap()[1];
+    let fd = (at(9.81 + h) - at(9.81 - h)) / (2.0 * h);
+    let got = -grads.gravity.unwrap()[1];
     assert!(rel(got, fd) < 1e-5, "dL/dg {got} vs {fd}");
+}
+
+/// The frictionless clip's start state: hundreds of its sample pairs switch within 1e-6 of it,
+/// so central differences along a fixed direction see the gradient only at h = 1e-7 (bound
+/// 1e-3; the kinks' O(h) error and the solver's 1e-12 / h noise meet there). `--nocapture`
+/// prints the differences at h = 1e-5, 1e-6 and 1e-7 against the gradient.
+#[test]
+fn self_contact_start_state_gradient_needs_a_small_step() {
+    let clip = Clip::new(0.0);
+    let base = clip.world();
+    let (z0, v0) = (
+        base.object(0).sim().z().to_vec(),
+        base.object(0).sim().zdot().to_vec(),
+    );
+    let grads = Clip::gradients(base);
+    let dir: Vec<f64> = (0..z0.len()).map(|k| (1.7 * k as f64).sin()).collect();
+    let got: f64 = grads.z0.iter().zip(&dir).map(|(a, b)| a * b).sum();
+    let moved = |dz: f64| {
+        let mut w = clip.world();
+        let z: Vec<f64> = z0.iter().zip(&dir).map(|(a, d)| a + dz * d).collect();
+        w.set_state(0, &z, &v0).unwrap();
+        Clip::loss(w)
+    };
+    let mut last = f64::NAN;
+    for h in [1e-5, 1e-6, 1e-7] {
+        last = (moved(h) - moved(-h)) / (2.0 * h);
+        eprintln!("h {h:e}: central difference / gradient = {:.6}", last / got);
+    }
+    assert!(rel(got, last) < 1e-3, "dL/dz0 along d: {got} vs {last}");
 }
