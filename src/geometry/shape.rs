@@ -105,6 +105,27 @@ impl Shape {
         }
     }
 
+    /// Points on the shape's boundary where its basis is evaluated beyond the integration
+    /// points (N x 3, metres): a FEM reference's nodes, render points, contact samples. The
+    /// integration points sit up to half a cell inside the boundary, so these see fewer
+    /// kernels. For a box, a grid over its six faces (corners and edges included) with at most
+    /// `spacing` (metres) between neighbours; for a sphere, a Fibonacci lattice of about one
+    /// point per `spacing`^2 of surface; the vertices of a mesh; the points of a point cloud;
+    /// none for an image. At most [`MAX_SURFACE_PROBES`] for the primitives (the spacing
+    /// widens beyond that); an invalid spacing (not positive and finite) gives none.
+    pub fn surface_probes(&self, spacing: f64) -> Vec<Point3> {
+        if !(spacing > 0.0 && spacing.is_finite()) {
+            return Vec::new();
+        }
+        match self {
+            Shape::Box { size } => box_surface_grid(size, spacing),
+            Shape::Sphere { radius } => sphere_lattice(*radius, spacing),
+            Shape::Mesh(m) => m.vertices().to_vec(),
+            Shape::PointCloud(c) => c.points().to_vec(),
+            Shape::Image(_) => Vec::new(),
+        }
+    }
+
     /// Points to draw or deform for output, N x 3 metres: the mesh vertices for meshes, the
     /// input points for point clouds, `None` for primitives and images.
     pub fn render_points(&self) -> Option<&[Point3]> {
@@ -114,4 +135,53 @@ impl Shape {
             Shape::Box { .. } | Shape::Sphere { .. } | Shape::Image(_) => None,
         }
     }
+}
+
+/// Most points [`Shape::surface_probes`] puts on a primitive's surface.
+pub const MAX_SURFACE_PROBES: usize = 1 << 22;
+
+/// The nodes of a grid over the box `[0, size]` that lie on its surface, at most `spacing`
+/// apart along each axis (at least 2 nodes per axis, so the corners are always in).
+fn box_surface_grid(size: &[f64; 3], spacing: f64) -> Vec<Point3> {
+    let nodes = |h: f64| size.map(|l| ((l / h).ceil() as usize).clamp(1, 1 << 20) + 1);
+    let surface = |n: [usize; 3]| {
+        let all = n[0] * n[1] * n[2];
+        all - n.map(|k| k - 2).iter().product::<usize>()
+    };
+    let mut h = spacing;
+    while surface(nodes(h)) > MAX_SURFACE_PROBES {
+        h *= 1.25;
+    }
+    let n = nodes(h);
+    let at = |a: usize, i: usize| size[a] * i as f64 / (n[a] - 1) as f64;
+    let mut out = Vec::with_capacity(surface(n));
+    for i in 0..n[0] {
+        let x_face = i == 0 || i == n[0] - 1;
+        for j in 0..n[1] {
+            let y_face = j == 0 || j == n[1] - 1;
+            if x_face || y_face {
+                out.extend((0..n[2]).map(|k| [at(0, i), at(1, j), at(2, k)]));
+            } else {
+                out.push([at(0, i), at(1, j), 0.0]);
+                out.push([at(0, i), at(1, j), size[2]]);
+            }
+        }
+    }
+    out
+}
+
+/// About one point per `spacing`^2 on the sphere of `radius` centred at the origin (a
+/// Fibonacci lattice: deterministic and nearly uniform), at least 12.
+fn sphere_lattice(radius: f64, spacing: f64) -> Vec<Point3> {
+    let area = 4.0 * std::f64::consts::PI * radius * radius;
+    let n = ((area / (spacing * spacing)).ceil() as usize).clamp(12, MAX_SURFACE_PROBES);
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    (0..n)
+        .map(|i| {
+            let z = 1.0 - (2 * i + 1) as f64 / n as f64;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let t = golden * i as f64;
+            [radius * r * t.cos(), radius * r * t.sin(), radius * z]
+        })
+        .collect()
 }

@@ -20,6 +20,7 @@ pub mod assembly;
 pub mod boundary_modes;
 pub mod centers;
 mod compare;
+mod coverage;
 pub mod density;
 pub mod distributed;
 pub mod image_material;

@@ -5,7 +5,8 @@
 use super::assembly::Assembled;
 use super::boundary_modes;
 use super::centers::{farthest_point_sampling_scaled, morton_order};
-use super::density::{kernel_scale, WholeObject};
+use super::coverage::{cover_surface, enlarge_near};
+use super::density::{bulk_spacing, kernel_scale, WholeObject};
 use super::memory::{expected_points, MemoryEstimate};
 use super::options::BasisOptions;
 use super::quality::{CoverageReport, ModesReport, SolveFacts};
@@ -21,6 +22,7 @@ use crate::material::MaterialField;
 use crate::progress::Progress;
 use crate::report::{Stopwatch, Timings};
 use crate::{Error, Point3, Result};
+use std::collections::BTreeSet;
 
 /// Everything a precomputation produces.
 #[derive(Debug, Clone)]
@@ -160,7 +162,11 @@ impl Problem {
         progress.finish();
         check_cancelled(progress, "sampling")?;
         let sampling = clock.elapsed();
-        let mut problem = Self::assemble(points, material, opts, progress, checked)?;
+        // Surface points at half the bulk kernel spacing: several between neighbouring
+        // kernels, so no gap on the surface goes unchecked.
+        let volume: f64 = points.volumes.iter().sum();
+        let probes = shape.surface_probes(0.5 * bulk_spacing(volume, opts.kernels));
+        let mut problem = Self::assemble(points, material, opts, progress, checked, &probes)?;
         problem.timings.sampling = sampling;
         problem.timings.total += sampling;
         problem.resample = resample_source(shape);
@@ -176,17 +182,19 @@ impl Problem {
         opts: &BasisOptions,
         progress: &dyn Progress,
     ) -> Result<Self> {
-        Self::assemble(points, material, opts, progress, None)
+        Self::assemble(points, material, opts, progress, None, &[])
     }
 
     /// [`Problem::from_points`] with the memory estimate already checked (`memory`), or
-    /// checked here (None).
+    /// checked here (None), and the shape's surface points whose coverage is repaired before
+    /// the assembly (`probes`, metres; [`cover_surface`]).
     fn assemble(
         points: IntegrationPoints,
         material: MaterialField,
         opts: &BasisOptions,
         progress: &dyn Progress,
         memory: Option<MemoryEstimate>,
+        probes: &[Point3],
     ) -> Result<Self> {
         opts.validate()?;
         points.check(&material)?;
@@ -219,6 +227,8 @@ impl Problem {
         )?;
         let mut kernels = place_kernels(&points.points, scale.as_deref(), opts)?;
         drop(scale);
+        let surface = cover_surface(&mut kernels, probes, opts)?;
+        warnings.extend(surface.warning(opts.coverage_repair_rounds));
         progress.finish();
         check_cancelled(progress, "centers")?;
         timings.centers = clock.lap();
@@ -234,28 +244,34 @@ impl Problem {
         let volumes: Vec<f64> = order.iter().map(|&i| points.volumes[i]).collect();
         let weights: Vec<f64> = order.iter().map(|&i| all_weights[i]).collect();
         drop(all_weights);
-        let (streamed, enlarged) =
-            stream_with_repair(&mut kernels, &sorted, &volumes, &weights, opts, progress).map_err(
-                |e| match e {
-                    // Report the caller's point index, not the sorted one.
-                    Error::Coverage {
-                        count,
-                        index,
-                        position,
-                        covering,
-                        rcond,
-                        min_rcond,
-                    } => Error::Coverage {
-                        count,
-                        index: order[index],
-                        position,
-                        covering,
-                        rcond,
-                        min_rcond,
-                    },
-                    other => other,
-                },
-            )?;
+        let (streamed, enlarged) = stream_with_repair(
+            &mut kernels,
+            &sorted,
+            &volumes,
+            &weights,
+            opts,
+            progress,
+            surface.enlarged.clone(),
+        )
+        .map_err(|e| match e {
+            // Report the caller's point index, not the sorted one.
+            Error::Coverage {
+                count,
+                index,
+                position,
+                covering,
+                rcond,
+                min_rcond,
+            } => Error::Coverage {
+                count,
+                index: order[index],
+                position,
+                covering,
+                rcond,
+                min_rcond,
+            },
+            other => other,
+        })?;
         drop((sorted, volumes, weights, order));
         check_cancelled(progress, "assembly")?;
         let StreamedAssembly {
@@ -292,6 +308,8 @@ impl Problem {
                 max_cover: stats.max_cover,
                 enlarged_kernels: enlarged,
                 shape_function_bytes: largest_chunk_bytes,
+                surface_points: surface.points,
+                uncovered_surface_points: surface.uncovered,
             },
             warnings,
             memory,
@@ -511,7 +529,8 @@ const CHUNK: usize = rkpm::CHUNK_POINTS;
 /// The streamed shape functions and assembly ([`assemble_streamed`]) on the points (Morton
 /// order), enlarging the supports of kernels near badly covered points for up to
 /// `opts.coverage_repair_rounds` rounds (each round streams again). Returns the assembly and
-/// the number of enlarged kernels; the stage times of failed rounds are counted in.
+/// the number of enlarged kernels (with those already in `enlarged`); the stage times of
+/// failed rounds are counted in.
 fn stream_with_repair(
     kernels: &mut Kernels,
     points: &[Point3],
@@ -519,9 +538,8 @@ fn stream_with_repair(
     weights: &[f64],
     opts: &BasisOptions,
     progress: &dyn Progress,
+    mut enlarged: BTreeSet<usize>,
 ) -> Result<(Box<StreamedAssembly>, usize)> {
-    use kiddo::{ImmutableKdTree, SquaredEuclidean};
-    let mut enlarged = std::collections::BTreeSet::new();
     let mut round = 0;
     let mut lost = 0.0;
     loop {
@@ -546,23 +564,8 @@ fn stream_with_repair(
             chunked.coverage_error(|i| points[i], opts.shape_functions.min_rcond)?;
         }
         round += 1;
-        let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(&kernels.centers)
-            .map_err(|e| Error::param("kernels", kernels.len(), format!("k-d tree: {e:?}")))?;
-        let four = std::num::NonZero::new(4).expect("4 > 0");
-        let mut grow = std::collections::BTreeSet::new();
-        for &i in &chunked.stats().failed {
-            for r in tree
-                .query(&points[i])
-                .nearest_n::<SquaredEuclidean<f64>>(four)
-                .execute()
-            {
-                grow.insert(r.item as usize);
-            }
-        }
-        for &k in &grow {
-            kernels.radii[k] *= 1.25;
-        }
-        enlarged.extend(grow);
+        let failed: Vec<Point3> = chunked.stats().failed.iter().map(|&i| points[i]).collect();
+        enlarged.extend(enlarge_near(kernels, &failed)?);
     }
 }
 

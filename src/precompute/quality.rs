@@ -24,6 +24,14 @@ pub struct CoverageReport {
     pub enlarged_kernels: usize,
     /// Bytes held by the shape functions.
     pub shape_function_bytes: usize,
+    /// Points on the shape's surface whose coverage was checked and repaired before the
+    /// assembly ([`crate::geometry::Shape::surface_probes`]; 0 for given points).
+    #[serde(default)]
+    pub surface_points: usize,
+    /// Of those, the ones still badly covered (the basis cannot be evaluated there; a
+    /// warning names the worst).
+    #[serde(default)]
+    pub uncovered_surface_points: usize,
 }
 
 /// The JSON report of `freeform modes` (design.md section 6). Deserializing (a report stored

@@ -1330,3 +1330,45 @@ fn hostile_files_never_panic() {
     );
     assert!(outcomes[0] > 100);
 }
+
+#[test]
+fn surface_probes_lie_on_the_surface_and_leave_no_gap() {
+    let size = [2.0, 1.0, 0.5];
+    let h = 0.1;
+    let b = Shape::Box { size }.surface_probes(h);
+    // Every probe on a face; the 8 corners in; the nodes 0.1 apart on each axis, so a 21 x 11
+    // x 6 grid: all nodes minus the 19 x 9 x 4 inside.
+    assert_eq!(b.len(), 21 * 11 * 6 - 19 * 9 * 4);
+    for p in &b {
+        let on_face = (0..3).any(|a| p[a] == 0.0 || p[a] == size[a]);
+        let inside = (0..3).all(|a| p[a] >= 0.0 && p[a] <= size[a]);
+        assert!(on_face && inside, "{p:?}");
+    }
+    for c in 0..8 {
+        let corner = [0, 1, 2].map(|a| if c >> a & 1 == 1 { size[a] } else { 0.0 });
+        assert!(b.contains(&corner), "{corner:?}");
+    }
+    // The sphere's lattice: on the sphere, about one point per h^2 of surface, and no point of
+    // the surface farther than h from a probe (checked on random directions).
+    let r = 0.7;
+    let s = Shape::Sphere { radius: r }.surface_probes(h);
+    let area = 4.0 * PI * r * r;
+    assert_eq!(s.len(), (area / (h * h)).ceil() as usize);
+    for p in &s {
+        assert!(((p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - r).abs() < 1e-12);
+    }
+    let mut rng = SplitMix64::new(5);
+    for _ in 0..200 {
+        let d = point_in(&mut rng, -1.0, 1.0);
+        let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        let q = d.map(|x| r * x / n);
+        let gap = s
+            .iter()
+            .map(|p| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt())
+            .fold(f64::INFINITY, f64::min);
+        assert!(gap < h, "{q:?}: nearest probe {gap}");
+    }
+    // A spacing that is not positive and finite gives none.
+    assert!(Shape::Box { size }.surface_probes(0.0).is_empty());
+    assert!(Shape::Box { size }.surface_probes(f64::NAN).is_empty());
+}

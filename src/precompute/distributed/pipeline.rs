@@ -2,10 +2,10 @@
 //! MPI's ranks, then SLEPc on the rows, the checks on distributed vectors, and the basis on
 //! rank 0.
 //!
-//! Limitation: the coverage repair of [`crate::precompute`] (enlarging supports around badly
-//! covered points) needs every point's shape functions, so it is not run here; a coverage
-//! failure on any rank is an error on all ranks (run without MPI, or raise
-//! [`BasisOptions::support`]'s factor).
+//! Limitation: the coverage repair of [`crate::precompute`] at the integration points
+//! (enlarging supports around badly covered points) needs every point's shape functions, so it
+//! is not run here (its repair of the shape's surface is); a coverage failure on any rank is an
+//! error on all ranks (run without MPI, or raise [`BasisOptions::support`]'s factor).
 
 use super::collective::{min, Collective};
 use super::fps::place_kernels_parts;
@@ -15,6 +15,7 @@ use super::rows::assemble_own_rows;
 use crate::eigen::slepc::{solve_distributed, SlepcOptions};
 use crate::eigen::EigenRequest;
 use crate::geometry::Shape;
+use crate::precompute::coverage::cover_surface;
 use crate::precompute::quality::{CoverageReport, ModesReport, SolveFacts};
 use crate::precompute::rkpm::ReproducingError;
 use crate::precompute::skinning::Basis;
@@ -124,7 +125,11 @@ pub fn build_basis_mpi(
     let peak_now = || crate::report::peak_memory_bytes().unwrap_or(0) as f64;
     let mut stage_peaks = [peak_now(), 0.0, 0.0, 0.0];
 
-    let kernels = place_kernels_parts(&part, opts, &comm, progress)?;
+    let mut kernels = place_kernels_parts(&part, opts, &comm, progress)?;
+    // The shape's surface is repaired on every rank alike (the probes and the kernels are
+    // the same everywhere), as in one process.
+    let spacing = crate::precompute::density::bulk_spacing(part.total_volume(), opts.kernels);
+    let surface = cover_surface(&mut kernels, &shape.surface_probes(0.5 * spacing), opts)?;
     timings.centers = clock.lap();
     stage_peaks[1] = peak_now();
     let k = kernels.len();
@@ -234,10 +239,15 @@ pub fn build_basis_mpi(
             min_cover: least[7] as usize,
             mean_cover: stats.mean_cover,
             max_cover: most[11] as usize,
-            enlarged_kernels: 0,
+            enlarged_kernels: surface.enlarged.len(),
             shape_function_bytes: stream.largest_chunk_bytes,
+            surface_points: surface.points,
+            uncovered_surface_points: surface.uncovered,
         },
-        warnings: Vec::new(),
+        warnings: surface
+            .warning(opts.coverage_repair_rounds)
+            .into_iter()
+            .collect(),
         memory,
     };
     let repro = ReproducingError {

@@ -1,0 +1,111 @@
+//! Coverage repair: the supports of the kernels nearest a badly covered point grow (x1.25 a
+//! round) until every point has a well-conditioned moment matrix. The assembly repairs its
+//! integration points ([`super::problem`]); here the same repair runs first on the shape's own
+//! surface ([`crate::geometry::Shape::surface_probes`]), where the basis is evaluated later
+//! (a FEM reference's nodes, render points, contact samples) but the integration points,
+//! half a cell inside, do not reach: a box's corners see an eighth of the kernels an interior
+//! point sees, and a kernel density can pull kernels away from them.
+
+use super::options::BasisOptions;
+use super::rkpm::{evaluate_chunk, ChunkedStats, Kernels, CHUNK_POINTS};
+use crate::{Error, Point3, Result};
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use std::collections::BTreeSet;
+
+/// Factor by which one repair round grows a support radius.
+pub const ENLARGE_FACTOR: f64 = 1.25;
+
+/// Kernels whose supports grow around each badly covered point: the nearest this many
+/// centres (4 kernels in general position reproduce linear fields).
+const NEAREST: usize = 4;
+
+/// Grow by [`ENLARGE_FACTOR`] the supports of the [`NEAREST`] kernels nearest each of
+/// `points` (metres); returns the kernels grown (each once a round).
+pub fn enlarge_near(kernels: &mut Kernels, points: &[Point3]) -> Result<BTreeSet<usize>> {
+    let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(&kernels.centers)
+        .map_err(|e| Error::param("kernels", kernels.len(), format!("k-d tree: {e:?}")))?;
+    let nearest = std::num::NonZero::new(NEAREST).expect("NEAREST > 0");
+    let mut grow = BTreeSet::new();
+    for p in points {
+        for r in tree
+            .query(p)
+            .nearest_n::<SquaredEuclidean<f64>>(nearest)
+            .execute()
+        {
+            grow.insert(r.item as usize);
+        }
+    }
+    for &k in &grow {
+        kernels.radii[k] *= ENLARGE_FACTOR;
+    }
+    Ok(grow)
+}
+
+/// What [`cover_surface`] did.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SurfaceCover {
+    /// Surface points checked.
+    pub points: usize,
+    /// Kernels whose supports were grown for them.
+    pub enlarged: BTreeSet<usize>,
+    /// Surface points still badly covered after the last round.
+    pub uncovered: usize,
+    /// The worst of those (position, metres; reciprocal condition number of its moment
+    /// matrix, 0 when singular), for the warning.
+    pub worst: Option<(Point3, f64)>,
+}
+
+impl SurfaceCover {
+    /// The warning to show when some surface points stay uncovered.
+    pub fn warning(&self, rounds: usize) -> Option<String> {
+        let (p, rcond) = self.worst?;
+        Some(format!(
+            "{} of the shape's {} surface points are not covered by enough kernels after {rounds} \
+             rounds of support enlargement (worst at [{:.4}, {:.4}, {:.4}], reciprocal condition \
+             number {rcond:.1e}): the basis cannot be evaluated there; raise the support factor \
+             (--support), the kernels, or the coverage repair rounds",
+            self.uncovered, self.points, p[0], p[1], p[2]
+        ))
+    }
+}
+
+/// Repair the coverage of `probes` (surface points, N x 3, metres) for up to
+/// `opts.coverage_repair_rounds` rounds: each round evaluates the shape functions at every
+/// probe (in Morton-ordered chunks, so memory holds one chunk's) and grows the supports of the
+/// kernels nearest the badly covered ones. Deterministic (the same on every MPI rank). Probes
+/// that stay badly covered are counted, not an error: the basis may never be evaluated there.
+pub fn cover_surface(
+    kernels: &mut Kernels,
+    probes: &[Point3],
+    opts: &BasisOptions,
+) -> Result<SurfaceCover> {
+    let mut out = SurfaceCover {
+        points: probes.len(),
+        ..SurfaceCover::default()
+    };
+    if probes.is_empty() {
+        return Ok(out);
+    }
+    let mut order: Vec<usize> = (0..probes.len()).collect();
+    super::centers::morton_order(probes, &mut order);
+    let sorted: Vec<Point3> = order.iter().map(|&i| probes[i]).collect();
+    for round in 0..=opts.coverage_repair_rounds {
+        let mut stats = ChunkedStats::default();
+        for (c, chunk) in sorted.chunks(CHUNK_POINTS).enumerate() {
+            let (sf, st, _) = evaluate_chunk(kernels, chunk, &opts.shape_functions);
+            stats.add(&sf, &st, |i| c * CHUNK_POINTS + i);
+        }
+        let stats = stats.stats();
+        if stats.failed.is_empty() {
+            return Ok(out);
+        }
+        let failed: Vec<Point3> = stats.failed.iter().map(|&i| sorted[i]).collect();
+        if round == opts.coverage_repair_rounds {
+            out.uncovered = failed.len();
+            out.worst = Some((sorted[stats.min_rcond_point], stats.min_rcond));
+            return Ok(out);
+        }
+        out.enlarged.extend(enlarge_near(kernels, &failed)?);
+    }
+    Ok(out)
+}
