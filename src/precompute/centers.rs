@@ -9,8 +9,13 @@
 //!
 //! With a scale per point s_i ([`farthest_point_sampling_scaled`], from
 //! [`super::density::KernelDensity`]) the sampling is weighted: distances are measured in units
-//! of the local spacing, s_i |X_i - c|, so centres come s_i times closer together where s_i is
-//! larger. The pruning ball grows to sqrt(d_max) / min s; the brute force has the same option.
+//! of the finer of the two local spacings, max(s_i, s_c) |X_i - c|, so centres come s_i times
+//! closer together where s_i is larger. The finer one, not the point's own: a kernel placed
+//! for a fine region counts as near a coarse point only as far as its own (fine) spacing, so
+//! a coarse point next to a refined band still gets kernels of its own around it (with s_i
+//! alone it could be "covered" by a plane of fine kernels whose small supports all come from
+//! one side). The pruning ball grows to sqrt(d_max) / min s; the brute force has the same
+//! option.
 
 use crate::{Error, Point3, Result};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
@@ -198,9 +203,10 @@ pub fn farthest_point_sampling(points: &[Point3], k: usize) -> Result<Vec<usize>
     farthest_point_sampling_scaled(points, None, k)
 }
 
-/// [`farthest_point_sampling`] with distances scaled per point: point i is at s_i |X_i - c|
-/// from a centre c (`scale`: N positive finite factors, None for all 1), so the centres'
-/// spacing near X_i is about 1 / s_i of what it is where s = 1. The first centre is the same.
+/// [`farthest_point_sampling`] with distances scaled per point: point i is at
+/// max(s_i, s_c) |X_i - c| from a centre c (`scale`: N positive finite factors, None for all 1),
+/// so the centres' spacing near X_i is about 1 / s_i of what it is where s = 1. The first
+/// centre is the same.
 pub fn farthest_point_sampling_scaled(
     points: &[Point3],
     scale: Option<&[f64]>,
@@ -209,7 +215,8 @@ pub fn farthest_point_sampling_scaled(
     check(points, k)?;
     check_scale(points, scale)?;
     let s0 = start_index(points);
-    let mut state = FarthestPoints::with_scale(points, scale, &points[s0]);
+    let at = |i: usize| scale.map_or(1.0, |s| s[i]);
+    let mut state = FarthestPoints::with_scale(points, scale, &points[s0], at(s0));
     let mut chosen = Vec::with_capacity(k);
     chosen.push(s0);
     while chosen.len() < k {
@@ -220,7 +227,7 @@ pub fn farthest_point_sampling_scaled(
             return Err(too_few_distinct(k, chosen.len()));
         }
         chosen.push(idx);
-        state.add_center(&points[idx], d_max);
+        state.add_center(&points[idx], at(idx), d_max);
     }
     Ok(chosen)
 }
@@ -245,12 +252,18 @@ pub struct FarthestPoints<'a> {
 impl<'a> FarthestPoints<'a> {
     /// Distances of `points` (N x 3, metres; at most 2^32 of them) to a first centre `first`.
     pub fn new(points: &'a [Point3], first: &Point3) -> Self {
-        Self::with_scale(points, None, first)
+        Self::with_scale(points, None, first, 1.0)
     }
 
     /// [`FarthestPoints::new`] with distances scaled by `scale` (N positive finite factors,
-    /// checked by the caller), as [`farthest_point_sampling_scaled`].
-    pub fn with_scale(points: &'a [Point3], scale: Option<&[f64]>, first: &Point3) -> Self {
+    /// checked by the caller) and the first centre's scale `first_scale`, as
+    /// [`farthest_point_sampling_scaled`].
+    pub fn with_scale(
+        points: &'a [Point3],
+        scale: Option<&[f64]>,
+        first: &Point3,
+        first_scale: f64,
+    ) -> Self {
         let grid = CellGrid::new(points);
         let scale2: Option<Vec<f64>> = scale.map(|s| s.iter().map(|v| v * v).collect());
         let inv_min_scale2 = scale2.as_ref().map_or(1.0, |s| {
@@ -258,11 +271,14 @@ impl<'a> FarthestPoints<'a> {
         });
         let dist: Vec<f64> = match &scale2 {
             None => points.iter().map(|p| dist2(p, first)).collect(),
-            Some(s2) => points
-                .iter()
-                .zip(s2)
-                .map(|(p, s)| s * dist2(p, first))
-                .collect(),
+            Some(s2) => {
+                let c2 = first_scale * first_scale;
+                points
+                    .iter()
+                    .zip(s2)
+                    .map(|(p, s)| s.max(c2) * dist2(p, first))
+                    .collect()
+            }
         };
         let ncell = grid.start.len() - 1;
         let best: Vec<(u64, u32)> = (0..ncell).map(|c| cell_max(&grid, &dist, c)).collect();
@@ -297,15 +313,16 @@ impl<'a> FarthestPoints<'a> {
         }
     }
 
-    /// Add a centre `c` that was the farthest point overall at (scaled) squared distance
-    /// `d_max`: only points within sqrt(d_max) / min s of it can come closer, so only those
-    /// cells are visited.
-    pub fn add_center(&mut self, c: &Point3, d_max: f64) {
+    /// Add a centre `c` of scale `c_scale` (1 without a scale) that was the farthest point
+    /// overall at (scaled) squared distance `d_max`: only points within sqrt(d_max) / min s of
+    /// it can come closer, so only those cells are visited.
+    pub fn add_center(&mut self, c: &Point3, c_scale: f64, d_max: f64) {
         if self.points.is_empty() {
             return;
         }
         let r = (d_max * self.inv_min_scale2).sqrt();
         let grid = &self.grid;
+        let c2 = c_scale * c_scale;
         // A ball that misses this set's bounding box changes nothing (another rank's part).
         if (0..3).any(|d| c[d] + r < grid.lo[d] || c[d] - r > grid.hi[d]) {
             return;
@@ -321,7 +338,7 @@ impl<'a> FarthestPoints<'a> {
                         let i = i as usize;
                         let mut d = dist2(&self.points[i], c);
                         if let Some(s2) = &self.scale2 {
-                            d *= s2[i];
+                            d *= s2[i].max(c2);
                         }
                         if d < self.dist[i] {
                             self.dist[i] = d;
@@ -356,7 +373,7 @@ pub fn farthest_point_sampling_brute_scaled(
     let s2 = |i: usize| scale.map_or(1.0, |s| s[i] * s[i]);
     let s0 = start_index(points);
     let mut dist: Vec<f64> = (0..points.len())
-        .map(|i| s2(i) * dist2(&points[i], &points[s0]))
+        .map(|i| s2(i).max(s2(s0)) * dist2(&points[i], &points[s0]))
         .collect();
     let mut chosen = vec![s0];
     while chosen.len() < k {
@@ -370,9 +387,9 @@ pub fn farthest_point_sampling_brute_scaled(
             return Err(too_few_distinct(k, chosen.len()));
         }
         chosen.push(best.1);
-        let c = points[best.1];
+        let (c, c2) = (points[best.1], s2(best.1));
         for (i, p) in points.iter().enumerate() {
-            dist[i] = dist[i].min(s2(i) * dist2(p, &c));
+            dist[i] = dist[i].min(s2(i).max(c2) * dist2(p, &c));
         }
     }
     Ok(chosen)

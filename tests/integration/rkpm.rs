@@ -139,18 +139,74 @@ fn uncovered_points_are_reported_not_inverted() {
     assert_eq!(stats.failed, vec![0]);
 }
 
-/// The twist beam's basis with kernels twice as fine around its held and turned ends, K =
-/// 2,000: the refined bands pull kernels away from the box's corners, which lie outside the
-/// integration points (cell centres). Before the surface repair, evaluating the basis at the
-/// corner (0, 1, 1) failed (3 covering kernels); the repair grows the supports of the kernels
-/// nearest the badly covered surface points before the assembly, and the reproducing
-/// identities then hold at every corner.
+/// A spike: a tetrahedron 2 m tall on a 1 m base. Its apex lies far outside the integration
+/// points (cell centres, which thin out towards the tip), and the kernels placed among them do
+/// not reach it. Before the surface repair, evaluating the basis at the apex failed; the
+/// repair grows the supports of the kernels nearest the badly covered vertices before the
+/// assembly, and the reproducing identities then hold at every vertex.
 #[test]
-fn surface_repair_covers_the_corners_a_density_leaves_bare() {
+fn surface_repair_covers_a_spike_tip() {
+    use freeform::geometry::{Shape, ShapeOptions, TriMesh};
+    use freeform::precompute::{build_basis, place_kernels, sample_with_material, BasisOptions};
+    let vertices: Vec<Point3> = vec![
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.2, 0.2, 2.0],
+    ];
+    let triangles = vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]];
+    let mesh = TriMesh::new(vertices.clone(), triangles, &ShapeOptions::default()).unwrap();
+    let shape = Shape::Mesh(mesh);
+    let opts = BasisOptions {
+        kernels: 200,
+        modes: 6,
+        ..BasisOptions::default()
+    };
+    let sfo = ShapeFunctionOptions::default();
+
+    // The placement alone (the same centres and radii the pipeline starts from) leaves a
+    // vertex badly covered: the repair below is what this test exercises.
+    let (ip, _) = sample_with_material(&shape, &opts).unwrap();
+    let placed = place_kernels(&ip.points, None, &opts).unwrap();
+    let (_, before) = evaluate(&placed, &vertices, &sfo);
+    assert!(!before.failed.is_empty(), "no bare vertex: {before:?}");
+
+    let run = build_basis(&shape, &opts, &freeform::progress::Silent).unwrap();
+    let cover = &run.report.coverage;
+    assert_eq!(cover.surface_points, 4, "{cover:?}");
+    assert_eq!(cover.uncovered_surface_points, 0, "{cover:?}");
+    assert!(cover.enlarged_kernels > 0, "{cover:?}");
+    let (sf, after) = evaluate(&run.basis.kernels, &vertices, &sfo);
+    assert!(after.failed.is_empty(), "{after:?}");
+    // Partition of unity and linear reproduction are exact identities of the construction,
+    // so what is left is round-off: a solve with the moment matrix and a sum of ~30 terms,
+    // ~30 eps cond for the values; the gradients solve with it twice (grad b = -M^-1 (grad
+    // M) b), ~30 eps cond^2. cond = 1 / rcond of the worst vertex; bounds at 10x those.
+    let err = reproducing_error(&run.basis.kernels, &vertices, &sf);
+    let cond = 1.0 / after.min_rcond;
+    let values = 300.0 * f64::EPSILON * cond;
+    let gradients = values * cond;
+    eprintln!("vertices: cond {cond:.3e}, {err:?}");
+    assert!(err.partition_of_unity.max(err.linear) < values, "{err:?}");
+    assert!(
+        err.gradient_sum.max(err.gradient_linear) < gradients,
+        "{err:?}"
+    );
+    assert!(run.basis.weights(&vertices).is_ok());
+}
+
+/// The twist beam with kernels twice as fine around its held and turned ends, K = 2,000. The
+/// weighted sampling measures a point's distance to a centre in the finer of their two
+/// spacings, so the coarse corners beyond the refined bands get kernels of their own. (When it
+/// used the point's own spacing, a plane of fine kernels, with supports sized by their fine
+/// neighbours, counted as covering the corners, and the corner (0, 1, 1) had 3 covering
+/// kernels: the placement alone, before any repair, failed there.)
+#[test]
+fn density_placement_leaves_no_corner_bare() {
     use freeform::geometry::Shape;
     use freeform::material::Region;
     use freeform::precompute::{
-        build_basis, place_kernels, sample_with_material, BasisOptions, DensityBands, KernelDensity,
+        place_kernels, sample_with_material, BasisOptions, DensityBands, KernelDensity,
     };
     let shape = Shape::Box {
         size: [5.0, 1.0, 1.0],
@@ -174,19 +230,6 @@ fn surface_repair_covers_the_corners_a_density_leaves_bare() {
         }),
         ..BasisOptions::default()
     };
-    let corners: Vec<Point3> = (0..8)
-        .map(|c| {
-            [
-                5.0 * (c & 1) as f64,
-                ((c >> 1) & 1) as f64,
-                ((c >> 2) & 1) as f64,
-            ]
-        })
-        .collect();
-    let sfo = ShapeFunctionOptions::default();
-
-    // The placement alone (the same centres and radii the pipeline starts from) leaves a
-    // corner badly covered: the repair below is what this test exercises.
     let (ip, _) = sample_with_material(&shape, &opts).unwrap();
     let volume: f64 = ip.volumes.iter().sum();
     let scale = freeform::precompute::density::kernel_scale(
@@ -199,29 +242,15 @@ fn surface_repair_covers_the_corners_a_density_leaves_bare() {
     )
     .unwrap();
     let placed = place_kernels(&ip.points, scale.as_deref(), &opts).unwrap();
-    let (_, before) = evaluate(&placed, &corners, &sfo);
-    assert!(!before.failed.is_empty(), "no bare corner: {before:?}");
-
-    let run = build_basis(&shape, &opts, &freeform::progress::Silent).unwrap();
-    let cover = &run.report.coverage;
-    assert!(cover.surface_points > 1000, "{cover:?}");
-    assert_eq!(cover.uncovered_surface_points, 0, "{cover:?}");
-    assert!(cover.enlarged_kernels > 0, "{cover:?}");
-    let (sf, after) = evaluate(&run.basis.kernels, &corners, &sfo);
-    assert!(after.failed.is_empty(), "{after:?}");
-    // Partition of unity and linear reproduction are exact identities of the construction,
-    // so what is left is round-off: a solve with the moment matrix and a sum of ~30 terms,
-    // ~30 eps cond for the values; the gradients solve with it twice (grad b = -M^-1 (grad
-    // M) b), ~30 eps cond^2. cond = 1 / rcond of the worst corner; bounds at 10x those.
-    let err = reproducing_error(&run.basis.kernels, &corners, &sf);
-    let cond = 1.0 / after.min_rcond;
-    let values = 300.0 * f64::EPSILON * cond;
-    let gradients = values * cond;
-    eprintln!("corners: cond {cond:.3e}, {err:?}");
-    assert!(err.partition_of_unity.max(err.linear) < values, "{err:?}");
-    assert!(
-        err.gradient_sum.max(err.gradient_linear) < gradients,
-        "{err:?}"
-    );
-    assert!(run.basis.weights(&corners).is_ok());
+    let corners: Vec<Point3> = (0..8)
+        .map(|c| {
+            [
+                5.0 * (c & 1) as f64,
+                ((c >> 1) & 1) as f64,
+                ((c >> 2) & 1) as f64,
+            ]
+        })
+        .collect();
+    let (_, at_corners) = evaluate(&placed, &corners, &ShapeFunctionOptions::default());
+    assert!(at_corners.failed.is_empty(), "{at_corners:?}");
 }

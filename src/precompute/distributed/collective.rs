@@ -37,24 +37,29 @@ pub fn min(comm: &dyn Collective, values: &mut [f64]) -> Result<()> {
 }
 
 /// The largest `value` over the ranks and, among the ranks holding it, the smallest `index`,
-/// with that rank's `payload` (3 numbers, e.g. a position): the same answer on every rank.
+/// with that rank's `payload` (N numbers, e.g. a position and a scale): the same answer on
+/// every rank.
 /// A rank with nothing to offer passes `value = -inf`.
-pub fn arg_max(
+pub fn arg_max<const N: usize>(
     comm: &dyn Collective,
     value: f64,
     index: usize,
-    payload: [f64; 3],
-) -> Result<(f64, usize, [f64; 3])> {
+    payload: [f64; N],
+) -> Result<(f64, usize, [f64; N])> {
     // One all-gather of 5 numbers per rank while P is small (one latency), else a maximum, a
     // tie-break and a broadcast (3 latencies, O(1) data per rank).
     const GATHER_UP_TO: usize = 16;
     if comm.size() <= GATHER_UP_TO {
-        let all = comm.all_gather(&[value, index as f64, payload[0], payload[1], payload[2]])?;
-        let mut best = (f64::NEG_INFINITY, usize::MAX, [0.0; 3]);
-        for r in all.chunks_exact(5) {
+        let mut mine = vec![value, index as f64];
+        mine.extend_from_slice(&payload);
+        let all = comm.all_gather(&mine)?;
+        let mut best = (f64::NEG_INFINITY, usize::MAX, [0.0; N]);
+        for r in all.chunks_exact(N + 2) {
             let (v, i) = (r[0], r[1] as usize);
             if v > best.0 || (v == best.0 && i < best.1) {
-                best = (v, i, [r[2], r[3], r[4]]);
+                let mut data = [0.0; N];
+                data.copy_from_slice(&r[2..]);
+                best = (v, i, data);
             }
         }
         return Ok(best);

@@ -75,9 +75,6 @@ pub fn place_kernels_parts(
             best = (d, i);
         }
     }
-    let offer = points.get(best.1).copied().unwrap_or([0.0; 3]);
-    let (_, first, first_at) = arg_max(comm, best.0, part.first + best.1, offer)?;
-
     // The density's scale is local to each point (the distances to the boundary regions);
     // interface and thin-part refinement, which need a point's neighbours, are refused here.
     let scale = kernel_scale_part(
@@ -96,13 +93,25 @@ pub fn place_kernels_parts(
         check_regions_hold_points(&opts.density.regions, &held)?;
     }
     let scale = scale.map(|(s, _)| s);
-    let mut state = FarthestPoints::with_scale(points, scale.as_deref(), &first_at);
+    // A point's offer: its position and its scale (1 without a density).
+    let offer = |i: usize| {
+        let p = points.get(i).copied().unwrap_or([0.0; 3]);
+        let s = scale
+            .as_ref()
+            .and_then(|s| s.get(i).copied())
+            .unwrap_or(1.0);
+        [p[0], p[1], p[2], s]
+    };
+    let (_, first, [x, y, z, first_scale]) =
+        arg_max(comm, best.0, part.first + best.1, offer(best.1))?;
+    let first_at = [x, y, z];
+    let mut state = FarthestPoints::with_scale(points, scale.as_deref(), &first_at, first_scale);
     let mut chosen = vec![(first, first_at)];
     progress.begin("centers", Some(k as u64));
     while chosen.len() < k {
         let (d, i) = state.farthest().unwrap_or((f64::NEG_INFINITY, 0));
-        let at = points.get(i).copied().unwrap_or([0.0; 3]);
-        let (d_max, index, c) = arg_max(comm, d, part.first + i, at)?;
+        let (d_max, index, [x, y, z, c_scale]) = arg_max(comm, d, part.first + i, offer(i))?;
+        let c = [x, y, z];
         if d_max.is_nan() || d_max <= 0.0 {
             progress.finish();
             return Err(Error::param(
@@ -116,7 +125,7 @@ pub fn place_kernels_parts(
             ));
         }
         chosen.push((index, c));
-        state.add_center(&c, d_max);
+        state.add_center(&c, c_scale, d_max);
         if chosen.len() % 4096 == 0 {
             progress.set_position(chosen.len() as u64);
         }
