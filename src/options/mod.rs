@@ -297,6 +297,21 @@ pub static SLEPC: OptionName = OptionName {
     help: "SLEPc configuration: lobpcg-gamg (default), ks-sinvert, lobpcg-hypre",
 };
 
+/// The native LOBPCG's settings, by their scene-file names.
+pub static LOBPCG: OptionName = OptionName {
+    library: "BasisOptions::solver",
+    flag: Some("--lobpcg"),
+    scene: Some("basis.eigensolver"),
+    python: Some("eigensolver"),
+    c: Some("solver"),
+    value_prefix: "lobpcg:",
+    help: "LOBPCG settings for --solver lobpcg, KEY=VALUE pairs separated by commas, e.g. \
+           guard=16,shift_factor=1e-3,preconditioner=incomplete_cholesky (keys: guard, \
+           preconditioner, shift_factor, max_factor_entries, max_fill_ratio, escalate_after, \
+           recompute_every, restart_tol, ortho_drop, svqb_drop, seed; the others keep their \
+           defaults, docs/guide.md)",
+};
+
 /// PETSc options on top of a SLEPc configuration.
 pub static PETSC_OPTIONS: OptionName = OptionName {
     library: "BasisOptions::solver",
@@ -310,7 +325,7 @@ pub static PETSC_OPTIONS: OptionName = OptionName {
 };
 
 /// Every row, for the checks that hold each front end to the table.
-pub static ALL: [&OptionName; 25] = [
+pub static ALL: [&OptionName; 26] = [
     &KERNELS,
     &MODES,
     &POINTS,
@@ -335,6 +350,7 @@ pub static ALL: [&OptionName; 25] = [
     &BOUNDARIES,
     &SOLVER,
     &SLEPC,
+    &LOBPCG,
     &PETSC_OPTIONS,
 ];
 

@@ -62,8 +62,8 @@ impl SurfaceCover {
         Some(format!(
             "{} of the shape's {} surface points are not covered by enough kernels after {rounds} \
              rounds of support enlargement (worst at [{:.4}, {:.4}, {:.4}], reciprocal condition \
-             number {rcond:.1e}): the basis cannot be evaluated there; raise the support factor \
-             (--support), the kernels, or the coverage repair rounds",
+             number {rcond:.1e}): the basis cannot be evaluated there; increase the support factor \
+             (--support) or the number of kernels",
             self.uncovered, self.points, p[0], p[1], p[2]
         ))
     }

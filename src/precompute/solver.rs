@@ -53,8 +53,9 @@ impl Default for SolverConfig {
 }
 
 /// What [`SolverConfig::from_str`](std::str::FromStr) accepts, for its error message.
-const SOLVER_STRINGS: &str = "use lobpcg, dense, slepc, or slepc:CONFIG with CONFIG \
-     ks-sinvert, lobpcg-gamg, lobpcg-hypre, PETSc options starting with '-', or preset:options";
+const SOLVER_STRINGS: &str = "use lobpcg, dense, slepc, slepc:CONFIG with CONFIG ks-sinvert, \
+     lobpcg-gamg, lobpcg-hypre, PETSc options starting with '-', or preset:options, or \
+     lobpcg:KEY=VALUE,... for LOBPCG settings";
 
 impl SolverConfig {
     /// Native LOBPCG at its default settings (the default configuration).
@@ -102,9 +103,10 @@ impl SolverConfig {
         })
     }
 
-    /// Whether the string form ([`std::fmt::Display`]) describes this configuration
-    /// completely: default LOBPCG settings; SLEPc options that parse back from their spec (no
-    /// shift, options without surrounding blanks).
+    /// Whether serialization writes the string form ([`std::fmt::Display`]): default LOBPCG
+    /// settings (other settings keep their table, the scene files' form, though the string
+    /// describes them too); SLEPc options that parse back from their spec (no shift, options
+    /// without surrounding blanks).
     fn has_string_form(&self) -> bool {
         match self {
             SolverConfig::Lobpcg(options) => *options == LobpcgOptions::default(),
@@ -117,10 +119,13 @@ impl SolverConfig {
 }
 
 impl std::fmt::Display for SolverConfig {
-    /// `lobpcg`, `dense` or `slepc:` + [`SlepcOptions::spec`] (LOBPCG settings and a SLEPc
-    /// shift are not part of it).
+    /// `lobpcg`, `lobpcg:` + [`LobpcgOptions::spec`] for settings other than the defaults,
+    /// `dense` or `slepc:` + [`SlepcOptions::spec`] (a SLEPc shift is not part of it).
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
+            SolverConfig::Lobpcg(options) if *options != LobpcgOptions::default() => {
+                write!(f, "lobpcg:{}", options.spec())
+            }
             SolverConfig::Slepc(options) => write!(f, "slepc:{}", options.spec()),
             other => f.write_str(other.name()),
         }
@@ -146,6 +151,9 @@ impl std::str::FromStr for SolverConfig {
         }
         match s.split_once(':') {
             Some(("slepc", spec)) => SolverConfig::slepc(spec, ""),
+            Some(("lobpcg", spec)) => Ok(SolverConfig::Lobpcg(
+                LobpcgOptions::parse(spec).map_err(Error::from)?,
+            )),
             _ => Err(Error::param("solver", format!("{s:?}"), SOLVER_STRINGS)),
         }
     }
@@ -284,6 +292,64 @@ mod tests {
         );
     }
 
+    #[test]
+    fn lobpcg_settings_have_a_string_form() {
+        let c: SolverConfig = "lobpcg:guard=16, shift_factor=1e-3,preconditioner=jacobi"
+            .parse()
+            .unwrap();
+        let want = LobpcgOptions {
+            guard: Some(16),
+            shift_factor: 1e-3,
+            preconditioner: PreconditionerKind::Jacobi,
+            ..LobpcgOptions::default()
+        };
+        assert_eq!(c, SolverConfig::Lobpcg(want.clone()));
+        // Written back in alphabetical order, only what differs from the defaults, and read
+        // back to the same settings; serialized as the scene files' table, as before.
+        let text = c.to_string();
+        assert_eq!(
+            text,
+            "lobpcg:guard=16,preconditioner=jacobi,shift_factor=0.001"
+        );
+        assert_eq!(text.parse::<SolverConfig>().unwrap(), c);
+        assert!(serde_json::to_value(&c).unwrap().is_object());
+        // Every field survives the round trip, 0 meaning "never" included.
+        let all = LobpcgOptions {
+            guard: Some(3),
+            preconditioner: PreconditionerKind::Identity,
+            shift_factor: 2.5e-7,
+            max_factor_entries: 12,
+            max_fill_ratio: 0.0,
+            escalate_after: None,
+            recompute_every: 4,
+            restart_tol: 1.0,
+            ortho_drop: 0.5,
+            svqb_drop: 0.0,
+            seed: 99,
+        };
+        assert_eq!(LobpcgOptions::parse(&all.spec()).unwrap(), all);
+        assert_eq!(LobpcgOptions::parse("").unwrap(), LobpcgOptions::default());
+        assert_eq!(
+            "lobpcg:".parse::<SolverConfig>().unwrap().to_string(),
+            "lobpcg"
+        );
+        // Bad input: each message names what is wrong.
+        for (bad, says) in [
+            ("guard", "has no '='"),
+            ("gaurd=3", "unknown field"),
+            ("guard=x", "invalid type"),
+            ("preconditioner=ilu", "unknown variant"),
+            ("shift_factor=0", "must be positive and finite"),
+            ("shift_factor=NaN", "must be positive and finite"),
+            ("guard=3\nseed=1", "a key is a name"),
+            ("seed=\"1\"", "a key is a name"),
+            ("jacobi", "has no '='"),
+        ] {
+            let e = LobpcgOptions::parse(bad).unwrap_err().to_string();
+            assert!(e.contains(says), "{bad:?}: {e}");
+        }
+    }
+
     /// Every LOBPCG setting survives a scene file (TOML has no null: "never escalate" is 0).
     #[test]
     fn lobpcg_settings_round_trip_through_toml() {
@@ -324,7 +390,7 @@ mod tests {
             preconditioner: PreconditionerKind::Jacobi,
             ..LobpcgOptions::default()
         });
-        assert_eq!(lob.to_string(), "lobpcg");
+        assert_eq!(lob.to_string(), "lobpcg:preconditioner=jacobi");
         let json = serde_json::to_value(&lob).unwrap();
         assert_eq!(json["lobpcg"]["preconditioner"], "jacobi");
         assert_eq!(serde_json::from_value::<SolverConfig>(json).unwrap(), lob);
@@ -363,14 +429,7 @@ mod tests {
 
     #[test]
     fn bad_strings_are_clear_errors() {
-        for bad in [
-            "",
-            "arnoldi",
-            "LOBPCG",
-            "dense:x",
-            "lobpcg:jacobi",
-            "slepcx",
-        ] {
+        for bad in ["", "arnoldi", "LOBPCG", "dense:x", "slepcx"] {
             let e = bad.parse::<SolverConfig>().unwrap_err().to_string();
             assert!(
                 e.starts_with("invalid solver = ") && e.contains("use lobpcg, dense, slepc"),

@@ -49,6 +49,8 @@ pub struct ModesArgs {
         default_value = ""
     )]
     petsc_options: String,
+    #[arg(long, help = options::LOBPCG.help, default_value = "")]
+    lobpcg: String,
     /// Solve the matrices in DIR (hessian.mtx, mass.mtx from `freeform export` or any
     /// MatrixMarket pair) instead of building them from a shape; writes the eigenvectors as a
     /// MatrixMarket array to --out (default eigenvectors.mtx).
@@ -106,7 +108,7 @@ pub fn run(args: ModesArgs) -> CliResult {
     let png_tile = crate::render::parse_size(&args.png_tile, "--png-tile")?;
     // Check the camera flags before the precompute, not after it.
     let _ = args.view.options()?;
-    opts.solver = solver_config(args.solver, &args.slepc, &args.petsc_options)?;
+    opts.solver = solver_config(args.solver, &args.slepc, &args.petsc_options, &args.lobpcg)?;
     let shape = read_shape(&shape_arg, &args.basis.shape_options())?;
     let bar = TerminalProgress::new();
     let progress: &dyn Progress = if std::io::stderr().is_terminal() {
@@ -239,17 +241,24 @@ fn summary(r: &freeform::precompute::ModesReport, shape: &str, out: &std::path::
 }
 
 /// The eigensolver asked for on the command line (`--solver`; `--slepc` and
-/// `--petsc-options` only apply to `--solver slepc`). A build without SLEPc says so before
-/// judging the `--slepc` value.
+/// `--petsc-options` only apply to `--solver slepc`, `--lobpcg` to `--solver lobpcg`). A
+/// build without SLEPc says so before judging the `--slepc` value.
 pub fn solver_config(
     solver: SolverArg,
     slepc: &str,
     petsc_options: &str,
+    lobpcg: &str,
 ) -> Result<SolverConfig, Box<dyn std::error::Error>> {
     match solver {
         SolverArg::Lobpcg | SolverArg::Dense if !petsc_options.is_empty() => {
             Err("--petsc-options applies to --solver slepc only".into())
         }
+        SolverArg::Dense | SolverArg::Slepc if !lobpcg.is_empty() => {
+            Err("--lobpcg applies to --solver lobpcg only".into())
+        }
+        SolverArg::Lobpcg if !lobpcg.is_empty() => Ok(SolverConfig::Lobpcg(
+            freeform::eigen::lobpcg::LobpcgOptions::parse(lobpcg)?,
+        )),
         SolverArg::Lobpcg => Ok(SolverConfig::lobpcg()),
         SolverArg::Dense => Ok(SolverConfig::Dense),
         #[cfg(not(feature = "slepc"))]
@@ -318,7 +327,7 @@ fn distributed_run(
 /// `--from-matrices DIR`: solve given H and M, report, write the eigenvectors.
 fn from_matrices(dir: &std::path::Path, args: &ModesArgs) -> CliResult {
     use freeform::io::matrix_market::{read_matrices, write_dense_matrix_market};
-    let config = solver_config(args.solver, &args.slepc, &args.petsc_options)?;
+    let config = solver_config(args.solver, &args.slepc, &args.petsc_options, &args.lobpcg)?;
     let solver = config.build()?;
     let clock = freeform::report::Stopwatch::start();
     let (h, m) = read_matrices(dir)?;

@@ -269,7 +269,12 @@ mod tests {
         }
         // The eigensolver flags `modes` writes out itself carry the table's names.
         let modes = subcommand("modes");
-        for name in [&options::SOLVER, &options::SLEPC, &options::PETSC_OPTIONS] {
+        for name in [
+            &options::SOLVER,
+            &options::SLEPC,
+            &options::PETSC_OPTIONS,
+            &options::LOBPCG,
+        ] {
             let flag = name.flag.unwrap();
             let arg = long(&modes, flag).unwrap_or_else(|| panic!("modes: no {flag}"));
             assert_eq!(

@@ -94,6 +94,21 @@ pub struct LobpcgOptions {
     pub seed: u64,
 }
 
+/// The serialized names of [`LobpcgOptions`]' fields, for messages.
+const SETTING_NAMES: [&str; 11] = [
+    "guard",
+    "preconditioner",
+    "shift_factor",
+    "max_factor_entries",
+    "max_fill_ratio",
+    "escalate_after",
+    "recompute_every",
+    "restart_tol",
+    "ortho_drop",
+    "svqb_drop",
+    "seed",
+];
+
 /// Most guard vectors [`LobpcgOptions::validate`] accepts: 10,000 (a typo guard; the default
 /// is 8 to 16).
 pub const MAX_GUARD: usize = 10_000;
@@ -183,6 +198,76 @@ impl Default for LobpcgOptions {
 }
 
 impl LobpcgOptions {
+    /// The settings that differ from the defaults as `KEY=VALUE` pairs joined by commas, by
+    /// their serialized (scene-file) names in alphabetical order, e.g.
+    /// `guard=16,shift_factor=0.001`; empty at the defaults. [`LobpcgOptions::parse`] reads it
+    /// back to the same settings.
+    pub fn spec(&self) -> String {
+        let table = |o: &LobpcgOptions| toml::Table::try_from(o).unwrap_or_default();
+        let (mine, default) = (table(self), table(&LobpcgOptions::default()));
+        mine.iter()
+            .filter(|(k, v)| default.get(*k) != Some(*v))
+            .map(|(k, v)| match v {
+                toml::Value::String(text) => format!("{k}={text}"),
+                other => format!("{k}={other}"),
+            })
+            .collect::<Vec<_>>()
+            .join(",")
+    }
+
+    /// Settings from `KEY=VALUE` pairs separated by commas (the form [`LobpcgOptions::spec`]
+    /// writes), the keys the serialized names of the fields; the others keep their defaults.
+    /// Validated.
+    ///
+    /// # Errors
+    /// [`crate::eigen::EigenError::InvalidRequest`] for a pair without `=`, an unknown key, a
+    /// value of the wrong type, or settings out of range ([`LobpcgOptions::validate`]).
+    pub fn parse(spec: &str) -> Result<Self, crate::eigen::EigenError> {
+        let invalid = |why: String| {
+            crate::eigen::EigenError::InvalidRequest(format!(
+                "invalid lobpcg settings {spec:?}: {why}; give KEY=VALUE pairs separated by \
+                 commas, e.g. guard=16,shift_factor=1e-3 (keys: {})",
+                SETTING_NAMES.join(", ")
+            ))
+        };
+        let mut doc = String::new();
+        for pair in spec.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+            let Some((key, value)) = pair.split_once('=') else {
+                return Err(invalid(format!("{pair:?} has no '='")));
+            };
+            let (key, value) = (key.trim(), value.trim());
+            let word = |t: &str, extra: &str| {
+                !t.is_empty()
+                    && t.chars()
+                        .all(|c| c.is_ascii_alphanumeric() || c == '_' || extra.contains(c))
+            };
+            if !word(key, "") || !word(value, ".+-") {
+                return Err(invalid(format!(
+                    "{pair:?}: a key is a name and a value a number or a name"
+                )));
+            }
+            // Numbers stay numbers (written as TOML reads them: "5.", ".5" or "NaN" are numbers
+            // to Rust, and the range check names a non-finite one); a name (a preconditioner)
+            // becomes a TOML string.
+            let literal = if let Ok(i) = value.parse::<i64>() {
+                i.to_string()
+            } else if let Ok(x) = value.parse::<f64>() {
+                match x {
+                    x if x.is_nan() => "nan".to_string(),
+                    x if x.is_infinite() => if x > 0.0 { "inf" } else { "-inf" }.to_string(),
+                    x => format!("{x:?}"),
+                }
+            } else {
+                format!("\"{value}\"")
+            };
+            doc.push_str(&format!("{key} = {literal}\n"));
+        }
+        let options: LobpcgOptions =
+            toml::from_str(&doc).map_err(|e| invalid(e.message().to_string()))?;
+        options.validate()?;
+        Ok(options)
+    }
+
     /// Guard vectors for `nwant` wanted non-constant pairs.
     pub fn guard_for(&self, nwant: usize) -> usize {
         self.guard.unwrap_or_else(|| 8.max(nwant.div_ceil(4)))
