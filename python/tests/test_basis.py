@@ -138,6 +138,8 @@ def test_save_and_load_round_trip(tmp_path):
         (lambda: ff.Basis.from_shape("box:2,1,1", points=100, spacing=0.1), "not both"),
         (lambda: ff.Basis.from_shape("cone:1"), "unknown shape"),
         (lambda: ff.Basis.from_shape("box:2,1,1", eigensolver="magic"), "magic"),
+        (lambda: ff.Basis.from_shape("box:2,1,1", eigensolver="lobpcg:gaurd=12"),
+         "unknown field `gaurd`"),
         # The pip build has no SLEPc: a request for it is invalid input, not a failed solve.
         (lambda: ff.Basis.from_shape("box:2,1,1", eigensolver="slepc", **SMALL), "without SLEPc"),
         (lambda: ff.Basis.from_shape("box:2,1,1", regions=["halfspace:0.5,0,0"]), "need 6"),
@@ -148,6 +150,16 @@ def test_save_and_load_round_trip(tmp_path):
 def test_bad_input_raises_a_clear_error(call, match):
     with pytest.raises(ff.InvalidInputError, match=match):
         call()
+
+
+def test_lobpcg_settings_in_the_solver_string():
+    # More guard vectors change how LOBPCG gets there, not where: the same eigenvalues.
+    plain = ff.Basis.from_shape("box:2,1,1", **SMALL)
+    guarded = ff.Basis.from_shape("box:2,1,1", eigensolver="lobpcg:guard=12", **SMALL)
+    a, b = plain.report["eigenvalues"], guarded.report["eigenvalues"]
+    # Both converged to a relative residual of 1e-8, so each eigenvalue to ~1e-8 relative.
+    assert np.allclose(a, b, rtol=1e-7, atol=0.0)
+    assert "12 guard" in " ".join(guarded.report["eigen"]["notes"])
 
 
 def test_evaluate_refuses_coefficients_that_are_not_finite():
