@@ -32,7 +32,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Compute skinning eigenmodes of a shape and write them to a basis file (.npz).
-    Modes(modes::ModesArgs),
+    Modes(Box<modes::ModesArgs>),
     /// Simulate a scene file (TOML) and write frames for ParaView.
     Run(run::RunArgs),
     /// The standard beam benchmark: reduced model against the FEM reference (bend | twist).
@@ -112,7 +112,7 @@ pub fn set_threads(threads: Option<usize>) -> CliResult {
 
 fn dispatch(command: Command) -> CliResult {
     match command {
-        Command::Modes(args) => modes::run(args),
+        Command::Modes(args) => modes::run(*args),
         Command::Run(args) => run::run(args),
         Command::Beam(args) => beam::run(args),
         Command::Sweep(args) => sweep::run(args),
