@@ -110,9 +110,11 @@ impl Shape {
     /// integration points sit up to half a cell inside the boundary, so these see fewer
     /// kernels. For a box, a grid over its six faces (corners and edges included) with at most
     /// `spacing` (metres) between neighbours; for a sphere, a Fibonacci lattice of about one
-    /// point per `spacing`^2 of surface; the vertices of a mesh; the points of a point cloud;
-    /// none for an image. At most [`MAX_SURFACE_PROBES`] for the primitives (the spacing
-    /// widens beyond that); an invalid spacing (not positive and finite) gives none.
+    /// point per `spacing`^2 of surface; the vertices of a mesh; none for a point cloud (its
+    /// integration points are its own points, or a subset of them: it has no surface of its
+    /// own, and checking a million splat centres would cost more than the basis) or an image.
+    /// At most [`MAX_SURFACE_PROBES`] for the primitives (the spacing widens beyond that); an
+    /// invalid spacing (not positive and finite) gives none.
     pub fn surface_probes(&self, spacing: f64) -> Vec<Point3> {
         if !(spacing > 0.0 && spacing.is_finite()) {
             return Vec::new();
@@ -121,8 +123,7 @@ impl Shape {
             Shape::Box { size } => box_surface_grid(size, spacing),
             Shape::Sphere { radius } => sphere_lattice(*radius, spacing),
             Shape::Mesh(m) => m.vertices().to_vec(),
-            Shape::PointCloud(c) => c.points().to_vec(),
-            Shape::Image(_) => Vec::new(),
+            Shape::PointCloud(_) | Shape::Image(_) => Vec::new(),
         }
     }
 
