@@ -303,7 +303,7 @@ pub static LOBPCG: OptionName = OptionName {
     flag: Some("--lobpcg"),
     scene: Some("basis.eigensolver"),
     python: Some("eigensolver"),
-    c: Some("solver"),
+    c: None,
     value_prefix: "lobpcg:",
     help: "LOBPCG settings for --solver lobpcg, KEY=VALUE pairs separated by commas, e.g. \
            guard=16,shift_factor=1e-3,preconditioner=incomplete_cholesky (keys: guard, \
