@@ -6,8 +6,10 @@
 //! half a cell inside, do not reach: a box's corners see an eighth of the kernels an interior
 //! point sees, and a kernel density can pull kernels away from them.
 
+use super::density::bulk_spacing;
 use super::options::BasisOptions;
 use super::rkpm::{evaluate_chunk, ChunkedStats, Kernels, CHUNK_POINTS};
+use crate::geometry::Shape;
 use crate::{Error, Point3, Result};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use std::collections::BTreeSet;
@@ -67,6 +69,21 @@ impl SurfaceCover {
             self.uncovered, self.points, p[0], p[1], p[2]
         ))
     }
+}
+
+/// Repair the coverage of `shape`'s surface ([`Shape::surface_probes`] at half the bulk kernel
+/// spacing of `volume`, m^3: several points between neighbouring kernels, so no gap on the
+/// surface goes unchecked) with [`cover_surface`]; nothing to do without a shape (given points).
+pub fn cover_shape_surface(
+    kernels: &mut Kernels,
+    shape: Option<&Shape>,
+    volume: f64,
+    opts: &BasisOptions,
+) -> Result<SurfaceCover> {
+    let probes = shape.map_or_else(Vec::new, |s| {
+        s.surface_probes(0.5 * bulk_spacing(volume, opts.kernels))
+    });
+    cover_surface(kernels, &probes, opts)
 }
 
 /// Repair the coverage of `probes` (surface points, N x 3, metres) for up to

@@ -5,8 +5,8 @@
 use super::assembly::Assembled;
 use super::boundary_modes;
 use super::centers::{farthest_point_sampling_scaled, morton_order};
-use super::coverage::{cover_surface, enlarge_near};
-use super::density::{bulk_spacing, kernel_scale, WholeObject};
+use super::coverage::{cover_shape_surface, enlarge_near};
+use super::density::{kernel_scale, WholeObject};
 use super::memory::{expected_points, MemoryEstimate};
 use super::options::BasisOptions;
 use super::quality::{CoverageReport, ModesReport, SolveFacts};
@@ -162,11 +162,7 @@ impl Problem {
         progress.finish();
         check_cancelled(progress, "sampling")?;
         let sampling = clock.elapsed();
-        // Surface points at half the bulk kernel spacing: several between neighbouring
-        // kernels, so no gap on the surface goes unchecked.
-        let volume: f64 = points.volumes.iter().sum();
-        let probes = shape.surface_probes(0.5 * bulk_spacing(volume, opts.kernels));
-        let mut problem = Self::assemble(points, material, opts, progress, checked, &probes)?;
+        let mut problem = Self::assemble(points, material, opts, progress, checked, Some(shape))?;
         problem.timings.sampling = sampling;
         problem.timings.total += sampling;
         problem.resample = resample_source(shape);
@@ -182,19 +178,19 @@ impl Problem {
         opts: &BasisOptions,
         progress: &dyn Progress,
     ) -> Result<Self> {
-        Self::assemble(points, material, opts, progress, None, &[])
+        Self::assemble(points, material, opts, progress, None, None)
     }
 
     /// [`Problem::from_points`] with the memory estimate already checked (`memory`), or
-    /// checked here (None), and the shape's surface points whose coverage is repaired before
-    /// the assembly (`probes`, metres; [`cover_surface`]).
+    /// checked here (None), and the shape whose surface's coverage is repaired before the
+    /// assembly ([`cover_shape_surface`]; None for given points).
     fn assemble(
         points: IntegrationPoints,
         material: MaterialField,
         opts: &BasisOptions,
         progress: &dyn Progress,
         memory: Option<MemoryEstimate>,
-        probes: &[Point3],
+        shape: Option<&Shape>,
     ) -> Result<Self> {
         opts.validate()?;
         points.check(&material)?;
@@ -227,7 +223,7 @@ impl Problem {
         )?;
         let mut kernels = place_kernels(&points.points, scale.as_deref(), opts)?;
         drop(scale);
-        let surface = cover_surface(&mut kernels, probes, opts)?;
+        let mut surface = cover_shape_surface(&mut kernels, shape, volume, opts)?;
         warnings.extend(surface.warning(opts.coverage_repair_rounds));
         progress.finish();
         check_cancelled(progress, "centers")?;
@@ -251,7 +247,7 @@ impl Problem {
             &weights,
             opts,
             progress,
-            surface.enlarged.clone(),
+            std::mem::take(&mut surface.enlarged),
         )
         .map_err(|e| match e {
             // Report the caller's point index, not the sorted one.

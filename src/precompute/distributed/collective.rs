@@ -46,7 +46,7 @@ pub fn arg_max<const N: usize>(
     index: usize,
     payload: [f64; N],
 ) -> Result<(f64, usize, [f64; N])> {
-    // One all-gather of 5 numbers per rank while P is small (one latency), else a maximum, a
+    // One all-gather of N + 2 numbers per rank while P is small (one latency), else a maximum, a
     // tie-break and a broadcast (3 latencies, O(1) data per rank).
     const GATHER_UP_TO: usize = 16;
     if comm.size() <= GATHER_UP_TO {

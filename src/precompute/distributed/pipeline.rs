@@ -15,7 +15,7 @@ use super::rows::assemble_own_rows;
 use crate::eigen::slepc::{solve_distributed, SlepcOptions};
 use crate::eigen::EigenRequest;
 use crate::geometry::Shape;
-use crate::precompute::coverage::cover_surface;
+use crate::precompute::coverage::cover_shape_surface;
 use crate::precompute::quality::{CoverageReport, ModesReport, SolveFacts};
 use crate::precompute::rkpm::ReproducingError;
 use crate::precompute::skinning::Basis;
@@ -128,8 +128,7 @@ pub fn build_basis_mpi(
     let mut kernels = place_kernels_parts(&part, opts, &comm, progress)?;
     // The shape's surface is repaired on every rank alike (the probes and the kernels are
     // the same everywhere), as in one process.
-    let spacing = crate::precompute::density::bulk_spacing(part.total_volume(), opts.kernels);
-    let surface = cover_surface(&mut kernels, &shape.surface_probes(0.5 * spacing), opts)?;
+    let surface = cover_shape_surface(&mut kernels, Some(shape), part.total_volume(), opts)?;
     timings.centers = clock.lap();
     stage_peaks[1] = peak_now();
     let k = kernels.len();
