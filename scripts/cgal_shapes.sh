@@ -7,13 +7,16 @@
 # faces (default 2500) is first reduced to MAX_FACES by scripts/decimate_off.py (MeshLab's
 # quadric edge collapse through pymeshlab, installed into OUT_DIR/.venv): the FEM reference
 # keeps every surface triangle, so a large input would cost hours of FEM; the reduced mesh is
-# then checked like any other. Writes OUT_DIR/shapes.csv:
+# then checked like any other. A mesh that fails a check is repaired at its own size by
+# MeshFix (scripts/repair_off.py through pymeshfix; REPAIR=0 turns this off), then reduced and
+# checked again; it is kept as "repaired" when it passes. Writes OUT_DIR/shapes.csv:
 #   name,input_faces,vertices,faces,status,reason
 #
 #   scripts/cgal_shapes.sh OUT_DIR [FREEFORM_BIN]
 #
 # FREEFORM_BIN defaults to target/release/freeform (built when missing). Installing the
-# packages (libcgal-demo, tetgen) needs root (apt-get); pymeshlab comes from PyPI.
+# packages (libcgal-demo, tetgen) needs root (apt-get); pymeshlab and pymeshfix come from
+# PyPI.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -48,52 +51,98 @@ tar -xzf "$tarball" -C "$out" --strip-components=2 "${members[@]}"
 csv=$out/shapes.csv
 echo "name,input_faces,vertices,faces,status,reason" > "$csv"
 venv=$out/.venv
+
+# The Python tools (pymeshlab, pymeshfix) in OUT_DIR/.venv, installed on first use.
+python_with() {
+    if [[ ! -x $venv/bin/python ]] || ! "$venv/bin/python" -c "import $1" 2>/dev/null; then
+        echo "installing $1 into $venv ..." >&2
+        [[ -x $venv/bin/python ]] || python3 -m venv "$venv"
+        "$venv/bin/pip" install -q "$1"
+    fi
+}
+
+# Reduce FILE in place to at most max_faces faces; prints the error if MeshLab cannot.
+reduce() {
+    local file=$1 name=$2 nf msg status
+    read -r _ nf _ < <(grep -v '^\s*#' "$file" | sed -n 2p)
+    ((nf > max_faces)) || return 0
+    python_with pymeshlab
+    if msg=$("$venv/bin/python" scripts/decimate_off.py "$file" "${file%.off}.decimated.off" \
+        "$max_faces" 2>&1 >/dev/null); then
+        mv "${file%.off}.decimated.off" "$file"
+        echo "$name: $nf faces reduced to at most $max_faces" >&2
+    else
+        status=$?
+        rm -f "${file%.off}.decimated.off"
+        echo "decimation failed (exit $status): $(printf '%s' "$msg" | tail -n1)"
+    fi
+}
+
+# Prints why FILE (OUT_DIR/NAME.off) is not a valid solid, or nothing when it is.
+check() {
+    local file=$1 name=$2 msg found
+    # The library's own check: a tiny basis (64 kernels, 2 modes) reads the mesh, welds it,
+    # checks it is closed and edge-manifold, and samples its inside.
+    if ! msg=$("$bin" modes "$file" --kernels 64 --modes 2 --out /dev/null 2>&1 >/dev/null); then
+        printf '%s' "$msg" | grep -m1 '^error' | sed "s|$file: ||; s|^error: ||" || true
+        return 0
+    fi
+    # TetGen's self-intersection check (-d) writes only the surface; no tetrahedra.
+    found=$(cd "$out" && tetgen -pd "$name.off" 2>&1 | grep -m1 'are intersecting' || true)
+    rm -f "$out/$name".1.*
+    if [[ $found == *Found* ]]; then
+        echo "TetGen: ${found#!! Found }"
+    fi
+}
+
 kept=0
+repaired=0
 for s in "${shapes[@]}"; do
     file=$out/$s.off
     read -r _ nf_in _ < <(grep -v '^\s*#' "$file" | sed -n 2p)
-    if ((nf_in > max_faces)); then
-        if [[ ! -x $venv/bin/python ]] || ! "$venv/bin/python" -c 'import pymeshlab' 2>/dev/null; then
-            echo "installing pymeshlab into $venv ..." >&2
-            python3 -m venv "$venv"
-            "$venv/bin/pip" install -q pymeshlab
-        fi
-        # A mesh MeshLab cannot reduce is skipped with its message, like any failed check.
-        if msg=$("$venv/bin/python" scripts/decimate_off.py "$file" "$out/$s.decimated.off" \
-            "$max_faces" 2>&1 >/dev/null); then
-            mv "$out/$s.decimated.off" "$file"
-            echo "$s: $nf_in faces reduced to at most $max_faces" >&2
+    cp "$file" "$out/$s.input"
+    reason=$(reduce "$file" "$s")
+    [[ -n $reason ]] || reason=$(check "$file" "$s")
+    status=kept
+    if [[ -n $reason && ${REPAIR:-1} == 1 ]]; then
+        # A refused input is repaired by MeshFix (scripts/repair_off.py) at its own size,
+        # then reduced and checked like any input; the reason says what was wrong.
+        # (`reduce` overwrote FILE; the input is kept beside it until this is done.)
+        python_with pymeshfix
+        parts=""
+        if msg=$("$venv/bin/python" scripts/repair_off.py "$out/$s.input" "$file" 2>&1); then
+            read -r comps faces_before faces_after <<<"$(printf '%s' "$msg" | tail -n1)"
+            again=$(reduce "$file" "$s")
+            [[ -n $again ]] || again=$(check "$file" "$s")
+            # The reduction can make faces cross again: one more MeshFix pass on the
+            # reduced mesh (it moves or drops a few faces, never adds many).
+            if [[ -n $again ]] && msg=$("$venv/bin/python" scripts/repair_off.py "$file" "$file" 2>&1); then
+                read -r _ _ n <<<"$(printf '%s' "$msg" | tail -n1)"
+                parts="; again after the reduction: $n faces"
+                again=$(check "$file" "$s")
+            fi
+            if [[ -z $again ]]; then
+                status=repaired
+                ((comps == 1)) || parts=" (kept the largest of $comps components)$parts"
+                reason="was: $reason; MeshFix: $faces_before -> $faces_after faces$parts"
+                echo "repaired $s: $reason" >&2
+            else
+                reason="$reason; after MeshFix: $again"
+            fi
         else
-            status=$?
-            rm -f "$out/$s.decimated.off"
-            reduce_error="decimation failed (exit $status): $(printf '%s' "$msg" | tail -n1)"
+            reason="$reason; MeshFix failed: $(printf '%s' "$msg" | tail -n1)"
         fi
     fi
+    rm -f "$out/$s.input"
     read -r nv nf _ < <(grep -v '^\s*#' "$file" | sed -n 2p)
-    # The library's own check: a tiny basis (64 kernels, 2 modes) reads the mesh, welds it,
-    # checks it is closed and edge-manifold, and samples its inside.
-    reason=
-    if [[ -n ${reduce_error:-} ]]; then
-        reason=$reduce_error
-        unset reduce_error
-    elif ! msg=$("$bin" modes "$file" --kernels 64 --modes 2 --out /dev/null 2>&1 >/dev/null); then
-        reason=$(printf '%s' "$msg" | grep -m1 '^error' | sed "s|$file: ||; s|^error: ||")
-    else
-        # TetGen's self-intersection check (-d) writes only the surface; no tetrahedra.
-        found=$(cd "$out" && tetgen -pd "$s.off" 2>&1 | grep -m1 'are intersecting' || true)
-        rm -f "$out/$s".1.*
-        if [[ $found == *Found* ]]; then
-            reason="TetGen: ${found#!! Found }"
-        fi
-    fi
-    if [[ -z $reason ]]; then
-        echo "$s,$nf_in,$nv,$nf,kept," >> "$csv"
+    if [[ $status == kept && -z $reason ]] || [[ $status == repaired ]]; then
+        echo "$s,$nf_in,$nv,$nf,$status,${reason//,/;}" >> "$csv"
         kept=$((kept + 1))
+        [[ $status == kept ]] || repaired=$((repaired + 1))
     else
-        reason=${reason//,/;}
-        echo "$s,$nf_in,$nv,$nf,skipped,$reason" >> "$csv"
+        echo "$s,$nf_in,$nv,$nf,skipped,${reason//,/;}" >> "$csv"
         rm -f "$file"
         echo "skipped $s: $reason" >&2
     fi
 done
-echo "$kept of ${#shapes[@]} shapes kept in $out (list: $csv)" >&2
+echo "$kept of ${#shapes[@]} shapes kept in $out ($repaired of them repaired; list: $csv)" >&2
