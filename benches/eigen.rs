@@ -31,12 +31,12 @@ fn spmm(c: &mut Criterion) {
     let mut y = vec![0.0; k * b];
     let label = format!("K{k}_b{b}");
     group.bench_function(BenchmarkId::new("row_major_rayon", &label), |bench| {
-        bench.iter(|| sparse::sym_mul_row_major(&h, black_box(&x), b, &mut y, b, b))
+        bench.iter(|| sparse::sym_mul_row_major(h.as_ref(), black_box(&x), b, &mut y, b, b))
     });
     let xc = Mat::<f64>::from_fn(k, b, |i, j| x[i * b + j]);
     let mut yc = Mat::<f64>::zeros(k, b);
     group.bench_function(BenchmarkId::new("col_major_rayon", &label), |bench| {
-        bench.iter(|| sparse::sym_mul_block(&h, black_box(xc.as_ref()), yc.as_mut()))
+        bench.iter(|| sparse::sym_mul_block(h.as_ref(), black_box(xc.as_ref()), yc.as_mut()))
     });
     group.bench_function(BenchmarkId::new("faer_sparse_dense", &label), |bench| {
         bench.iter(|| {
@@ -69,14 +69,14 @@ fn solve(c: &mut Criterion) {
         group.bench_function(BenchmarkId::new("lobpcg", &label), |bench| {
             bench.iter(|| {
                 Lobpcg::default()
-                    .solve_converged(&h, &m, &req, &Silent)
+                    .solve_converged(h.as_ref(), m.as_ref(), &req, &Silent)
                     .expect("lobpcg")
             })
         });
         group.bench_function(BenchmarkId::new("dense", &label), |bench| {
             bench.iter(|| {
                 DenseSolver
-                    .solve_converged(&h, &m, &req, &Silent)
+                    .solve_converged(h.as_ref(), m.as_ref(), &req, &Silent)
                     .expect("dense")
             })
         });
@@ -94,7 +94,7 @@ fn solve(c: &mut Criterion) {
         |bench| {
             bench.iter(|| {
                 Lobpcg::default()
-                    .solve_converged(&h, &m, &req, &Silent)
+                    .solve_converged(h.as_ref(), m.as_ref(), &req, &Silent)
                     .expect("lobpcg")
             })
         },

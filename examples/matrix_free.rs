@@ -69,7 +69,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (ha, ma) = q1_fem(GRID, SPACING);
     let h = Q1Operator::new(GRID, SPACING, Q1Part::Stiffness)?;
     let m = Q1Operator::new(GRID, SPACING, Q1Part::Mass)?;
-    let assembled = Lobpcg::default().solve_converged(&ha, &ma, &request, &Silent)?;
+    let assembled =
+        Lobpcg::default().solve_converged(ha.as_ref(), ma.as_ref(), &request, &Silent)?;
     let mut rows = Vec::new();
     let rank = mpi_rank();
     if rank == 0 {

@@ -34,7 +34,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let sw = Stopwatch::start();
     let problem = Problem::from_shape(&shape, &opts, &Silent)?;
-    let (h, m) = (&problem.matrices().hessian, &problem.matrices().mass);
+    let (h, m) = (problem.matrices().hessian(), problem.matrices().mass());
     println!(
         "K = {}, nnz(H) = {}, assembled in {:.1} s, {} rayon threads",
         h.nrows(),
@@ -54,11 +54,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let solver = Lobpcg::new(options.clone());
     let hc = FnOperator::new(h.nrows(), |x: MatRef<'_, f64>, y: MatMut<'_, f64>| {
-        sparse::sym_mul_block(h, x, y);
+        sparse::sym_mul_block(h.as_ref(), x, y);
         Ok(())
     });
     let mc = FnOperator::new(m.nrows(), |x: MatRef<'_, f64>, y: MatMut<'_, f64>| {
-        sparse::sym_mul_block(m, x, y);
+        sparse::sym_mul_block(m.as_ref(), x, y);
         Ok(())
     });
     println!("| run | path | solve s | iterations | matvecs | sparse products s | max residual |");

@@ -80,8 +80,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let repro = reproducing_error(&kernels, &ip.points, &sf);
         let a = assemble(&sf, &ip.volumes, &mat.hessian_weights(), k)?;
         let sol = DenseSolver.solve(
-            &a.hessian,
-            &a.mass,
+            a.hessian(),
+            a.mass(),
             &EigenRequest {
                 nev: 7,
                 tol: 1e-10,
@@ -91,7 +91,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         )?;
         let ev: Vec<f64> = sol.values.iter().map(|v| v / (l + 4.0 * m)).collect();
         let errs: Vec<f64> = (0..6).map(|i| (ev[i + 1] - exact[i]) / exact[i]).collect();
-        let md = a.mass.to_dense();
+        let md = a.mass().to_dense();
         let em = md
             .self_adjoint_eigenvalues(faer::Side::Lower)
             .map_err(|e| format!("{e:?}"))?;
@@ -103,7 +103,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             stats.min_rcond,
             em[em.len() - 1] / em[0],
             stats.mean_cover,
-            a.hessian.compute_nnz() as f64 / k as f64,
+            a.hessian().compute_nnz() as f64 / k as f64,
             repro.max()
         );
     }

@@ -21,7 +21,7 @@
 
 use crate::simd::multiversion;
 use faer::prelude::ReborrowMut;
-use faer::sparse::{SparseColMat, SymbolicSparseColMat};
+use faer::sparse::{SparseColMat, SparseColMatRef, SymbolicSparseColMat};
 use faer::{Mat, MatMut, MatRef};
 use rayon::prelude::*;
 
@@ -29,6 +29,12 @@ use rayon::prelude::*;
 /// 32-bit column pointers and row indices (at most 2^32 - 1 stored entries; see
 /// [`MAX_ENTRIES`]).
 pub type SparseMatrix = SparseColMat<u32, f64>;
+
+/// A borrowed view of a symmetric sparse matrix with [`SparseMatrix`]'s layout: what the
+/// kernels and the eigensolvers take, so that matrices which share one stored pattern (the
+/// assembled pencil, [`crate::precompute::Assembled`]) need not own a copy each.
+/// `owned.as_ref()` views a [`SparseMatrix`].
+pub type SparseMatrixRef<'a> = SparseColMatRef<'a, u32, f64>;
 
 /// Most stored entries a [`SparseMatrix`] holds: its column pointers are u32. (A K = 1,000,000
 /// RKPM pencil has 253M; the limit is ~17 times that.)
@@ -58,7 +64,7 @@ pub fn from_compressed(n: usize, ptr: Vec<u32>, idx: Vec<u32>, val: Vec<f64>) ->
 /// # Panics
 /// If `ncols > ldx`, `ncols > ldy`, or a slice is too short for K rows (caller bug).
 pub fn sym_mul_row_major(
-    a: &SparseMatrix,
+    a: SparseMatrixRef<'_>,
     x: &[f64],
     ldx: usize,
     y: &mut [f64],
@@ -199,7 +205,7 @@ fn pair_columns_in_registers<const W: usize>(
 /// `true` if `a` and `b` have the same shape and identical stored patterns (column ranges and
 /// row indices), so one pass over the indices can serve both (see
 /// [`sym_mul_pair_row_major`]). O(nnz).
-pub fn same_pattern(a: &SparseMatrix, b: &SparseMatrix) -> bool {
+pub fn same_pattern(a: SparseMatrixRef<'_>, b: SparseMatrixRef<'_>) -> bool {
     let (sa, sb) = (a.symbolic(), b.symbolic());
     a.nrows() == b.nrows()
         && a.ncols() == b.ncols()
@@ -237,8 +243,8 @@ fn check_row_major(
 /// the patterns on every call (O(nnz)); [`SharedPattern`] checks them once for many products.
 #[allow(clippy::too_many_arguments)]
 pub fn sym_mul_pair_row_major(
-    a: &SparseMatrix,
-    b: &SparseMatrix,
+    a: SparseMatrixRef<'_>,
+    b: SparseMatrixRef<'_>,
     x: &[f64],
     ldx: usize,
     ya: &mut [f64],
@@ -260,13 +266,13 @@ pub fn sym_mul_pair_row_major(
 /// lives.
 #[derive(Clone, Copy)]
 pub struct SharedPattern<'m> {
-    a: &'m SparseMatrix,
-    b: &'m SparseMatrix,
+    a: SparseMatrixRef<'m>,
+    b: SparseMatrixRef<'m>,
 }
 
 impl<'m> SharedPattern<'m> {
     /// The pair, if `a` and `b` share their pattern (O(nnz) check); None otherwise.
-    pub fn new(a: &'m SparseMatrix, b: &'m SparseMatrix) -> Option<SharedPattern<'m>> {
+    pub fn new(a: SparseMatrixRef<'m>, b: SparseMatrixRef<'m>) -> Option<SharedPattern<'m>> {
         same_pattern(a, b).then_some(SharedPattern { a, b })
     }
 
@@ -329,7 +335,7 @@ impl<'m> SharedPattern<'m> {
 ///
 /// # Panics
 /// If the shapes do not match (caller bug).
-pub fn sym_mul_block(a: &SparseMatrix, x: MatRef<'_, f64>, y: MatMut<'_, f64>) {
+pub fn sym_mul_block(a: SparseMatrixRef<'_>, x: MatRef<'_, f64>, y: MatMut<'_, f64>) {
     let n = a.nrows();
     assert!(
         a.ncols() == n && x.nrows() == n && y.nrows() == n && x.ncols() == y.ncols(),
@@ -420,7 +426,7 @@ fn row_major_slice_mut(y: MatMut<'_, f64>, ld: usize) -> &mut [f64] {
 }
 
 /// Diagonal of `a` (length K; absent entries are 0).
-pub fn diagonal(a: &SparseMatrix) -> Vec<f64> {
+pub fn diagonal(a: SparseMatrixRef<'_>) -> Vec<f64> {
     let n = a.ncols();
     let sym = a.symbolic();
     let idx = sym.row_idx();
@@ -439,7 +445,7 @@ pub fn diagonal(a: &SparseMatrix) -> Vec<f64> {
 }
 
 /// Trace of `a` (sum of the diagonal).
-pub fn trace(a: &SparseMatrix) -> f64 {
+pub fn trace(a: SparseMatrixRef<'_>) -> f64 {
     diagonal(a).iter().sum()
 }
 
@@ -448,7 +454,7 @@ pub fn trace(a: &SparseMatrix) -> f64 {
 /// ||A||_1. For Laplacian-like and mass-like matrices it is within a small factor (<= ~2) of
 /// ||A||_2. Exact and cheap (one pass over the values), so the residual norms built on it are
 /// reproducible.
-pub fn norm_1(a: &SparseMatrix) -> f64 {
+pub fn norm_1(a: SparseMatrixRef<'_>) -> f64 {
     let sym = a.symbolic();
     let val = a.val();
     (0..a.ncols())
@@ -462,7 +468,7 @@ pub fn norm_1(a: &SparseMatrix) -> f64 {
 /// fixed, deterministic start vector (a lower bound that approaches ||A||_2 from below; 20-30
 /// iterations give 1-2 correct digits for the matrices of this crate). Returns 0 for an empty
 /// or zero matrix.
-pub fn norm_2_estimate(a: &SparseMatrix, iters: usize) -> f64 {
+pub fn norm_2_estimate(a: SparseMatrixRef<'_>, iters: usize) -> f64 {
     let n = a.nrows();
     if n == 0 {
         return 0.0;
@@ -498,7 +504,7 @@ pub fn norm2(x: &[f64]) -> f64 {
 }
 
 /// First stored entry that is NaN or infinite, as (row, column), or `None`.
-pub fn first_non_finite(a: &SparseMatrix) -> Option<(usize, usize)> {
+pub fn first_non_finite(a: SparseMatrixRef<'_>) -> Option<(usize, usize)> {
     let sym = a.symbolic();
     let idx = sym.row_idx();
     let val = a.val();
@@ -513,7 +519,7 @@ pub fn first_non_finite(a: &SparseMatrix) -> Option<(usize, usize)> {
 }
 
 /// Sorted (row index, value) pairs of column j, duplicates summed (handles unsorted input).
-pub(crate) fn sorted_column(a: &SparseMatrix, j: usize, out: &mut Vec<(usize, f64)>) {
+pub(crate) fn sorted_column(a: SparseMatrixRef<'_>, j: usize, out: &mut Vec<(usize, f64)>) {
     let sym = a.symbolic();
     let range = sym.col_range(j);
     out.clear();
@@ -541,7 +547,7 @@ pub(crate) fn sorted_column(a: &SparseMatrix, j: usize, out: &mut Vec<(usize, f6
 /// with sorted columns (every matrix built by [`from_compressed`] or faer's checked
 /// constructors) the only extra memory is one cursor per column, otherwise the transpose is
 /// built by a counting sort (O(nnz) memory).
-pub fn symmetry_defect(a: &SparseMatrix) -> f64 {
+pub fn symmetry_defect(a: SparseMatrixRef<'_>) -> f64 {
     let n = a.nrows();
     if a.ncols() != n {
         return f64::INFINITY;
@@ -564,7 +570,7 @@ pub fn symmetry_defect(a: &SparseMatrix) -> f64 {
 /// the upper part of column r; the upper entries of column r are met in increasing row order
 /// as j grows, so `cursor[r]` walks them once: entries it passes over without a match have no
 /// mirror, and so do those left above the diagonal at the end.
-fn symmetry_defect_sorted(a: &SparseMatrix) -> f64 {
+fn symmetry_defect_sorted(a: SparseMatrixRef<'_>) -> f64 {
     let n = a.nrows();
     let sym = a.symbolic();
     let idx = sym.row_idx();
@@ -607,7 +613,7 @@ fn symmetry_defect_sorted(a: &SparseMatrix) -> f64 {
 
 /// [`symmetry_defect`] for any column order: builds the transpose by a counting sort and
 /// merges each column with its mirror.
-fn symmetry_defect_by_transpose(a: &SparseMatrix) -> f64 {
+fn symmetry_defect_by_transpose(a: SparseMatrixRef<'_>) -> f64 {
     let n = a.nrows();
     // Transpose by counting sort: column j of the transpose lists row j of `a` in
     // increasing column order, hence sorted.
@@ -691,7 +697,12 @@ fn symmetry_defect_by_transpose(a: &SparseMatrix) -> f64 {
 /// # Panics
 /// If the shapes differ, or the union holds more than [`MAX_ENTRIES`] entries (caller bugs:
 /// callers bound nnz(A) + nnz(B) first).
-pub fn add_scaled(alpha: f64, a: &SparseMatrix, beta: f64, b: &SparseMatrix) -> SparseMatrix {
+pub fn add_scaled(
+    alpha: f64,
+    a: SparseMatrixRef<'_>,
+    beta: f64,
+    b: SparseMatrixRef<'_>,
+) -> SparseMatrix {
     assert!(
         a.nrows() == b.nrows() && a.ncols() == b.ncols(),
         "add_scaled: shape mismatch"
@@ -754,7 +765,7 @@ pub(crate) fn merge_scaled(
 }
 
 /// Dense copy of `a` (K x K). For the dense reference solver and tests only.
-pub fn to_dense(a: &SparseMatrix) -> Mat<f64> {
+pub fn to_dense(a: SparseMatrixRef<'_>) -> Mat<f64> {
     a.to_dense()
 }
 
@@ -789,20 +800,24 @@ mod tests {
     fn block_product_matches_dense_in_every_layout() {
         let n = 300;
         let a = small(n);
-        let ad = to_dense(&a);
+        let ad = to_dense(a.as_ref());
         let b = 7;
         let x = Mat::from_fn(n, b, |i, j| ((i * 31 + j * 17) % 13) as f64 - 6.0);
         let reference = &ad * &x;
         // Column-major.
         let mut y = Mat::zeros(n, b);
-        sym_mul_block(&a, x.as_ref(), y.as_mut());
+        sym_mul_block(a.as_ref(), x.as_ref(), y.as_mut());
         // Integer-valued inputs: the products are exact sums of small integers times the
         // matrix values, so the only difference is summation order (~1e-14 relative).
         assert!((&y - &reference).norm_max() < 1e-12);
         // Row-major (transpose of a column-major b x n matrix).
         let xt = x.transpose().to_owned();
         let mut yt = Mat::<f64>::zeros(b, n);
-        sym_mul_block(&a, xt.as_ref().transpose(), yt.as_mut().transpose_mut());
+        sym_mul_block(
+            a.as_ref(),
+            xt.as_ref().transpose(),
+            yt.as_mut().transpose_mut(),
+        );
         assert!((yt.transpose() - &reference).norm_max() < 1e-12);
         // Strided row-major sub-block of a wider buffer via the slice kernel.
         let ld = 11;
@@ -813,7 +828,7 @@ mod tests {
             }
         }
         let mut ys = vec![-7.0; n * ld];
-        sym_mul_row_major(&a, &xs[2..], ld, &mut ys[3..], ld, b);
+        sym_mul_row_major(a.as_ref(), &xs[2..], ld, &mut ys[3..], ld, b);
         for i in 0..n {
             for c in 0..b {
                 assert!((ys[i * ld + 3 + c] - reference[(i, c)]).abs() < 1e-12);
@@ -823,7 +838,7 @@ mod tests {
         }
         // Reversed rows (row stride -1) go through the generic fallback.
         let mut y2 = Mat::zeros(n, b);
-        sym_mul_block(&a, x.as_ref().reverse_rows(), y2.as_mut());
+        sym_mul_block(a.as_ref(), x.as_ref().reverse_rows(), y2.as_mut());
         let expected = &ad * x.as_ref().reverse_rows();
         assert!((&y2 - &expected).norm_max() < 1e-12);
     }
@@ -837,14 +852,23 @@ mod tests {
             .iter_mut()
             .enumerate()
             .for_each(|(i, v)| *v = 0.5 * *v + (i % 3) as f64);
-        assert!(same_pattern(&a, &b));
+        assert!(same_pattern(a.as_ref(), b.as_ref()));
         let (ld, w) = (5, 3);
         let x: Vec<f64> = (0..n * ld).map(|i| ((i * 37) % 11) as f64 - 5.0).collect();
         let (mut ya, mut yb) = (vec![0.0; n * ld], vec![0.0; n * ld]);
-        sym_mul_pair_row_major(&a, &b, &x[1..], ld, &mut ya[2..], &mut yb[2..], ld, w);
+        sym_mul_pair_row_major(
+            a.as_ref(),
+            b.as_ref(),
+            &x[1..],
+            ld,
+            &mut ya[2..],
+            &mut yb[2..],
+            ld,
+            w,
+        );
         let (mut za, mut zb) = (vec![0.0; n * ld], vec![0.0; n * ld]);
-        sym_mul_row_major(&a, &x[1..], ld, &mut za[2..], ld, w);
-        sym_mul_row_major(&b, &x[1..], ld, &mut zb[2..], ld, w);
+        sym_mul_row_major(a.as_ref(), &x[1..], ld, &mut za[2..], ld, w);
+        sym_mul_row_major(b.as_ref(), &x[1..], ld, &mut zb[2..], ld, w);
         // Same summation order: bit-identical.
         assert_eq!(ya, za);
         assert_eq!(yb, zb);
@@ -855,8 +879,17 @@ mod tests {
             (0..n as u32).collect(),
             vec![2.0; n],
         );
-        assert!(!same_pattern(&a, &eye));
-        sym_mul_pair_row_major(&a, &eye, &x[1..], ld, &mut ya[2..], &mut yb[2..], ld, w);
+        assert!(!same_pattern(a.as_ref(), eye.as_ref()));
+        sym_mul_pair_row_major(
+            a.as_ref(),
+            eye.as_ref(),
+            &x[1..],
+            ld,
+            &mut ya[2..],
+            &mut yb[2..],
+            ld,
+            w,
+        );
         assert_eq!(ya, za);
         for i in 0..n {
             for c in 0..w {
@@ -869,30 +902,30 @@ mod tests {
     fn norms_diagonal_and_checks() {
         let n = 200;
         let a = small(n);
-        let ad = to_dense(&a);
-        let d = diagonal(&a);
+        let ad = to_dense(a.as_ref());
+        let d = diagonal(a.as_ref());
         for i in 0..n {
             assert_eq!(d[i], ad[(i, i)]);
         }
-        assert!((trace(&a) - d.iter().sum::<f64>()).abs() < 1e-12);
+        assert!((trace(a.as_ref()) - d.iter().sum::<f64>()).abs() < 1e-12);
         // ||A||_1 by brute force.
         let mut n1 = 0.0f64;
         for j in 0..n {
             n1 = n1.max((0..n).map(|i| ad[(i, j)].abs()).sum());
         }
-        assert_eq!(norm_1(&a), n1);
+        assert_eq!(norm_1(a.as_ref()), n1);
         // ||A||_2 from the dense eigenvalues; the power estimate is a lower bound and, after 60
         // iterations on this well-separated spectrum, within 1% of it.
         let ev = ad.self_adjoint_eigenvalues(faer::Side::Lower).unwrap();
         let n2 = ev.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        let est = norm_2_estimate(&a, 60);
+        let est = norm_2_estimate(a.as_ref(), 60);
         assert!(
             est <= n2 * (1.0 + 1e-12) && est > 0.99 * n2,
             "est {est} vs {n2}"
         );
         assert!(n2 <= n1 + 1e-12);
-        assert_eq!(first_non_finite(&a), None);
-        assert_eq!(symmetry_defect(&a), 0.0);
+        assert_eq!(first_non_finite(a.as_ref()), None);
+        assert_eq!(symmetry_defect(a.as_ref()), 0.0);
         // alpha A + beta I.
         let eye = SparseMatrix::try_new_from_triplets(
             n,
@@ -900,8 +933,8 @@ mod tests {
             &(0..n).map(|i| tri(i, i, 1.0)).collect::<Vec<_>>(),
         )
         .unwrap();
-        let s = add_scaled(2.0, &a, 0.5, &eye);
-        let sd = to_dense(&s);
+        let s = add_scaled(2.0, a.as_ref(), 0.5, eye.as_ref());
+        let sd = to_dense(s.as_ref());
         for i in 0..n {
             for j in 0..n {
                 let e = 2.0 * ad[(i, j)] + if i == j { 0.5 } else { 0.0 };
@@ -920,7 +953,7 @@ mod tests {
             tri(2, 2, 1.0),
         ];
         let a = SparseMatrix::try_new_from_triplets(3, 3, &t).unwrap();
-        assert_eq!(first_non_finite(&a), Some((1, 1)));
+        assert_eq!(first_non_finite(a.as_ref()), Some((1, 1)));
         let t = vec![
             tri(0, 0, 1.0),
             tri(1, 0, 2.0),
@@ -929,7 +962,7 @@ mod tests {
         ];
         let a = SparseMatrix::try_new_from_triplets(3, 3, &t).unwrap();
         // |2.0 - 2.5| = 0.5 and the unmatched (2,1) entry gives 1.0.
-        assert_eq!(symmetry_defect(&a), 1.0);
+        assert_eq!(symmetry_defect(a.as_ref()), 1.0);
     }
 
     /// The cursor walk (sorted columns) and the transpose merge (unsorted columns) both give
@@ -966,14 +999,14 @@ mod tests {
                 }
             }
             let a = SparseMatrix::try_new_from_triplets(n, n, &t).unwrap();
-            let d = to_dense(&a);
+            let d = to_dense(a.as_ref());
             let mut want = 0.0f64;
             for i in 0..n {
                 for j in 0..n {
                     want = want.max((d[(i, j)] - d[(j, i)]).abs());
                 }
             }
-            assert_eq!(symmetry_defect(&a), want, "trial {trial}");
+            assert_eq!(symmetry_defect(a.as_ref()), want, "trial {trial}");
             // The same matrix with every column reversed takes the transpose path.
             let sym = a.symbolic();
             let (mut idx, mut val) = (Vec::new(), Vec::new());
@@ -987,7 +1020,11 @@ mod tests {
                 SymbolicSparseColMat::new_unsorted_checked(n, n, ptr, None, idx),
                 val,
             );
-            assert_eq!(symmetry_defect(&reversed), want, "trial {trial}, unsorted");
+            assert_eq!(
+                symmetry_defect(reversed.as_ref()),
+                want,
+                "trial {trial}, unsorted"
+            );
         }
     }
 }

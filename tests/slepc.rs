@@ -46,7 +46,7 @@ fn every_preset_matches_the_analytic_spectrum_and_the_dense_solver() {
     let (h, m) = q1_fem(N, H);
     let exact = q1_fem_eigenvalues(N, H, 8);
     let dense = DenseSolver
-        .solve_converged(&h, &m, &request(1e-10), &Silent)
+        .solve_converged(h.as_ref(), m.as_ref(), &request(1e-10), &Silent)
         .unwrap();
     // The dense solver is exact to round-off (~1e-13 relative here), so it checks the
     // analytic formula as much as it checks SLEPc.
@@ -61,7 +61,7 @@ fn every_preset_matches_the_analytic_spectrum_and_the_dense_solver() {
             ..SlepcOptions::default()
         });
         let sol = solver
-            .solve_converged(&h, &m, &request(1e-10), &Silent)
+            .solve_converged(h.as_ref(), m.as_ref(), &request(1e-10), &Silent)
             .unwrap();
         // Residual tolerance 1e-10 (relative to ||H|| + |lambda| ||M||) bounds the eigenvalue
         // error by ~ residual^2 / gap ~ 1e-20 relative for shift-and-invert and by ~ residual
@@ -97,7 +97,7 @@ fn rkpm_matrices_agree_with_the_dense_solver() {
         ..BasisOptions::default()
     };
     let p = Problem::from_shape(&shape, &opts, &Silent).unwrap();
-    let (h, m) = (&p.matrices().hessian, &p.matrices().mass);
+    let (h, m) = (p.matrices().hessian(), p.matrices().mass());
     let req = EigenRequest {
         nev: 9,
         tol: 1e-10,
@@ -138,7 +138,7 @@ fn petsc_options_override_the_preset() {
         .unwrap(),
     );
     let sol = solver
-        .solve_converged(&h, &m, &request(1e-9), &Silent)
+        .solve_converged(h.as_ref(), m.as_ref(), &request(1e-9), &Silent)
         .unwrap();
     let note = sol.info.notes.join("; ");
     assert!(
@@ -149,7 +149,7 @@ fn petsc_options_override_the_preset() {
     assert!(max_rel_diff(&sol.values, &exact) < 1e-7);
     // The options were removed after the solve: the next default solve is the preset's again.
     let sol = SlepcSolver::default()
-        .solve_converged(&h, &m, &request(1e-9), &Silent)
+        .solve_converged(h.as_ref(), m.as_ref(), &request(1e-9), &Silent)
         .unwrap();
     assert!(
         sol.info.notes[0].contains("eps lobpcg") && sol.info.notes[0].contains("pc gamg"),
@@ -167,11 +167,13 @@ fn options_for_objects_made_at_setup_reach_them() {
     let solver = SlepcSolver::new(
         SlepcOptions::parse("lobpcg-gamg:-st_mg_levels_ksp_type bogus_smoother").unwrap(),
     );
-    let err = solver.solve(&h, &m, &request(1e-9), &Silent).unwrap_err();
+    let err = solver
+        .solve(h.as_ref(), m.as_ref(), &request(1e-9), &Silent)
+        .unwrap_err();
     assert!(err.to_string().contains("bogus_smoother"), "{err}");
     // And they are gone after the solve: the same preset without them solves.
     let sol = SlepcSolver::new(SlepcOptions::parse("lobpcg-gamg").unwrap())
-        .solve_converged(&h, &m, &request(1e-9), &Silent)
+        .solve_converged(h.as_ref(), m.as_ref(), &request(1e-9), &Silent)
         .unwrap();
     assert!(sol.converged());
 }
@@ -180,7 +182,9 @@ fn options_for_objects_made_at_setup_reach_them() {
 fn a_petsc_error_carries_petscs_message() {
     let (h, m) = q1_fem(N, H);
     let solver = SlepcSolver::new(SlepcOptions::parse("-eps_type no_such_solver").unwrap());
-    let err = solver.solve(&h, &m, &request(1e-9), &Silent).unwrap_err();
+    let err = solver
+        .solve(h.as_ref(), m.as_ref(), &request(1e-9), &Silent)
+        .unwrap_err();
     match &err {
         EigenError::Backend { message, .. } => {
             assert!(message.contains("no_such_solver"), "{message}")
@@ -204,7 +208,7 @@ fn non_convergence_returns_the_partial_result() {
     };
     // Not converged is a status on the result, with the partial result in hand.
     let partial = solver
-        .solve(&h, &m, &req, &Silent)
+        .solve(h.as_ref(), m.as_ref(), &req, &Silent)
         .unwrap_or_else(|e| panic!("expected SLEPc's LOBPCG iteration cap, got {e}"));
     match partial.info.status {
         EigenStatus::SlepcLobpcgNotConverged {
@@ -238,17 +242,17 @@ fn petsc_reads_our_binary_export_exactly() {
     let dir = tempfile::tempdir().unwrap();
     for (name, a) in [("h.petsc", &h), ("m.petsc", &m)] {
         let path = dir.path().join(name);
-        write_petsc_binary(&path, a).unwrap();
+        write_petsc_binary(&path, a.as_ref()).unwrap();
         // Same entries, same summation order per row: PETSc's product equals ours exactly.
-        assert_eq!(petsc_binary_difference(&path, a).unwrap(), 0.0);
+        assert_eq!(petsc_binary_difference(&path, a.as_ref()).unwrap(), 0.0);
     }
     // A different matrix is detected (M is not H).
-    let diff = petsc_binary_difference(&dir.path().join("m.petsc"), &h).unwrap();
+    let diff = petsc_binary_difference(&dir.path().join("m.petsc"), h.as_ref()).unwrap();
     assert!(diff > 0.1, "{diff}");
     // A file that is not a PETSc matrix is a PETSc error with its message, not a crash.
     let junk = dir.path().join("junk.petsc");
     std::fs::write(&junk, b"not a petsc file at all").unwrap();
-    match petsc_binary_difference(&junk, &h) {
+    match petsc_binary_difference(&junk, h.as_ref()) {
         Err(EigenError::Backend { message, .. }) => assert!(
             message.contains("MatLoad") || message.contains("PetscViewer"),
             "{message}"
@@ -276,7 +280,7 @@ fn lobpcg_breakdown_is_a_typed_error_with_advice() {
         max_iter: 1000,
     };
     let lobpcg = SlepcSolver::new(SlepcOptions::parse(OLD_BLOCK).unwrap());
-    match lobpcg.solve(h, m, &req, &Silent) {
+    match lobpcg.solve(h.as_ref(), m.as_ref(), &req, &Silent) {
         Err(
             ref e @ EigenError::SlepcLobpcgBreakdown {
                 ref routine,
@@ -306,12 +310,14 @@ fn lobpcg_breakdown_is_a_typed_error_with_advice() {
         Ok(sol) => panic!("SLEPc's LOBPCG no longer breaks down here: {:?}", sol.info),
     }
     // PETSc is usable afterwards, and both advised solvers solve the same problem.
-    let dense = DenseSolver.solve_converged(h, m, &req, &Silent).unwrap();
+    let dense = DenseSolver
+        .solve_converged(h.as_ref(), m.as_ref(), &req, &Silent)
+        .unwrap();
     let ks = SlepcSolver::new(SlepcOptions::parse("ks-sinvert").unwrap())
-        .solve_converged(h, m, &req, &Silent)
+        .solve_converged(h.as_ref(), m.as_ref(), &req, &Silent)
         .unwrap();
     let native = Lobpcg::default()
-        .solve_converged(h, m, &req, &Silent)
+        .solve_converged(h.as_ref(), m.as_ref(), &req, &Silent)
         .unwrap();
     for (name, sol) in [("ks-sinvert", &ks), ("native lobpcg", &native)] {
         let diff = max_eigenvalue_rel_diff(&sol.values, &dense.values);
@@ -338,20 +344,20 @@ fn box_pencil(
     let a = Problem::from_shape(&shape, &opts, &Silent)
         .unwrap()
         .into_matrices();
-    (a.hessian, a.mass)
+    a.into_pair()
 }
 
 /// ||H x - lambda M x||_2 / ((||H||_1 + |lambda| ||M||_1) ||x||_2) of column `j`, with plain
 /// loops over the CSC arrays of the (symmetric, fully stored) matrices: independent of
 /// `eigen::check_solution`, which decided convergence.
 fn plain_residual(
-    h: &freeform::sparse::SparseMatrix,
-    m: &freeform::sparse::SparseMatrix,
+    h: freeform::sparse::SparseMatrixRef<'_>,
+    m: freeform::sparse::SparseMatrixRef<'_>,
     lambda: f64,
     x: &[f64],
 ) -> f64 {
     let k = x.len();
-    let apply = |a: &freeform::sparse::SparseMatrix| {
+    let apply = |a: freeform::sparse::SparseMatrixRef<'_>| {
         let mut y = vec![0.0; k];
         let mut norm1 = 0.0f64;
         for (j, &xj) in x.iter().enumerate() {
@@ -383,15 +389,17 @@ fn plain_residual(
 /// SLEPc configuration, the native LOBPCG, and the SLEPc options given, all against the dense
 /// solver (`nev` pairs, or the first `fewer` with the preset alone).
 fn advised_solvers_agree_with_dense(
-    h: &freeform::sparse::SparseMatrix,
-    m: &freeform::sparse::SparseMatrix,
+    h: freeform::sparse::SparseMatrixRef<'_>,
+    m: freeform::sparse::SparseMatrixRef<'_>,
     req: &EigenRequest,
     slepc_lobpcg_options: &[&str],
     fewer: usize,
 ) {
     use freeform::eigen::compare::max_eigenvalue_rel_diff;
     use freeform::eigen::lobpcg::Lobpcg;
-    let dense = DenseSolver.solve_converged(h, m, req, &Silent).unwrap();
+    let dense = DenseSolver
+        .solve_converged(h.as_ref(), m.as_ref(), req, &Silent)
+        .unwrap();
     let mut solvers: Vec<(String, Box<dyn Eigensolver>, usize)> = vec![
         (
             "ks-sinvert".into(),
@@ -415,7 +423,7 @@ fn advised_solvers_agree_with_dense(
     for (name, solver, nev) in solvers {
         let req = EigenRequest { nev, ..req.clone() };
         let sol = solver
-            .solve_converged(h, m, &req, &Silent)
+            .solve_converged(h.as_ref(), m.as_ref(), &req, &Silent)
             .unwrap_or_else(|e| panic!("{name}: {e}"));
         let diff = max_eigenvalue_rel_diff(&sol.values, &dense.values[..nev]);
         assert!(diff < 1e-8, "{name} vs dense: {diff:e}");
@@ -445,10 +453,12 @@ fn slepc_lobpcg_false_convergence_names_the_pair_and_the_ways_out() {
         tol: 1e-8,
         max_iter: 1000,
     };
-    let dense = DenseSolver.solve_converged(&h, &m, &req, &Silent).unwrap();
+    let dense = DenseSolver
+        .solve_converged(h.as_ref(), m.as_ref(), &req, &Silent)
+        .unwrap();
     let lobpcg = SlepcSolver::new(SlepcOptions::parse(OLD_BLOCK).unwrap());
     let partial = lobpcg
-        .solve(&h, &m, &req, &Silent)
+        .solve(h.as_ref(), m.as_ref(), &req, &Silent)
         .unwrap_or_else(|e| panic!("expected SlepcLobpcgNotConverged, got {e}"));
     let EigenStatus::SlepcLobpcgNotConverged {
         stop,
@@ -477,7 +487,7 @@ fn slepc_lobpcg_false_convergence_names_the_pair_and_the_ways_out() {
     assert_eq!((converged, above, block_size), (15, 1, Some(16)), "{text}");
     assert_eq!(lambda, partial.values[pair]);
     let x: Vec<f64> = (0..h.nrows()).map(|i| partial.vectors[(i, pair)]).collect();
-    let plain = plain_residual(&h, &m, lambda, &x);
+    let plain = plain_residual(h.as_ref(), m.as_ref(), lambda, &x);
     assert!(
         residual > 1e-3 && (plain - residual).abs() < 1e-6 * residual,
         "residual {residual:e}, recomputed {plain:e}"
@@ -502,7 +512,13 @@ fn slepc_lobpcg_false_convergence_names_the_pair_and_the_ways_out() {
     }
     assert!(!text.contains("raise --tol"), "{text}");
     // A block of exactly 16 (the default) is what failed.
-    advised_solvers_agree_with_dense(&h, &m, &req, &["lobpcg-gamg:-eps_lobpcg_blocksize 18"], 15);
+    advised_solvers_agree_with_dense(
+        h.as_ref(),
+        m.as_ref(),
+        &req,
+        &["lobpcg-gamg:-eps_lobpcg_blocksize 18"],
+        15,
+    );
 }
 
 /// SLEPc's LOBPCG converges the first block of 16 pairs and then stalls on the 17th until its
@@ -518,7 +534,7 @@ fn slepc_lobpcg_iteration_cap_is_named_with_the_ways_out() {
     };
     let lobpcg = SlepcSolver::new(SlepcOptions::parse(OLD_BLOCK).unwrap());
     let partial = lobpcg
-        .solve(&h, &m, &req, &Silent)
+        .solve(h.as_ref(), m.as_ref(), &req, &Silent)
         .unwrap_or_else(|e| panic!("expected the iteration cap, got {e}"));
     match partial.info.status {
         EigenStatus::SlepcLobpcgNotConverged {
@@ -548,7 +564,13 @@ fn slepc_lobpcg_iteration_cap_is_named_with_the_ways_out() {
         }
         ref other => panic!("expected the iteration cap, got {other:?}"),
     }
-    advised_solvers_agree_with_dense(&h, &m, &req, &["lobpcg-gamg:-eps_lobpcg_blocksize 19"], 16);
+    advised_solvers_agree_with_dense(
+        h.as_ref(),
+        m.as_ref(),
+        &req,
+        &["lobpcg-gamg:-eps_lobpcg_blocksize 19"],
+        16,
+    );
 }
 
 /// SLEPc's LOBPCG gives up on its own (EPS_DIVERGED_BREAKDOWN: orthogonalizing a new block
@@ -564,7 +586,7 @@ fn slepc_lobpcg_stop_on_its_own_breakdown_is_named_with_the_ways_out() {
         max_iter: 1000,
     };
     let lobpcg = SlepcSolver::new(SlepcOptions::parse(OLD_BLOCK).unwrap());
-    let partial = match lobpcg.solve(&h, &m, &req, &Silent) {
+    let partial = match lobpcg.solve(h.as_ref(), m.as_ref(), &req, &Silent) {
         Ok(partial) => partial,
         // The other way SLEPc's LOBPCG breaks down on this pencil: its Rayleigh-Ritz pencil
         // loses definiteness first. Which of the two comes first depends on the machine's
@@ -578,7 +600,7 @@ fn slepc_lobpcg_stop_on_its_own_breakdown_is_named_with_the_ways_out() {
                     && text.ends_with("ask for fewer modes"),
                 "{text}"
             );
-            advised_solvers_agree_with_dense(&h, &m, &req, &[], 27);
+            advised_solvers_agree_with_dense(h.as_ref(), m.as_ref(), &req, &[], 27);
             return;
         }
         Err(e) => panic!("expected SLEPc's breakdown stop, got {e}"),
@@ -604,7 +626,7 @@ fn slepc_lobpcg_stop_on_its_own_breakdown_is_named_with_the_ways_out() {
         }
         ref other => panic!("expected SLEPc's breakdown stop, got {other:?}"),
     }
-    advised_solvers_agree_with_dense(&h, &m, &req, &[], 27);
+    advised_solvers_agree_with_dense(h.as_ref(), m.as_ref(), &req, &[], 27);
 }
 
 #[test]
@@ -687,7 +709,7 @@ fn shell_matrices_solve_the_matrix_free_q1_laplacian() {
         .any(|n| n.contains("Jacobi from the operators")));
     // The caller's preconditioner: diag(H)^-1 from the assembled copy, as a closure.
     let (ha, _) = q1_fem(N, H);
-    let inv: Vec<f64> = freeform::sparse::diagonal(&ha)
+    let inv: Vec<f64> = freeform::sparse::diagonal(ha.as_ref())
         .iter()
         .map(|d| 1.0 / d)
         .collect();

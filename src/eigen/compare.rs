@@ -3,7 +3,7 @@
 //! and the backend tests).
 
 use super::EigenError;
-use crate::sparse::{self, SparseMatrix};
+use crate::sparse::{self, SparseMatrixRef};
 use faer::{Mat, Side};
 
 /// Largest relative eigenvalue difference between `a` and the reference `b` (same length,
@@ -74,7 +74,7 @@ pub fn clusters(a: &[f64], b: &[f64], rel_gap: f64) -> Vec<std::ops::Range<usize
 /// [`EigenError::InvalidRequest`] on shape mismatch; [`EigenError::NonFinite`] if the small
 /// eigenproblem fails.
 pub fn max_subspace_angle(
-    m: &SparseMatrix,
+    m: SparseMatrixRef<'_>,
     values_a: &[f64],
     a: &Mat<f64>,
     values_b: &[f64],
@@ -136,7 +136,7 @@ mod tests {
         b[(0, 0)] = -1.0;
         b[(1, 1)] = t.cos();
         b[(2, 1)] = t.sin();
-        let angle = max_subspace_angle(&m, &[1.0, 2.0], &a, &[1.0, 2.0], &b, 1e-6).unwrap();
+        let angle = max_subspace_angle(m.as_ref(), &[1.0, 2.0], &a, &[1.0, 2.0], &b, 1e-6).unwrap();
         assert!((angle - t).abs() < 1e-15, "{angle}");
         // A degenerate pair: any rotation inside the cluster is no angle.
         let mut c = Mat::<f64>::zeros(4, 2);
@@ -145,10 +145,10 @@ mod tests {
         c[(0, 1)] = -(0.3f64).sin();
         c[(1, 1)] = (0.3f64).cos();
         let vals = [1.0, 1.0 + 1e-9];
-        assert!(max_subspace_angle(&m, &vals, &a, &vals, &c, 1e-6).unwrap() < 1e-15);
+        assert!(max_subspace_angle(m.as_ref(), &vals, &a, &vals, &c, 1e-6).unwrap() < 1e-15);
         // Separate eigenvalues: the same rotation is a 0.3 rad angle.
         let vals = [1.0, 2.0];
-        let angle = max_subspace_angle(&m, &vals, &a, &vals, &c, 1e-6).unwrap();
+        let angle = max_subspace_angle(m.as_ref(), &vals, &a, &vals, &c, 1e-6).unwrap();
         assert!((angle - 0.3).abs() < 1e-12, "{angle}");
     }
 

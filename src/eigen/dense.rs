@@ -14,7 +14,7 @@ use super::{
     EigenSolution, Eigensolver,
 };
 use crate::progress::Progress;
-use crate::sparse::{self, SparseMatrix};
+use crate::sparse::{self, SparseMatrixRef};
 use faer::linalg::triangular_solve::{
     solve_lower_triangular_in_place, solve_upper_triangular_in_place,
 };
@@ -36,8 +36,8 @@ impl Eigensolver for DenseSolver {
 
     fn solve(
         &self,
-        h: &SparseMatrix,
-        m: &SparseMatrix,
+        h: SparseMatrixRef<'_>,
+        m: SparseMatrixRef<'_>,
         request: &EigenRequest,
         progress: &dyn Progress,
     ) -> Result<EigenSolution, EigenError> {
@@ -183,7 +183,7 @@ mod tests {
         let h = testing::grid_laplacian(n, 1.0);
         let m = testing::identity(216);
         let sol = DenseSolver
-            .solve_converged(&h, &m, &request(40), &Silent)
+            .solve_converged(h.as_ref(), m.as_ref(), &request(40), &Silent)
             .unwrap();
         let exact = testing::grid_laplacian_eigenvalues(n, 40);
         for (a, b) in sol.values.iter().zip(&exact) {
@@ -206,7 +206,7 @@ mod tests {
         let n = [5, 4, 6];
         let (h, m) = testing::q1_fem(n, 0.2);
         let sol = DenseSolver
-            .solve_converged(&h, &m, &request(30), &Silent)
+            .solve_converged(h.as_ref(), m.as_ref(), &request(30), &Silent)
             .unwrap();
         let exact = testing::q1_fem_eigenvalues(n, 0.2, 30);
         for (a, b) in sol.values.iter().zip(&exact) {
@@ -227,27 +227,29 @@ mod tests {
         let m = testing::identity(27);
         // nev = K - 1 is one too many.
         assert!(matches!(
-            DenseSolver.solve(&h, &m, &request(26), &Silent),
+            DenseSolver.solve(h.as_ref(), m.as_ref(), &request(26), &Silent),
             Err(EigenError::InvalidRequest(_))
         ));
-        assert!(DenseSolver.solve(&h, &m, &request(25), &Silent).is_ok());
+        assert!(DenseSolver
+            .solve(h.as_ref(), m.as_ref(), &request(25), &Silent)
+            .is_ok());
         // M indefinite: -I.
         let mut bad = m.clone();
         bad.val_mut().iter_mut().for_each(|v| *v = -*v);
         bad.val_mut()[0] = 100.0; // keep 1^T M 1 > 0 so the Cholesky is what fails
         assert!(matches!(
-            DenseSolver.solve(&h, &bad, &request(4), &Silent),
+            DenseSolver.solve(h.as_ref(), bad.as_ref(), &request(4), &Silent),
             Err(EigenError::NotPositiveDefinite { what: "M", .. })
         ));
         let mut nan = h.clone();
         nan.val_mut()[5] = f64::NAN;
         assert!(matches!(
-            DenseSolver.solve(&nan, &m, &request(4), &Silent),
+            DenseSolver.solve(nan.as_ref(), m.as_ref(), &request(4), &Silent),
             Err(EigenError::NonFinite(_))
         ));
         let big = testing::identity(DENSE_MAX_K + 1);
         assert!(matches!(
-            DenseSolver.solve(&big, &big, &request(4), &Silent),
+            DenseSolver.solve(big.as_ref(), big.as_ref(), &request(4), &Silent),
             Err(EigenError::TooLarge {
                 limit: DENSE_MAX_K,
                 ..

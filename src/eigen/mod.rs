@@ -42,7 +42,7 @@ pub use slepc_options::{SlepcOptions, SlepcPreset};
 pub use solver::Eigensolver;
 
 use crate::options;
-use crate::sparse::{self, SparseMatrix};
+use crate::sparse::{self, SparseMatrixRef};
 use faer::Mat;
 
 /// What the caller asks of an eigensolver.
@@ -572,8 +572,8 @@ pub(crate) fn accurate_evd_params() -> faer::Spec<faer::linalg::evd::SelfAdjoint
 /// If the shapes do not match (`vectors.nrows() != K` or `values.len() != vectors.ncols()`),
 /// a caller bug.
 pub fn check_solution(
-    h: &SparseMatrix,
-    m: &SparseMatrix,
+    h: SparseMatrixRef<'_>,
+    m: SparseMatrixRef<'_>,
     values: &[f64],
     vectors: &Mat<f64>,
     info: &mut EigenInfo,
@@ -676,8 +676,8 @@ pub fn relative_residual(r_norm: f64, lambda: f64, norm_h: f64, norm_m: f64, x_n
 /// [`EigenError::InvalidRequest`] for shapes, `nev`, `tol` or asymmetry;
 /// [`EigenError::NonFinite`] for a NaN or infinite entry.
 pub fn validate_problem(
-    h: &SparseMatrix,
-    m: &SparseMatrix,
+    h: SparseMatrixRef<'_>,
+    m: SparseMatrixRef<'_>,
     request: &EigenRequest,
 ) -> Result<(), EigenError> {
     let k = h.nrows();
@@ -738,7 +738,7 @@ pub fn validate_request(k: usize, request: &EigenRequest) -> Result<(), EigenErr
 }
 
 /// Value stored at (i, j) (sum of duplicates; 0 if absent). Diagnostic use only.
-fn entry(a: &SparseMatrix, i: usize, j: usize) -> f64 {
+fn entry(a: SparseMatrixRef<'_>, i: usize, j: usize) -> f64 {
     let range = a.symbolic().col_range(j);
     a.symbolic().row_idx()[range.clone()]
         .iter()
@@ -753,7 +753,7 @@ fn entry(a: &SparseMatrix, i: usize, j: usize) -> f64 {
 ///
 /// # Errors
 /// [`EigenError::NotPositiveDefinite`] if 1^T M 1 <= 0 (M cannot be SPD then).
-pub fn constant_mode(m: &SparseMatrix) -> Result<Vec<f64>, EigenError> {
+pub fn constant_mode(m: SparseMatrixRef<'_>) -> Result<Vec<f64>, EigenError> {
     let k = m.nrows();
     // Compensated sum: a plain running sum of ~1e7 entries loses ~1e-10 relative, which
     // would show up directly as y0^T M y0 - 1.

@@ -9,7 +9,7 @@
 //! operator exchanges whatever halo it needs itself); in one process the range is all rows.
 
 use crate::eigen::{EigenError, SplitMix64};
-use crate::sparse::{self, SparseMatrix};
+use crate::sparse::{self, SparseMatrix, SparseMatrixRef};
 use faer::{Mat, MatMut, MatRef};
 use std::ops::Range;
 
@@ -62,8 +62,28 @@ pub trait LinearOperator: Sync {
     /// The assembled matrix behind this operator, if there is one: lets a solver build a
     /// factorization preconditioner (IC(0), Cholesky) or hand the matrix to a backend as is.
     /// Default: none (matrix-free).
-    fn assembled(&self) -> Option<&SparseMatrix> {
+    fn assembled(&self) -> Option<SparseMatrixRef<'_>> {
         None
+    }
+}
+
+impl LinearOperator for SparseMatrixRef<'_> {
+    fn dim(&self) -> usize {
+        self.nrows()
+    }
+
+    fn apply(&self, x: MatRef<'_, f64>, out: MatMut<'_, f64>) -> Result<(), OperatorError> {
+        check_block_shapes(self.nrows(), &x, &out)?;
+        sparse::sym_mul_block(*self, x, out);
+        Ok(())
+    }
+
+    fn diagonal(&self) -> Option<Vec<f64>> {
+        Some(sparse::diagonal(*self))
+    }
+
+    fn assembled(&self) -> Option<SparseMatrixRef<'_>> {
+        Some(*self)
     }
 }
 
@@ -73,17 +93,15 @@ impl LinearOperator for SparseMatrix {
     }
 
     fn apply(&self, x: MatRef<'_, f64>, out: MatMut<'_, f64>) -> Result<(), OperatorError> {
-        check_block_shapes(self.nrows(), &x, &out)?;
-        sparse::sym_mul_block(self, x, out);
-        Ok(())
+        self.as_ref().apply(x, out)
     }
 
     fn diagonal(&self) -> Option<Vec<f64>> {
-        Some(sparse::diagonal(self))
+        Some(sparse::diagonal(self.as_ref()))
     }
 
-    fn assembled(&self) -> Option<&SparseMatrix> {
-        Some(self)
+    fn assembled(&self) -> Option<SparseMatrixRef<'_>> {
+        Some(self.as_ref())
     }
 }
 
@@ -392,7 +410,7 @@ mod tests {
         // Through the trait, a block gives exactly the dense product (entries are multiples of 1/2,
         // times small integers: every partial sum is exact in f64, in any order).
         let k = a.nrows();
-        let dense = crate::sparse::to_dense(&a);
+        let dense = crate::sparse::to_dense(a.as_ref());
         let x = faer::Mat::from_fn(k, 2, |i, j| (i as f64) - 3.0 * (j as f64));
         let mut y = faer::Mat::<f64>::zeros(k, 2);
         apply_checked(&a, "H", x.as_ref(), y.as_mut()).expect("assembled apply");

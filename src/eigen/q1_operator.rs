@@ -142,17 +142,17 @@ mod tests {
             let mut free = Mat::<f64>::zeros(k, 3);
             let mut assembled = Mat::<f64>::zeros(k, 3);
             op.apply(x.as_ref(), free.as_mut()).unwrap();
-            sparse::sym_mul_block(a, x.as_ref(), assembled.as_mut());
+            sparse::sym_mul_block(a.as_ref(), x.as_ref(), assembled.as_mut());
             // Both sum the same 27 products per row in different orders: round-off only,
             // ~1e-15 of the row's magnitude (entries <= 8/3 h for H, x entries <= 5).
-            let scale = sparse::norm_1(a) * 5.0;
+            let scale = sparse::norm_1(a.as_ref()) * 5.0;
             for j in 0..3 {
                 for i in 0..k {
                     assert!((free[(i, j)] - assembled[(i, j)]).abs() <= 1e-14 * scale);
                 }
             }
             let diag = op.diagonal().unwrap();
-            let exact = sparse::diagonal(a);
+            let exact = sparse::diagonal(a.as_ref());
             for (d, e) in diag.iter().zip(&exact) {
                 assert!((d - e).abs() <= 1e-14 * e.abs()); // sums of 8 terms: <= 7 eps
             }

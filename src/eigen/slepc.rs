@@ -39,7 +39,7 @@ use super::{
     Eigensolver, OperatorProblem,
 };
 use crate::progress::Progress;
-use crate::sparse::SparseMatrix;
+use crate::sparse::SparseMatrixRef;
 use faer::Mat;
 use freeform_ffi as petsc;
 
@@ -139,7 +139,7 @@ pub fn all_gather(mine: &[f64]) -> Result<Vec<f64>, EigenError> {
 /// the sizes differ.
 pub fn petsc_binary_difference(
     path: &std::path::Path,
-    a: &SparseMatrix,
+    a: SparseMatrixRef<'_>,
 ) -> Result<f64, EigenError> {
     let session = petsc::session().map_err(backend)?;
     let comm = session.self_comm();
@@ -205,7 +205,7 @@ pub struct RowBlock {
 
 impl RowBlock {
     /// Rows `range` of a symmetric [`SparseMatrix`] (column j of the CSC arrays is row j).
-    pub fn from_symmetric(a: &SparseMatrix, range: std::ops::Range<usize>) -> Self {
+    pub fn from_symmetric(a: SparseMatrixRef<'_>, range: std::ops::Range<usize>) -> Self {
         let sym = a.symbolic();
         let mut out = RowBlock {
             first: range.start,
@@ -351,8 +351,8 @@ impl Eigensolver for SlepcSolver {
 
     fn solve(
         &self,
-        h: &SparseMatrix,
-        m: &SparseMatrix,
+        h: SparseMatrixRef<'_>,
+        m: SparseMatrixRef<'_>,
         request: &EigenRequest,
         progress: &dyn Progress,
     ) -> Result<EigenSolution, EigenError> {

@@ -3,7 +3,7 @@
 
 use crate::eigen::{EigenError, EigenRequest, EigenSolution, OperatorProblem};
 use crate::progress::Progress;
-use crate::sparse::SparseMatrix;
+use crate::sparse::SparseMatrixRef;
 
 /// A generalized symmetric-definite eigensolver for the m + 1 smallest pairs.
 pub trait Eigensolver {
@@ -18,8 +18,8 @@ pub trait Eigensolver {
     /// Failures without a usable result ([`EigenError`]).
     fn solve(
         &self,
-        h: &SparseMatrix,
-        m: &SparseMatrix,
+        h: SparseMatrixRef<'_>,
+        m: SparseMatrixRef<'_>,
         request: &EigenRequest,
         progress: &dyn Progress,
     ) -> Result<EigenSolution, EigenError>;
@@ -32,8 +32,8 @@ pub trait Eigensolver {
     /// [`EigenError::SlepcLobpcgNotConverged`] for a solve that stopped short.
     fn solve_converged(
         &self,
-        h: &SparseMatrix,
-        m: &SparseMatrix,
+        h: SparseMatrixRef<'_>,
+        m: SparseMatrixRef<'_>,
         request: &EigenRequest,
         progress: &dyn Progress,
     ) -> Result<EigenSolution, EigenError> {

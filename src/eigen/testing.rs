@@ -13,7 +13,7 @@
 //! - [`identity`], [`kernel_mass`], [`perturb_diagonal`]: masses.
 
 use super::SplitMix64;
-use crate::sparse::SparseMatrix;
+use crate::sparse::{SparseMatrix, SparseMatrixRef};
 use faer::sparse::{SparseColMat, Triplet};
 
 /// Index of grid node (i, j, k).
@@ -159,9 +159,12 @@ pub fn kernel_mass(
 
 /// A copy of `m` with each diagonal entry scaled by `1 + spread * u`, u uniform in [0, 1) from
 /// `seed`. Adding a non-negative diagonal keeps an SPD matrix SPD.
-pub fn perturb_diagonal(m: &SparseMatrix, spread: f64, seed: u64) -> SparseMatrix {
+pub fn perturb_diagonal(m: SparseMatrixRef<'_>, spread: f64, seed: u64) -> SparseMatrix {
     let mut rng = SplitMix64::new(seed);
-    let mut out = m.clone();
+    let mut out = SparseMatrix::new(
+        m.symbolic().to_owned().expect("a copy of a valid pattern"),
+        m.val().to_vec(),
+    );
     let sym = m.symbolic();
     let ptr: Vec<std::ops::Range<usize>> = (0..m.ncols()).map(|j| sym.col_range(j)).collect();
     let idx = sym.row_idx().to_vec();
@@ -265,9 +268,9 @@ mod tests {
         assert_eq!(h.symbolic().col_range(centre).len(), 123);
         // H 1 = 0 up to round-off of summing ~120 weights of size <= 1.
         let mut y = vec![0.0; h.nrows()];
-        crate::sparse::sym_mul_row_major(&h, &vec![1.0; h.nrows()], 1, &mut y, 1, 1);
+        crate::sparse::sym_mul_row_major(h.as_ref(), &vec![1.0; h.nrows()], 1, &mut y, 1, 1);
         assert!(y.iter().all(|v| v.abs() < 1e-13));
-        assert_eq!(crate::sparse::symmetry_defect(&h), 0.0);
+        assert_eq!(crate::sparse::symmetry_defect(h.as_ref()), 0.0);
         let m = kernel_mass([9, 9, 9], 3.0, 0.05, 0.5, 1);
         assert_eq!(m.symbolic().row_idx(), h.symbolic().row_idx());
         let (hq, mq) = q1_fem([4, 5, 6], 0.1);
@@ -276,7 +279,7 @@ mod tests {
         let vol = 0.3 * 0.4 * 0.5;
         assert!((mq.val().iter().sum::<f64>() - vol).abs() < 1e-14);
         let mut y = vec![0.0; hq.nrows()];
-        crate::sparse::sym_mul_row_major(&hq, &vec![1.0; hq.nrows()], 1, &mut y, 1, 1);
+        crate::sparse::sym_mul_row_major(hq.as_ref(), &vec![1.0; hq.nrows()], 1, &mut y, 1, 1);
         assert!(y.iter().all(|v| v.abs() < 1e-14));
     }
 }

@@ -12,7 +12,7 @@
 //!   `freeform modes --from-matrices` (`hessian.mtx`, `mass.mtx`, `hessian.petsc`,
 //!   `mass.petsc`).
 
-use crate::sparse::{from_compressed, SparseMatrix};
+use crate::sparse::{from_compressed, SparseMatrix, SparseMatrixRef};
 use std::io::{BufRead, BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
@@ -111,7 +111,7 @@ fn read_err(path: &Path, line: usize) -> impl Fn(std::io::Error) -> MatrixFileEr
 /// [`MatrixFileError::Io`].
 pub fn write_matrix_market(
     path: &Path,
-    a: &SparseMatrix,
+    a: SparseMatrixRef<'_>,
     comment: &[&str],
 ) -> Result<(), MatrixFileError> {
     let sym = a.symbolic();
@@ -365,7 +365,7 @@ fn csc_from_triplets(n: usize, mut t: Vec<(usize, usize, f64)>) -> SparseMatrix 
 ///
 /// # Errors
 /// [`MatrixFileError::Io`]; [`MatrixFileError::TooLarge`] beyond PETSc's 32-bit indices.
-pub fn write_petsc_binary(path: &Path, a: &SparseMatrix) -> Result<(), MatrixFileError> {
+pub fn write_petsc_binary(path: &Path, a: SparseMatrixRef<'_>) -> Result<(), MatrixFileError> {
     let too_large = |what: &str| MatrixFileError::TooLarge {
         path: path.to_path_buf(),
         reason: format!("{what} exceeds PETSc's 32-bit PetscInt"),
@@ -398,8 +398,8 @@ pub fn write_petsc_binary(path: &Path, a: &SparseMatrix) -> Result<(), MatrixFil
 /// [`MatrixFileError`] from any file.
 pub fn write_matrices(
     dir: &Path,
-    hessian: &SparseMatrix,
-    mass: &SparseMatrix,
+    hessian: SparseMatrixRef<'_>,
+    mass: SparseMatrixRef<'_>,
     petsc_binary: bool,
 ) -> Result<Vec<PathBuf>, MatrixFileError> {
     std::fs::create_dir_all(dir).map_err(io_err(dir))?;
@@ -420,8 +420,8 @@ pub fn write_matrices(
 /// The files of [`write_matrices`], each pushed to `out` once written.
 fn write_all(
     dir: &Path,
-    hessian: &SparseMatrix,
-    mass: &SparseMatrix,
+    hessian: SparseMatrixRef<'_>,
+    mass: SparseMatrixRef<'_>,
     petsc_binary: bool,
     out: &mut Vec<PathBuf>,
 ) -> Result<(), MatrixFileError> {
@@ -465,7 +465,7 @@ mod tests {
     use super::*;
     use crate::eigen::testing::q1_fem;
 
-    fn same(a: &SparseMatrix, b: &SparseMatrix) {
+    fn same(a: SparseMatrixRef<'_>, b: SparseMatrixRef<'_>) {
         assert_eq!(a.nrows(), b.nrows());
         assert_eq!(a.symbolic().col_ptr(), b.symbolic().col_ptr());
         assert_eq!(a.symbolic().row_idx(), b.symbolic().row_idx());
@@ -477,11 +477,11 @@ mod tests {
     fn matrix_market_round_trip_is_exact() {
         let (h, m) = q1_fem([4, 3, 5], 0.37);
         let dir = tempfile::tempdir().unwrap();
-        let paths = write_matrices(dir.path(), &h, &m, true).unwrap();
+        let paths = write_matrices(dir.path(), h.as_ref(), m.as_ref(), true).unwrap();
         assert_eq!(paths.len(), 4);
         let (h2, m2) = read_matrices(dir.path()).unwrap();
-        same(&h, &h2);
-        same(&m, &m2);
+        same(h.as_ref(), h2.as_ref());
+        same(m.as_ref(), m2.as_ref());
         // PETSc binary: header, counts, indices, values.
         let bytes = std::fs::read(dir.path().join(HESSIAN_PETSC)).unwrap();
         let nnz = h.symbolic().row_idx().len();
@@ -496,7 +496,7 @@ mod tests {
         // A directory where the last file goes: the two .mtx and the first .petsc are
         // written, then the rename onto the directory fails.
         std::fs::create_dir(dir.path().join(MASS_PETSC)).unwrap();
-        assert!(write_matrices(dir.path(), &h, &m, true).is_err());
+        assert!(write_matrices(dir.path(), h.as_ref(), m.as_ref(), true).is_err());
         for name in [HESSIAN_MTX, MASS_MTX, HESSIAN_PETSC] {
             assert!(!dir.path().join(name).exists(), "{name} left behind");
         }
@@ -512,8 +512,8 @@ mod tests {
         )
         .unwrap();
         let a = read_matrix_market(&p).unwrap();
-        assert_eq!(crate::sparse::to_dense(&a)[(0, 0)], 2.0);
-        assert_eq!(crate::sparse::to_dense(&a)[(1, 0)], -1.0);
+        assert_eq!(crate::sparse::to_dense(a.as_ref())[(0, 0)], 2.0);
+        assert_eq!(crate::sparse::to_dense(a.as_ref())[(1, 0)], -1.0);
         for (text, needle) in [
             ("%%MatrixMarket matrix array real general\n2 2\n", "array"),
             (

@@ -24,7 +24,7 @@ use super::sampling::IntegrationPoints;
 use super::skinning::Basis;
 use crate::eigen::EigenSolution;
 use crate::material::Region;
-use crate::sparse::{self, SparseMatrix};
+use crate::sparse::{self, SparseMatrix, SparseMatrixRef};
 use crate::{Error, Result};
 use faer::Mat;
 use serde::{Deserialize, Serialize};
@@ -233,7 +233,7 @@ enum Ground {
 /// The principal submatrix A_FF (n x n), or the grounded (n + 1) x (n + 1) matrix with
 /// Q [y; g] = y - g 1 (see [`Ground`]). It holds at most nnz(A) + 2 n + 1 entries, which the
 /// assembly keeps within a [`SparseMatrix`]'s u32 range.
-fn restricted(a: &SparseMatrix, part: &RegionPartition, ground: Ground) -> SparseMatrix {
+fn restricted(a: SparseMatrixRef<'_>, part: &RegionPartition, ground: Ground) -> SparseMatrix {
     let map = free_index(part);
     let n = part.free.len();
     let (ptr, idx, val) = (a.col_ptr(), a.row_idx(), a.val());
@@ -285,8 +285,8 @@ fn restricted(a: &SparseMatrix, part: &RegionPartition, ground: Ground) -> Spars
 /// The grounded pencil (H', M') of the restricted problem, (n + 1) square with n the free
 /// kernels: hand it to any [`crate::eigen::Eigensolver`] with nev = free modes + 1.
 pub fn grounded_problem(
-    h: &SparseMatrix,
-    m: &SparseMatrix,
+    h: SparseMatrixRef<'_>,
+    m: SparseMatrixRef<'_>,
     part: &RegionPartition,
 ) -> (SparseMatrix, SparseMatrix) {
     (
@@ -302,8 +302,8 @@ pub fn grounded_problem(
 /// # Errors
 /// [`Error::InvalidParameter`] when the lift solve fails (H_FF not positive definite).
 pub fn assemble_aware(
-    h: &SparseMatrix,
-    m: &SparseMatrix,
+    h: SparseMatrixRef<'_>,
+    m: SparseMatrixRef<'_>,
     part: &RegionPartition,
     regions: &[Region],
     solution: &EigenSolution,
@@ -343,7 +343,7 @@ pub fn assemble_aware(
 }
 
 /// c^T A c.
-fn quadratic(a: &SparseMatrix, c: faer::ColRef<'_, f64>) -> f64 {
+fn quadratic(a: SparseMatrixRef<'_>, c: faer::ColRef<'_, f64>) -> f64 {
     let x: Vec<f64> = c.iter().copied().collect();
     let mut y = vec![0.0; x.len()];
     sparse::sym_mul_row_major(a, &x, 1, &mut y, 1, 1);
@@ -353,7 +353,7 @@ fn quadratic(a: &SparseMatrix, c: faer::ColRef<'_, f64>) -> f64 {
 /// The B lifts, K x B: lift b is 1 on region b's kernels, 0 on the other pinned kernels and
 /// solves H_FF c_F = -H_FC e_b on the free ones. Lift 0 is 1 minus the others, so the lifts
 /// sum to the constant exactly (with one region it is the constant).
-fn lifts(h: &SparseMatrix, part: &RegionPartition) -> Result<Mat<f64>> {
+fn lifts(h: SparseMatrixRef<'_>, part: &RegionPartition) -> Result<Mat<f64>> {
     let k = part.owner.len();
     let b = part.regions();
     let mut out = Mat::<f64>::zeros(k, b);

@@ -8,7 +8,7 @@ use crate::eigen::compare::{max_eigenvalue_rel_diff, max_subspace_angle};
 use crate::eigen::{EigenError, EigenRequest, EigenSolution, Eigensolver};
 use crate::progress::Progress;
 use crate::report::{process_cpu_seconds, Stopwatch};
-use crate::sparse::SparseMatrix;
+use crate::sparse::SparseMatrixRef;
 use crate::{Error, Result};
 use serde::Serialize;
 
@@ -98,8 +98,8 @@ pub struct ProblemComparison {
 /// [`Error::InvalidParameter`] (`solvers`) for an empty list; a configuration that cannot be
 /// built ([`SolverConfig::build`]), before any solve; a failed subspace-angle computation.
 pub fn compare_solvers(
-    h: &SparseMatrix,
-    m: &SparseMatrix,
+    h: SparseMatrixRef<'_>,
+    m: SparseMatrixRef<'_>,
     request: &EigenRequest,
     solvers: &[SolverConfig],
     cluster_gap: f64,
@@ -165,8 +165,8 @@ pub fn compare_solvers(
 /// One solve, timed, as an entry (differences still 0) and its solution if any.
 fn run_one(
     solver: &dyn Eigensolver,
-    h: &SparseMatrix,
-    m: &SparseMatrix,
+    h: SparseMatrixRef<'_>,
+    m: SparseMatrixRef<'_>,
     request: &EigenRequest,
     progress: &dyn Progress,
 ) -> (SolverResult, Option<EigenSolution>) {
@@ -228,7 +228,7 @@ impl Problem {
         cluster_gap: f64,
         progress: &dyn Progress,
     ) -> Result<ProblemComparison> {
-        let (h, m) = (&self.matrices().hessian, &self.matrices().mass);
+        let (h, m) = (self.matrices().hessian(), self.matrices().mass());
         let comparison = compare_solvers(h, m, &self.request(), solvers, cluster_gap, progress)?;
         Ok(ProblemComparison {
             kernels: self.kernels().len(),
@@ -258,8 +258,8 @@ mod tests {
             max_iter: 1000,
         };
         let c = compare_solvers(
-            &h,
-            &m,
+            h.as_ref(),
+            m.as_ref(),
             &request,
             &[SolverConfig::lobpcg(), SolverConfig::Dense],
             1e-6,
@@ -287,8 +287,8 @@ mod tests {
             max_iter: 2,
         };
         let c = compare_solvers(
-            &h,
-            &m,
+            h.as_ref(),
+            m.as_ref(),
             &tight,
             &[SolverConfig::Dense, SolverConfig::lobpcg()],
             1e-6,
@@ -316,6 +316,6 @@ mod tests {
         assert!(c.max_subspace_angle < 1e-12, "{}", c.max_subspace_angle);
         assert!(failed.subspace_angle > 1e-6, "{}", failed.subspace_angle);
 
-        assert!(compare_solvers(&h, &m, &request, &[], 1e-6, &Silent).is_err());
+        assert!(compare_solvers(h.as_ref(), m.as_ref(), &request, &[], 1e-6, &Silent).is_err());
     }
 }

@@ -7,9 +7,9 @@
 //!   farthest-point-sampling distances (~200 bytes);
 //! - the stream: one chunk's shape functions and their transpose;
 //! - H_w and M: nnz ~ 8 x the kernels covering a point (the pairs of kernels whose supports
-//!   overlap), ~280 per row at the default support, scaling with the support volume; both
-//!   matrices with their own u32 indices, 24 bytes per non-zero, plus the upper triangle they
-//!   are mirrored from;
+//!   overlap), ~280 per row at the default support, scaling with the support volume; one
+//!   pattern of u32 indices shared by both matrices, 20 bytes per non-zero, plus the upper
+//!   triangle they are mirrored from;
 //! - the eigensolve (while H_w and M are held): LOBPCG's IC(0) factor and its dense
 //!   K x 3 (m + 1) blocks; SLEPc's copies; the dense solver's K x K matrices.
 
@@ -102,11 +102,11 @@ impl MemoryEstimate {
         let points_bytes = BYTES_PER_POINT * n;
         let chunk = n.min(CHUNK_POINTS as f64);
         let stream_bytes = chunk * cover * BYTES_PER_PAIR + 16.0 * k;
-        // Two CSC matrices with their own u32 row indices (8 + 4 bytes per entry each); while
-        // mirroring, the upper triangle (u32 + 2 f64 per entry, half the entries), the
-        // mirrored arrays and the second matrix's copy of the indices.
-        let matrices = 24.0 * nnz + 8.0 * k;
-        let mirroring = 10.0 * nnz + 24.0 * nnz;
+        // Two CSC matrices sharing one pattern of u32 row indices (8 + 8 + 4 bytes per entry);
+        // while mirroring, the upper triangle (u32 + 2 f64 per entry, half the entries) and
+        // the mirrored arrays.
+        let matrices = 20.0 * nnz + 4.0 * k;
+        let mirroring = 10.0 * nnz + 20.0 * nnz;
         let nev = opts.modes as f64 + 1.0;
         let eigensolver = match opts.solver {
             SolverConfig::Dense => 5.0 * 8.0 * k * k,

@@ -73,7 +73,7 @@ pub fn build_basis(
 /// let shape = freeform::io::read_shape("sphere:0.5", &Default::default())?;
 /// let opts = BasisOptions { kernels: 50, modes: 3, ..BasisOptions::default() };
 /// let problem = Problem::from_shape(&shape, &opts, &freeform::progress::Silent)?;
-/// assert_eq!(problem.matrices().hessian.nrows(), 50); // K x K
+/// assert_eq!(problem.matrices().hessian().nrows(), 50); // K x K
 /// let run = problem.solve_with(&DenseSolver, &freeform::progress::Silent)?;
 /// assert_eq!(run.report.solver, "dense");
 /// # Ok::<(), freeform::Error>(())
@@ -416,14 +416,14 @@ impl Problem {
             let free_modes = request.nev - regions.len();
             let part = boundary_modes::partition(&kernels, &points, regions, free_modes)?;
             let (h, m) =
-                boundary_modes::grounded_problem(&assembled.hessian, &assembled.mass, &part);
+                boundary_modes::grounded_problem(assembled.hessian(), assembled.mass(), &part);
             Some((part, h, m, free_modes))
         };
         let (h, m, request) = match &aware {
-            None => (&assembled.hessian, &assembled.mass, request),
+            None => (assembled.hessian(), assembled.mass(), request),
             Some((_, h, m, free_modes)) => (
-                h,
-                m,
+                h.as_ref(),
+                m.as_ref(),
                 EigenRequest {
                     nev: free_modes + 1,
                     ..request
@@ -453,8 +453,8 @@ impl Problem {
         let mut boundaries = Vec::new();
         if let Some((part, ..)) = &aware {
             let (coefficients, values, reports) = boundary_modes::assemble_aware(
-                &assembled.hessian,
-                &assembled.mass,
+                assembled.hessian(),
+                assembled.mass(),
                 part,
                 regions,
                 &solution,
@@ -486,10 +486,7 @@ impl Problem {
         };
         let facts = SolveFacts {
             solver: solver.name().to_string(),
-            nnz: (
-                assembled.hessian.compute_nnz(),
-                assembled.mass.compute_nnz(),
-            ),
+            nnz: (assembled.nnz(), assembled.nnz()),
             timings,
             coverage,
             warnings,

@@ -9,9 +9,9 @@ use freeform::elasticity::energy_density;
 use freeform::material::{Material, MaterialField, MaterialOverride, Region};
 use freeform::precompute::assembly::assemble;
 use freeform::precompute::rkpm::{evaluate, KernelType, ShapeFunctionOptions, ShapeFunctions};
-use freeform::sparse::SparseMatrix;
+use freeform::sparse::SparseMatrixRef;
 
-fn dense(a: &SparseMatrix) -> Vec<Vec<f64>> {
+fn dense(a: SparseMatrixRef<'_>) -> Vec<Vec<f64>> {
     let n = a.nrows();
     let mut d = vec![vec![0.0; n]; n];
     for j in 0..n {
@@ -67,7 +67,7 @@ fn proposition_1_matches_finite_differences() {
     }];
     let (sf, vol, mat, k) = setup(&overrides);
     let a = assemble(&sf, &vol, &mat.hessian_weights(), k).unwrap();
-    let h = dense(&a.hessian);
+    let h = dense(a.hessian());
     let hmax = h.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
     // Second differences of the energy in d^x_k, d^x_l (+ the y and z blocks) at d = 0.
     let step = 1e-4;
@@ -100,7 +100,7 @@ fn proposition_1_matches_finite_differences() {
 fn hessian_and_mass_structure() {
     let (sf, vol, mat, k) = setup(&[]);
     let a = assemble(&sf, &vol, &mat.hessian_weights(), k).unwrap();
-    let (h, m) = (dense(&a.hessian), dense(&a.mass));
+    let (h, m) = (dense(a.hessian()), dense(a.mass()));
     let hmax = h.iter().flatten().fold(0.0f64, |x, v| x.max(v.abs()));
     for i in 0..k {
         for j in 0..k {
@@ -148,8 +148,8 @@ fn assembly_is_deterministic_across_thread_counts() {
         .build()
         .unwrap()
         .install(|| assemble(&sf, &vol, &w, k).unwrap());
-    assert_eq!(one.hessian.val(), two.hessian.val());
-    assert_eq!(one.mass.val(), two.mass.val());
+    assert_eq!(one.hessian().val(), two.hessian().val());
+    assert_eq!(one.mass().val(), two.mass().val());
 }
 
 #[test]

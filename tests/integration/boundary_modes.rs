@@ -33,8 +33,7 @@ fn options(regions: Vec<Region>, solver: SolverConfig) -> BasisOptions {
 fn build(opts: &BasisOptions) -> (freeform::precompute::BasisRun, SparseMatrix, SparseMatrix) {
     let shape = freeform::io::read_shape("box:2,0.5,0.5", &Default::default()).unwrap();
     let problem = Problem::from_shape(&shape, opts, &Silent).unwrap();
-    let h = problem.matrices().hessian.clone();
-    let m = problem.matrices().mass.clone();
+    let (h, m) = problem.matrices().clone().into_pair();
     (problem.solve(&Silent).unwrap(), h, m)
 }
 
@@ -113,8 +112,8 @@ fn lifts_and_free_modes_follow_the_regions_exactly() {
                 "free kernel {i} in a region"
             );
         }
-        let hd = to_dense(&h);
-        let md = to_dense(&m);
+        let hd = to_dense(h.as_ref());
+        let md = to_dense(m.as_ref());
         let sub = |a: &Mat<f64>| Mat::from_fn(free.len(), free.len(), |i, j| a[(free[i], free[j])]);
         let (hff, mff) = (sub(&hd), sub(&md));
         let y = Mat::from_fn(free.len(), 5, |i, j| c[(free[i], 2 + j)]);

@@ -360,10 +360,10 @@ fn assert_same_problem(a: &Problem, b: &Problem, rel: f64) {
     assert_eq!(a.points().volumes, b.points().volumes);
     assert_eq!(a.material(), b.material());
     for (name, x, y) in [
-        ("H_w", &a.matrices().hessian, &b.matrices().hessian),
-        ("M", &a.matrices().mass, &b.matrices().mass),
+        ("H_w", a.matrices().hessian(), b.matrices().hessian()),
+        ("M", a.matrices().mass(), b.matrices().mass()),
     ] {
-        let (dx, dy) = (to_dense(x), to_dense(y));
+        let (dx, dy) = (to_dense(x.as_ref()), to_dense(y.as_ref()));
         let scale = dx.norm_max();
         let diff = (&dx - &dy).norm_max();
         assert!(

@@ -13,7 +13,7 @@ use freeform::eigen::{
     OperatorError, OperatorProblem,
 };
 use freeform::progress::Silent;
-use freeform::sparse::{self, SparseMatrix};
+use freeform::sparse::{self, SparseMatrix, SparseMatrixRef};
 use std::ops::Range;
 
 const GRID: [usize; 3] = [7, 8, 9];
@@ -28,9 +28,9 @@ fn request(nev: usize) -> EigenRequest {
 }
 
 /// A closure operator around an assembled matrix, hiding the matrix (and its diagonal).
-fn closure(a: &SparseMatrix) -> impl LinearOperator + '_ {
+fn closure(a: SparseMatrixRef<'_>) -> impl LinearOperator + '_ {
     FnOperator::new(a.nrows(), move |x: MatRef<'_, f64>, y: MatMut<'_, f64>| {
-        sparse::sym_mul_block(a, x, y);
+        sparse::sym_mul_block(a.as_ref(), x, y);
         Ok(())
     })
 }
@@ -48,14 +48,14 @@ fn max_relative_difference(a: &EigenSolution, b: &EigenSolution) -> f64 {
 
 /// Largest M-norm of the part of each of `b`'s vectors outside the span of `a`'s
 /// (M-orthonormal both): the sine of the largest principal angle between the eigenspaces.
-fn subspace_gap(m: &SparseMatrix, a: &Mat<f64>, b: &Mat<f64>) -> f64 {
+fn subspace_gap(m: SparseMatrixRef<'_>, a: &Mat<f64>, b: &Mat<f64>) -> f64 {
     let k = m.nrows();
     let mut mb = Mat::<f64>::zeros(k, b.ncols());
-    sparse::sym_mul_block(m, b.as_ref(), mb.as_mut());
+    sparse::sym_mul_block(m.as_ref(), b.as_ref(), mb.as_mut());
     let coeffs = a.transpose() * &mb;
     let rest = b - a * &coeffs;
     let mut m_rest = Mat::<f64>::zeros(k, b.ncols());
-    sparse::sym_mul_block(m, rest.as_ref(), m_rest.as_mut());
+    sparse::sym_mul_block(m.as_ref(), rest.as_ref(), m_rest.as_mut());
     (0..b.ncols())
         .map(|j| {
             (0..k)
@@ -77,7 +77,9 @@ fn assert_gap_at_cut(nev: usize) {
 fn sparse_matrices_through_operators_give_the_direct_bits() {
     let (h, m) = q1_fem(GRID, SPACING);
     let solver = Lobpcg::default();
-    let direct = solver.solve(&h, &m, &request(9), &Silent).unwrap();
+    let direct = solver
+        .solve(h.as_ref(), m.as_ref(), &request(9), &Silent)
+        .unwrap();
     let through = solver
         .solve_operators(&OperatorProblem::new(&h, &m), &request(9), &Silent)
         .unwrap();
@@ -97,14 +99,17 @@ fn closures_with_the_assembled_ic0_match_the_direct_path() {
         ..LobpcgOptions::default()
     };
     let solver = Lobpcg::new(options.clone());
-    let direct = solver.solve(&h, &m, &request(nev), &Silent).unwrap();
-    let ic0 = AssembledPreconditioner::build(&h, &m, &options, &request(nev)).unwrap();
+    let direct = solver
+        .solve(h.as_ref(), m.as_ref(), &request(nev), &Silent)
+        .unwrap();
+    let ic0 =
+        AssembledPreconditioner::build(h.as_ref(), m.as_ref(), &options, &request(nev)).unwrap();
     assert!(
         ic0.notes().iter().any(|n| n.contains("IC(0)")),
         "{:?}",
         ic0.notes()
     );
-    let (hc, mc) = (closure(&h), closure(&m));
+    let (hc, mc) = (closure(h.as_ref()), closure(m.as_ref()));
     let problem = OperatorProblem::new(&hc, &mc).with_preconditioner(&ic0);
     let free = solver
         .solve_operators(&problem, &request(nev), &Silent)
@@ -116,7 +121,7 @@ fn closures_with_the_assembled_ic0_match_the_direct_path() {
     // largest; 1e-10 leaves room for the estimated norms moving the stopping point.
     assert!(max_relative_difference(&direct, &free) < 1e-10);
     // Eigenvector error ~ residual / relative gap (>= 1e-3 here): 1e-9 / 1e-3 = 1e-6.
-    assert!(subspace_gap(&m, &direct.vectors, &free.vectors) < 1e-5);
+    assert!(subspace_gap(m.as_ref(), &direct.vectors, &free.vectors) < 1e-5);
     // The independent check recomputes the residuals through the closures.
     assert!(free.info.max_relative_residual <= 1e-9);
 }
@@ -129,7 +134,7 @@ fn element_loop_laplacian_has_the_closed_form_eigenvalues() {
     let m = Q1Operator::new(GRID, SPACING, Q1Part::Mass).unwrap();
     let (ha, ma) = q1_fem(GRID, SPACING);
     let assembled = Lobpcg::default()
-        .solve(&ha, &ma, &request(nev), &Silent)
+        .solve(ha.as_ref(), ma.as_ref(), &request(nev), &Silent)
         .unwrap();
     for (label, hop, mop) in [
         ("Jacobi from the operators' diagonals", h.clone(), m.clone()),
@@ -165,7 +170,7 @@ fn operators_that_fail_stop_the_solve_with_their_error() {
     let (h, m) = q1_fem([5, 5, 5], 0.2);
     let k = h.nrows();
     let solver = Lobpcg::default();
-    let hc = closure(&h);
+    let hc = closure(h.as_ref());
     let solve = |h: &dyn LinearOperator, m: &dyn LinearOperator| {
         solver.solve_operators(&OperatorProblem::new(h, m), &request(5), &Silent)
     };
@@ -186,7 +191,7 @@ fn operators_that_fail_stop_the_solve_with_their_error() {
         y[(x.nrows() / 2, 0)] = f64::NAN;
         Ok(())
     });
-    match solve(&nan, &closure(&m)) {
+    match solve(&nan, &closure(m.as_ref())) {
         Err(EigenError::NonFinite(msg)) => assert!(msg.contains("operator H"), "{msg}"),
         other => panic!("{other:?}"),
     }
@@ -198,7 +203,7 @@ fn operators_that_fail_stop_the_solve_with_their_error() {
     ));
     // An M that is not positive definite: said so, not a failure to converge.
     let negative = FnOperator::new(k, |x: MatRef<'_, f64>, mut y: MatMut<'_, f64>| {
-        sparse::sym_mul_block(&m, x, y.as_mut());
+        sparse::sym_mul_block(m.as_ref(), x, y.as_mut());
         y *= faer::Scale(-1.0);
         Ok(())
     });
@@ -210,7 +215,7 @@ fn operators_that_fail_stop_the_solve_with_their_error() {
     let bad_pre = |_: MatRef<'_, f64>, _: MatMut<'_, f64>| -> Result<(), OperatorError> {
         Err(OperatorError::new("no factor"))
     };
-    let mc = closure(&m);
+    let mc = closure(m.as_ref());
     let problem = OperatorProblem::new(&hc, &mc).with_preconditioner(&bad_pre);
     match solver.solve_operators(&problem, &request(5), &Silent) {
         Err(EigenError::Operator { which, message }) => {
@@ -232,7 +237,7 @@ impl LinearOperator for Partial<'_> {
         self.1.clone()
     }
     fn apply(&self, x: MatRef<'_, f64>, y: MatMut<'_, f64>) -> Result<(), OperatorError> {
-        sparse::sym_mul_block(self.0, x, y);
+        sparse::sym_mul_block(self.0.as_ref(), x, y);
         Ok(())
     }
 }
@@ -241,7 +246,7 @@ impl LinearOperator for Partial<'_> {
 fn problems_the_solver_cannot_take_are_refused_up_front() {
     let (h, m) = q1_fem([5, 5, 5], 0.2);
     let k = h.nrows();
-    let (hc, mc) = (closure(&h), closure(&m));
+    let (hc, mc) = (closure(h.as_ref()), closure(m.as_ref()));
     let solver = Lobpcg::default();
     // A distributed operator in a one-process solver.
     let part = Partial(&h, 0..k / 2);
@@ -251,7 +256,7 @@ fn problems_the_solver_cannot_take_are_refused_up_front() {
     }
     // A non-symmetric operator, found by the probe on request.
     let skew = FnOperator::new(k, |x: MatRef<'_, f64>, mut y: MatMut<'_, f64>| {
-        sparse::sym_mul_block(&h, x, y.as_mut());
+        sparse::sym_mul_block(h.as_ref(), x, y.as_mut());
         for j in 0..x.ncols() {
             y[(0, j)] += x[(1, j)];
         }

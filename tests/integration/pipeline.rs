@@ -130,8 +130,8 @@ fn eigen_for(
     let a = assemble(&sf, &ip.volumes, &mat.hessian_weights(), kernels.len()).unwrap();
     let s = DenseSolver
         .solve_converged(
-            &a.hessian,
-            &a.mass,
+            a.hessian(),
+            a.mass(),
             &EigenRequest {
                 nev,
                 tol: 1e-10,
@@ -504,10 +504,10 @@ fn lobpcg_matches_the_dense_solver_on_rkpm_matrices() {
         max_iter: 500,
     };
     let d = DenseSolver
-        .solve_converged(&a.hessian, &a.mass, &req, &Silent)
+        .solve_converged(a.hessian(), a.mass(), &req, &Silent)
         .unwrap();
     let l = Lobpcg::new(LobpcgOptions::default())
-        .solve_converged(&a.hessian, &a.mass, &req, &Silent)
+        .solve_converged(a.hessian(), a.mass(), &req, &Silent)
         .unwrap();
     // Residual tol 1e-10 bounds the eigenvalue error by ~ tol^2 * ||H|| / gap: far below 1e-8.
     for j in 1..17 {
@@ -526,7 +526,7 @@ fn lobpcg_matches_the_dense_solver_on_rkpm_matrices() {
         let mut out = faer::Mat::<f64>::zeros(kernels.len(), 17);
         for j in 0..17 {
             for c in 0..kernels.len() {
-                let (rows, vals) = (a.mass.row_idx_of_col_raw(c), a.mass.val_of_col(c));
+                let (rows, vals) = (a.mass().row_idx_of_col_raw(c), a.mass().val_of_col(c));
                 for (r, v) in rows.iter().zip(vals) {
                     out[(*r as usize, j)] += v * d.vectors[(c, j)];
                 }

@@ -16,7 +16,7 @@ use freeform::precompute::stream::{assemble_streamed, Streamed};
 use freeform::precompute::{BasisOptions, Problem};
 use freeform::progress::Silent;
 use freeform::random::SplitMix64;
-use freeform::sparse::SparseMatrix;
+use freeform::sparse::SparseMatrixRef;
 use freeform::Point3;
 
 /// Dense K x K H_w and M, and which entries any point touched, from all shape functions at
@@ -58,7 +58,7 @@ fn dense_reference(kernels: &Kernels, points: &[Point3], vol: &[f64], w: &[f64])
 }
 
 /// Entry-wise exact comparison of a sparse matrix with a dense one, and of its pattern.
-fn assert_same(a: &SparseMatrix, dense: &[Vec<f64>], hit: &[Vec<bool>], what: &str) {
+fn assert_same(a: SparseMatrixRef<'_>, dense: &[Vec<f64>], hit: &[Vec<bool>], what: &str) {
     let k = dense.len();
     let mut stored = vec![vec![false; k]; k];
     for j in 0..k {
@@ -134,8 +134,8 @@ fn streamed_assembly_equals_dense_reference_for_any_chunk_and_thread_count() {
                 panic!("every point of the box is covered");
             };
             let what = format!("chunk {chunk}, {threads} threads");
-            assert_same(&done.assembled.hessian, &h, &hit, &format!("H {what}"));
-            assert_same(&done.assembled.mass, &m, &hit, &format!("M {what}"));
+            assert_same(done.assembled.hessian(), &h, &hit, &format!("H {what}"));
+            assert_same(done.assembled.mass(), &m, &hit, &format!("M {what}"));
             assert_eq!(done.stats.mean_cover, {
                 let (sf, _) = evaluate(&kernels, &points, &ShapeFunctionOptions::default());
                 sf.nnz() as f64 / n as f64
@@ -199,10 +199,10 @@ fn pipeline_streams_over_several_chunks_to_the_one_shot_matrices() {
     let (sf, _) = evaluate(problem.kernels(), &sorted, &ShapeFunctionOptions::default());
     let one = freeform::precompute::assembly::assemble(&sf, &vol, &w, 200).unwrap();
     let a = problem.matrices();
-    assert_eq!(a.hessian.val(), one.hessian.val());
-    assert_eq!(a.mass.val(), one.mass.val());
-    assert_eq!(a.hessian.row_idx(), one.hessian.row_idx());
-    assert_eq!(a.hessian.col_ptr(), one.hessian.col_ptr());
+    assert_eq!(a.hessian().val(), one.hessian().val());
+    assert_eq!(a.mass().val(), one.mass().val());
+    assert_eq!(a.hessian().row_idx(), one.hessian().row_idx());
+    assert_eq!(a.hessian().col_ptr(), one.hessian().col_ptr());
     // The report's shape-function bytes are one chunk's, not all points'.
     assert!(problem.coverage().shape_function_bytes < sf.memory_bytes() / 2);
 }

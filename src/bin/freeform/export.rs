@@ -29,13 +29,13 @@ pub fn run(args: ExportArgs) -> CliResult {
     let (shape, opts) = args.shape.build()?;
     let problem = Problem::from_shape(&shape, &opts, &freeform::progress::Silent)?;
     let a = problem.matrices();
-    let files = write_matrices(&args.out, &a.hessian, &a.mass, true)?;
+    let files = write_matrices(&args.out, a.hessian(), a.mass(), true)?;
     let report = serde_json::json!({
         "shape": args.shape.shape,
         "kernels": problem.kernels().len(),
         "points": problem.points().len(),
-        "nnz_hessian": a.hessian.compute_nnz(),
-        "nnz_mass": a.mass.compute_nnz(),
+        "nnz_hessian": a.hessian().compute_nnz(),
+        "nnz_mass": a.mass().compute_nnz(),
         "files": files.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
         "timings_s": problem.timings(),
         "note": "solve H_w c = lambda M c for the m + 1 smallest pairs (lambda_0 = 0: constant)",
@@ -47,8 +47,8 @@ pub fn run(args: ExportArgs) -> CliResult {
             "freeform export {}\n  K {}  H_w nnz {}  M nnz {}\n  wrote {}\n",
             args.shape.shape,
             problem.kernels().len(),
-            a.hessian.compute_nnz(),
-            a.mass.compute_nnz(),
+            a.hessian().compute_nnz(),
+            a.mass().compute_nnz(),
             files
                 .iter()
                 .map(|p| p.display().to_string())

@@ -338,7 +338,12 @@ fn from_matrices(dir: &std::path::Path, args: &ModesArgs) -> CliResult {
         max_iter: args.basis.choices.options.max_iter,
     };
     let clock = freeform::report::Stopwatch::start();
-    let solution = solver.solve_converged(&h, &m, &request, &freeform::progress::Silent)?;
+    let solution = solver.solve_converged(
+        h.as_ref(),
+        m.as_ref(),
+        &request,
+        &freeform::progress::Silent,
+    )?;
     let solve_s = clock.elapsed();
     if !crate::is_root_rank(&config)? {
         return Ok(());

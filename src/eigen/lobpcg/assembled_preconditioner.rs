@@ -8,7 +8,7 @@ use super::options::LobpcgOptions;
 use super::precondition::{self, Preconditioner};
 use super::workspace::Block;
 use crate::eigen::{self, validate_problem, EigenError, EigenRequest, OperatorError};
-use crate::sparse::SparseMatrix;
+use crate::sparse::SparseMatrixRef;
 use faer::{MatMut, MatRef, Par};
 use std::sync::Mutex;
 
@@ -37,8 +37,8 @@ impl AssembledPreconditioner {
     /// As the native solver's preconditioner setup: invalid problems, a non-positive shift
     /// or diagonal.
     pub fn build(
-        h: &SparseMatrix,
-        m: &SparseMatrix,
+        h: SparseMatrixRef<'_>,
+        m: SparseMatrixRef<'_>,
         options: &LobpcgOptions,
         request: &EigenRequest,
     ) -> Result<Self, EigenError> {

@@ -15,7 +15,7 @@
 
 use super::workspace::{Block, ROW_CHUNK};
 use crate::simd::multiversion;
-use crate::sparse::{self, SparseMatrix};
+use crate::sparse::{self, SparseMatrixRef};
 use rayon::prelude::*;
 
 /// An IC(0) factor.
@@ -46,8 +46,8 @@ impl IncompleteCholesky {
     /// are the matrices' own row indices). A pivot below `1e-12 * (1 + alpha) a_ii` counts as
     /// a breakdown.
     pub fn factor(
-        h: &SparseMatrix,
-        m: &SparseMatrix,
+        h: SparseMatrixRef<'_>,
+        m: SparseMatrixRef<'_>,
         sigma: f64,
         alpha: f64,
     ) -> Result<Self, Breakdown> {
@@ -116,12 +116,12 @@ impl IncompleteCholesky {
 /// the diagonal last), not yet factored, merged as [`sparse::add_scaled`] merges the columns
 /// of A (the same bits).
 fn lower_pencil(
-    h: &SparseMatrix,
-    m: &SparseMatrix,
+    h: SparseMatrixRef<'_>,
+    m: SparseMatrixRef<'_>,
     sigma: f64,
 ) -> Result<IncompleteCholesky, Breakdown> {
     let n = h.nrows();
-    let lower = |a: &SparseMatrix| (a.val().len() + n) / 2;
+    let lower = |a: SparseMatrixRef<'_>| (a.val().len() + n) / 2;
     let cap = lower(h).max(lower(m));
     let mut ptr = Vec::with_capacity(n + 1);
     let mut idx: Vec<u32> = Vec::with_capacity(cap);
@@ -283,7 +283,7 @@ mod tests {
             (0..n as u32).collect(),
             vec![0.0; n],
         );
-        let ic = IncompleteCholesky::factor(&a, &zero, 1.0, 0.0).unwrap();
+        let ic = IncompleteCholesky::factor(a.as_ref(), zero.as_ref(), 1.0, 0.0).unwrap();
         assert_eq!(ic.entries(), 2 * n - 1);
         let mut b = Block::new(n, 3);
         for i in 0..n {
@@ -294,7 +294,7 @@ mod tests {
         ic.solve_in_place(&mut b, 1, 1, &mut tmp);
         let x: Vec<f64> = (0..n).map(|i| b.data[i * 3 + 1]).collect();
         let mut ax = vec![0.0; n];
-        crate::sparse::sym_mul_row_major(&a, &x, 1, &mut ax, 1, 1);
+        crate::sparse::sym_mul_row_major(a.as_ref(), &x, 1, &mut ax, 1, 1);
         for i in 0..n {
             // cond(A) < 10: residual at round-off level.
             assert!((ax[i] - rhs[i]).abs() < 1e-13, "{i}");
@@ -302,9 +302,9 @@ mod tests {
         // On a 3D stencil (fill dropped) L L^T reproduces A on the pattern of A.
         let h = testing::grid_laplacian([5, 4, 3], 1.5);
         let m = testing::identity(60);
-        let a = crate::sparse::add_scaled(1.0, &h, 0.1, &m);
-        let ic = IncompleteCholesky::factor(&h, &m, 0.1, 0.0).unwrap();
-        let dense = crate::sparse::to_dense(&a);
+        let a = crate::sparse::add_scaled(1.0, h.as_ref(), 0.1, m.as_ref());
+        let ic = IncompleteCholesky::factor(h.as_ref(), m.as_ref(), 0.1, 0.0).unwrap();
+        let dense = crate::sparse::to_dense(a.as_ref());
         let mut l = faer::Mat::<f64>::zeros(60, 60);
         for i in 0..60 {
             for p in ic.ptr[i]..ic.ptr[i + 1] {

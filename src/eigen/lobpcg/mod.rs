@@ -58,7 +58,7 @@ pub use options::{LobpcgOptions, PreconditionerKind};
 use super::operator_problem::{validate_operators, OperatorProblem};
 use super::{validate_problem, EigenError, EigenRequest, EigenSolution, Eigensolver};
 use crate::progress::Progress;
-use crate::sparse::SparseMatrix;
+use crate::sparse::SparseMatrixRef;
 
 /// Native LOBPCG eigensolver (name "lobpcg").
 #[derive(Debug, Clone, Default)]
@@ -81,8 +81,8 @@ impl Eigensolver for Lobpcg {
 
     fn solve(
         &self,
-        h: &SparseMatrix,
-        m: &SparseMatrix,
+        h: SparseMatrixRef<'_>,
+        m: SparseMatrixRef<'_>,
         request: &EigenRequest,
         progress: &dyn Progress,
     ) -> Result<EigenSolution, EigenError> {
@@ -91,7 +91,7 @@ impl Eigensolver for Lobpcg {
         let seconds = clock.elapsed().as_secs_f64();
         let mut solution = driver::solve(
             &self.options,
-            &OperatorProblem::new(h, m),
+            &OperatorProblem::new(&h, &m),
             request,
             progress,
         )?;

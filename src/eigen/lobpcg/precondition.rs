@@ -18,7 +18,7 @@ use super::incomplete_cholesky::{Breakdown, IncompleteCholesky};
 use super::options::{LobpcgOptions, PreconditionerKind};
 use super::workspace::{Block, ROW_CHUNK};
 use crate::eigen::{self, EigenError};
-use crate::sparse::{self, SparseMatrix};
+use crate::sparse::{self, SparseMatrixRef};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
@@ -72,15 +72,15 @@ pub(super) struct SetupReport {
 }
 
 /// The shift sigma of H + sigma M from the options: `shift_factor * tr(H) / tr(M)`.
-pub(super) fn shift(h: &SparseMatrix, m: &SparseMatrix, opts: &LobpcgOptions) -> f64 {
+pub(super) fn shift(h: SparseMatrixRef<'_>, m: SparseMatrixRef<'_>, opts: &LobpcgOptions) -> f64 {
     let ratio = sparse::trace(h) / sparse::trace(m);
     opts.shift_factor * ratio
 }
 
 /// Build the preconditioner for block products of up to `max_cols` columns.
 pub(super) fn build(
-    h: &SparseMatrix,
-    m: &SparseMatrix,
+    h: SparseMatrixRef<'_>,
+    m: SparseMatrixRef<'_>,
     opts: &LobpcgOptions,
     max_cols: usize,
     par: Par,
@@ -283,8 +283,8 @@ pub(super) fn build_matrix_free(
 /// that chose IC(0) and then converged too slowly; `None` (with a note) if the factor does
 /// not fit in `max_factor_entries` or fails.
 pub(super) fn escalate(
-    h: &SparseMatrix,
-    m: &SparseMatrix,
+    h: SparseMatrixRef<'_>,
+    m: SparseMatrixRef<'_>,
     opts: &LobpcgOptions,
     max_cols: usize,
     par: Par,
@@ -314,8 +314,8 @@ pub(super) fn escalate(
 /// IC(0) of H + sigma M, with Manteuffel's diagonal shift alpha = 0, 1e-3, 1e-2, 1e-1, 1 on
 /// breakdown; `None` (with a note) if every attempt breaks down.
 fn incomplete(
-    h: &SparseMatrix,
-    m: &SparseMatrix,
+    h: SparseMatrixRef<'_>,
+    m: SparseMatrixRef<'_>,
     sigma: f64,
     report: &mut SetupReport,
 ) -> Option<IncompleteCholesky> {
@@ -371,8 +371,8 @@ enum CholeskyFailure {
 const MIN_FILL: f64 = 2.0;
 
 fn cholesky(
-    h: &SparseMatrix,
-    m: &SparseMatrix,
+    h: SparseMatrixRef<'_>,
+    m: SparseMatrixRef<'_>,
     sigma: f64,
     budget: Budget,
     max_cols: usize,
@@ -399,7 +399,7 @@ fn cholesky(
         ));
     }
     let union = (!same).then(|| sparse::add_scaled(1.0, h, sigma, m));
-    let pattern = union.as_ref().unwrap_or(h).symbolic();
+    let pattern = union.as_ref().map_or(h, |u| u.as_ref()).symbolic();
     let lower = (pattern.row_idx().len() + h.nrows()) / 2;
     let t0 = Instant::now();
     let symbolic = factorize_symbolic_cholesky(
@@ -473,7 +473,11 @@ fn cholesky(
     })))
 }
 
-fn jacobi(h: &SparseMatrix, m: &SparseMatrix, sigma: f64) -> Result<Vec<f64>, EigenError> {
+fn jacobi(
+    h: SparseMatrixRef<'_>,
+    m: SparseMatrixRef<'_>,
+    sigma: f64,
+) -> Result<Vec<f64>, EigenError> {
     jacobi_from_diagonals(&sparse::diagonal(h), &sparse::diagonal(m), sigma)
 }
 

@@ -5,7 +5,7 @@ use crate::eigen::dense::DenseSolver;
 use crate::eigen::testing;
 use crate::eigen::EigenStatus;
 use crate::progress::Silent;
-use crate::sparse;
+use crate::sparse::{self, SparseMatrix};
 use faer::Mat;
 
 fn request(nev: usize, tol: f64) -> EigenRequest {
@@ -18,7 +18,7 @@ fn request(nev: usize, tol: f64) -> EigenRequest {
 
 /// sin of the largest principal angle, in the M-inner product, between span(a) and span(b),
 /// both M-orthonormal with a.ncols() <= b.ncols(): the M-norm of the part of a outside span(b).
-fn sin_largest_angle(m: &SparseMatrix, a: &Mat<f64>, b: &Mat<f64>) -> f64 {
+fn sin_largest_angle(m: SparseMatrixRef<'_>, a: &Mat<f64>, b: &Mat<f64>) -> f64 {
     let mut mb = Mat::zeros(b.nrows(), b.ncols());
     sparse::sym_mul_block(m, b.as_ref(), mb.as_mut());
     let coef = mb.transpose() * a;
@@ -50,7 +50,7 @@ fn clusters(values: &[f64], rel: f64) -> Vec<std::ops::Range<usize>> {
 /// that a cluster split by the cut is complete in it): eigenvalues to `val_tol` relative,
 /// each LOBPCG cluster inside the dense eigenspace of its cluster to `angle_tol`.
 fn compare_with_dense(
-    m: &SparseMatrix,
+    m: SparseMatrixRef<'_>,
     lob: &EigenSolution,
     dense: &EigenSolution,
     val_tol: f64,
@@ -112,19 +112,23 @@ fn lobpcg_matches_dense_with_random_diagonal_mass() {
     // random diagonal perturbation (seeded), K = 8 x 7 x 6 = 336, no analytic spectrum.
     let n = [8, 7, 6];
     let h = testing::grid_laplacian(n, 2.0);
-    let m = testing::perturb_diagonal(&testing::kernel_mass(n, 2.0, 0.05, 0.3, 7), 0.5, 11);
+    let m = testing::perturb_diagonal(
+        (testing::kernel_mass(n, 2.0, 0.05, 0.3, 7)).as_ref(),
+        0.5,
+        11,
+    );
     let nev = 17;
     let tol = 1e-10;
     let lob = Lobpcg::default()
-        .solve_converged(&h, &m, &request(nev, tol), &Silent)
+        .solve_converged(h.as_ref(), m.as_ref(), &request(nev, tol), &Silent)
         .unwrap();
     let dense = DenseSolver
-        .solve_converged(&h, &m, &request(nev + 8, tol), &Silent)
+        .solve_converged(h.as_ref(), m.as_ref(), &request(nev + 8, tol), &Silent)
         .unwrap();
     // Residual 1e-10 * ||H|| (~30) and gaps >= ~1e-2 give eigenvalue errors ~ (3e-9)^2 / 1e-2
     // ~ 1e-15: 1e-8 relative is loose. Angles ~ residual * ||H|| / gap ~ 3e-7 worst case.
     assert_solution_quality(&lob, tol);
-    compare_with_dense(&m, &lob, &dense, 1e-8, 1e-6);
+    compare_with_dense(m.as_ref(), &lob, &dense, 1e-8, 1e-6);
     assert_eq!(lob.info.solver, "lobpcg");
     assert!(lob.info.iterations > 0 && lob.info.matvecs > 0);
     // K = 336 has little fill: Auto takes the exact factorization.
@@ -147,7 +151,7 @@ fn lobpcg_q1_fem_matches_analytic_and_dense() {
     let nev = 21;
     let tol = 1e-10;
     let lob = Lobpcg::default()
-        .solve_converged(&h, &m, &request(nev, tol), &Silent)
+        .solve_converged(h.as_ref(), m.as_ref(), &request(nev, tol), &Silent)
         .unwrap();
     assert_solution_quality(&lob, tol);
     let exact = testing::q1_fem_eigenvalues(n, hsp, nev);
@@ -161,9 +165,9 @@ fn lobpcg_q1_fem_matches_analytic_and_dense() {
         );
     }
     let dense = DenseSolver
-        .solve_converged(&h, &m, &request(nev + 8, tol), &Silent)
+        .solve_converged(h.as_ref(), m.as_ref(), &request(nev + 8, tol), &Silent)
         .unwrap();
-    compare_with_dense(&m, &lob, &dense, 1e-8, 1e-6);
+    compare_with_dense(m.as_ref(), &lob, &dense, 1e-8, 1e-6);
 }
 
 #[test]
@@ -178,7 +182,7 @@ fn lobpcg_cube_multiplicities_are_complete() {
     let m = testing::identity(343);
     let exact = testing::grid_laplacian_eigenvalues(n, 40);
     let dense = DenseSolver
-        .solve_converged(&h, &m, &request(40, 1e-10), &Silent)
+        .solve_converged(h.as_ref(), m.as_ref(), &request(40, 1e-10), &Silent)
         .unwrap();
     let groups = clusters(&exact, 1e-9);
     let sizes: Vec<usize> = groups.iter().map(|g| g.len()).collect();
@@ -186,7 +190,7 @@ fn lobpcg_cube_multiplicities_are_complete() {
     for nev in [5, 6, 8, 12, 17] {
         let tol = 1e-10;
         let lob = Lobpcg::default()
-            .solve_converged(&h, &m, &request(nev, tol), &Silent)
+            .solve_converged(h.as_ref(), m.as_ref(), &request(nev, tol), &Silent)
             .unwrap();
         assert_solution_quality(&lob, tol);
         for j in 0..nev {
@@ -206,7 +210,7 @@ fn lobpcg_cube_multiplicities_are_complete() {
             .map(|g| g.len())
             .collect();
         assert_eq!(got, want, "nev {nev}");
-        compare_with_dense(&m, &lob, &dense, 1e-8, 1e-6);
+        compare_with_dense(m.as_ref(), &lob, &dense, 1e-8, 1e-6);
         if exact[nev] - exact[nev - 1] < 1e-9 {
             assert!(
                 lob.info
@@ -226,10 +230,10 @@ fn lobpcg_is_deterministic() {
     let m = testing::kernel_mass(n, 1.8, 0.05, 0.5, 3);
     let req = request(9, 1e-9);
     let a = Lobpcg::default()
-        .solve_converged(&h, &m, &req, &Silent)
+        .solve_converged(h.as_ref(), m.as_ref(), &req, &Silent)
         .unwrap();
     let b = Lobpcg::default()
-        .solve_converged(&h, &m, &req, &Silent)
+        .solve_converged(h.as_ref(), m.as_ref(), &req, &Silent)
         .unwrap();
     // Bit-identical: compare the f64 bit patterns.
     let bits = |s: &EigenSolution| -> Vec<u64> {
@@ -250,7 +254,7 @@ fn lobpcg_is_deterministic() {
         seed: 99,
         ..LobpcgOptions::default()
     })
-    .solve_converged(&h, &m, &req, &Silent)
+    .solve_converged(h.as_ref(), m.as_ref(), &req, &Silent)
     .unwrap();
     for (x, y) in a.values.iter().zip(&other.values) {
         assert!((x - y).abs() <= 1e-9 * y.abs());
@@ -272,7 +276,9 @@ fn lobpcg_not_converged_keeps_partial_result() {
         ..LobpcgOptions::default()
     };
     // Not converged is a status on the result, with the result in hand.
-    let partial = Lobpcg::new(opts).solve(&h, &m, &req, &Silent).unwrap();
+    let partial = Lobpcg::new(opts)
+        .solve(h.as_ref(), m.as_ref(), &req, &Silent)
+        .unwrap();
     assert!(!partial.converged());
     match partial.info.status {
         EigenStatus::NotConverged {
@@ -330,7 +336,7 @@ fn lobpcg_not_converged_keeps_partial_result() {
             preconditioner: PreconditionerKind::Jacobi,
             ..LobpcgOptions::default()
         })
-        .solve_converged(&h, &m, &req, &Silent),
+        .solve_converged(h.as_ref(), m.as_ref(), &req, &Silent),
         Err(EigenError::NotConverged { .. })
     ));
 }
@@ -343,27 +349,27 @@ fn lobpcg_rejects_invalid_input() {
     let solver = Lobpcg::default();
     // nev = K - 1 too large; K - 2 is the largest accepted.
     assert!(matches!(
-        solver.solve(&h, &m, &request(63, 1e-8), &Silent),
+        solver.solve(h.as_ref(), m.as_ref(), &request(63, 1e-8), &Silent),
         Err(EigenError::InvalidRequest(_))
     ));
     assert!(matches!(
-        solver.solve(&h, &m, &request(0, 1e-8), &Silent),
+        solver.solve(h.as_ref(), m.as_ref(), &request(0, 1e-8), &Silent),
         Err(EigenError::InvalidRequest(_))
     ));
     assert!(matches!(
-        solver.solve(&h, &m, &request(4, 0.0), &Silent),
+        solver.solve(h.as_ref(), m.as_ref(), &request(4, 0.0), &Silent),
         Err(EigenError::InvalidRequest(_))
     ));
     let mut nan = h.clone();
     nan.val_mut()[3] = f64::NAN;
     assert!(matches!(
-        solver.solve(&nan, &m, &request(4, 1e-8), &Silent),
+        solver.solve(nan.as_ref(), m.as_ref(), &request(4, 1e-8), &Silent),
         Err(EigenError::NonFinite(_))
     ));
     let mut inf = m.clone();
     inf.val_mut()[3] = f64::INFINITY;
     assert!(matches!(
-        solver.solve(&h, &inf, &request(4, 1e-8), &Silent),
+        solver.solve(h.as_ref(), inf.as_ref(), &request(4, 1e-8), &Silent),
         Err(EigenError::NonFinite(_))
     ));
     // Asymmetric H.
@@ -381,14 +387,19 @@ fn lobpcg_rejects_invalid_input() {
         .collect();
     let asym = faer::sparse::SparseColMat::try_new_from_triplets(4, 4, &trip).unwrap();
     assert!(matches!(
-        solver.solve(&asym, &testing::identity(4), &request(1, 1e-8), &Silent),
+        solver.solve(
+            asym.as_ref(),
+            (testing::identity(4)).as_ref(),
+            &request(1, 1e-8),
+            &Silent
+        ),
         Err(EigenError::InvalidRequest(_))
     ));
     // M with a negative diagonal entry.
     let mut neg = m.clone();
     neg.val_mut()[5] = -1.0;
     assert!(matches!(
-        solver.solve(&h, &neg, &request(4, 1e-8), &Silent),
+        solver.solve(h.as_ref(), neg.as_ref(), &request(4, 1e-8), &Silent),
         Err(EigenError::NotPositiveDefinite { what: "M", .. })
     ));
     // M with a positive diagonal but indefinite: I + 0.5 A (A the 7-point adjacency, whose
@@ -405,7 +416,7 @@ fn lobpcg_rejects_invalid_input() {
         }
     }
     let err = solver
-        .solve(&h, &indef, &request(4, 1e-8), &Silent)
+        .solve(h.as_ref(), indef.as_ref(), &request(4, 1e-8), &Silent)
         .unwrap_err();
     assert!(
         matches!(err, EigenError::NotPositiveDefinite { what: "M", .. }),
@@ -413,7 +424,12 @@ fn lobpcg_rejects_invalid_input() {
     );
     // Shape mismatch.
     assert!(matches!(
-        solver.solve(&h, &testing::identity(63), &request(4, 1e-8), &Silent),
+        solver.solve(
+            h.as_ref(),
+            (testing::identity(63)).as_ref(),
+            &request(4, 1e-8),
+            &Silent
+        ),
         Err(EigenError::InvalidRequest(_))
     ));
 }
@@ -422,7 +438,7 @@ fn lobpcg_rejects_invalid_input() {
 fn lobpcg_nev_one_is_the_constant_mode() {
     let (h, m) = testing::q1_fem([4, 4, 4], 0.5);
     let sol = Lobpcg::default()
-        .solve_converged(&h, &m, &request(1, 1e-8), &Silent)
+        .solve_converged(h.as_ref(), m.as_ref(), &request(1, 1e-8), &Silent)
         .unwrap();
     assert_eq!(sol.values, vec![0.0]);
     assert!(sol.info.max_relative_residual < 1e-14);
@@ -453,7 +469,7 @@ fn lobpcg_every_preconditioner_converges() {
             ..LobpcgOptions::default()
         };
         let sol = Lobpcg::new(opts)
-            .solve_converged(&h, &m, &req, &Silent)
+            .solve_converged(h.as_ref(), m.as_ref(), &req, &Silent)
             .unwrap();
         assert_solution_quality(&sol, 1e-9);
         iterations.push(sol.info.iterations);
@@ -487,12 +503,12 @@ fn lobpcg_restarts_and_recomputes_still_converge() {
         ..LobpcgOptions::default()
     };
     let lob = Lobpcg::new(opts)
-        .solve_converged(&h, &m, &request(9, tol), &Silent)
+        .solve_converged(h.as_ref(), m.as_ref(), &request(9, tol), &Silent)
         .unwrap();
     assert_solution_quality(&lob, tol);
     assert!(lob.info.restarts > 0 && lob.info.restarts <= lob.info.iterations);
     let reference = Lobpcg::default()
-        .solve_converged(&h, &m, &request(9, tol), &Silent)
+        .solve_converged(h.as_ref(), m.as_ref(), &request(9, tol), &Silent)
         .unwrap();
     for (a, b) in lob.values.iter().zip(&reference.values) {
         // Both to residual 1e-10: eigenvalues agree far below 1e-9 relative.
@@ -510,7 +526,7 @@ fn lobpcg_largest_request_fills_the_space() {
     let m = testing::identity(27);
     let tol = 1e-10;
     let lob = Lobpcg::default()
-        .solve_converged(&h, &m, &request(25, tol), &Silent)
+        .solve_converged(h.as_ref(), m.as_ref(), &request(25, tol), &Silent)
         .unwrap();
     assert_solution_quality(&lob, tol);
     let exact = testing::grid_laplacian_eigenvalues(n, 25);
@@ -535,7 +551,7 @@ fn auto_skips_the_symbolic_analysis_when_the_factor_cannot_fit() {
         ..LobpcgOptions::default()
     };
     let sol = Lobpcg::new(opts)
-        .solve_converged(&h, &m, &request(9, tol), &Silent)
+        .solve_converged(h.as_ref(), m.as_ref(), &request(9, tol), &Silent)
         .unwrap();
     assert_solution_quality(&sol, tol);
     let notes = &sol.info.notes;
@@ -552,9 +568,9 @@ fn auto_skips_the_symbolic_analysis_when_the_factor_cannot_fit() {
         "{notes:?}"
     );
     let reference = DenseSolver
-        .solve_converged(&h, &m, &request(12, tol), &Silent)
+        .solve_converged(h.as_ref(), m.as_ref(), &request(12, tol), &Silent)
         .unwrap();
-    compare_with_dense(&m, &sol, &reference, 1e-8, 1e-6);
+    compare_with_dense(m.as_ref(), &sol, &reference, 1e-8, 1e-6);
 }
 
 #[test]
@@ -571,7 +587,7 @@ fn auto_switches_from_ic0_to_cholesky_when_slow() {
         ..LobpcgOptions::default()
     };
     let sol = Lobpcg::new(opts)
-        .solve_converged(&h, &m, &request(9, tol), &Silent)
+        .solve_converged(h.as_ref(), m.as_ref(), &request(9, tol), &Silent)
         .unwrap();
     assert_solution_quality(&sol, tol);
     assert!(
@@ -596,9 +612,9 @@ fn auto_switches_from_ic0_to_cholesky_when_slow() {
         .iter()
         .any(|n| n.starts_with("preconditioner: sparse Cholesky")));
     let reference = DenseSolver
-        .solve_converged(&h, &m, &request(12, tol), &Silent)
+        .solve_converged(h.as_ref(), m.as_ref(), &request(12, tol), &Silent)
         .unwrap();
-    compare_with_dense(&m, &sol, &reference, 1e-8, 1e-6);
+    compare_with_dense(m.as_ref(), &sol, &reference, 1e-8, 1e-6);
 }
 
 #[test]
@@ -613,7 +629,7 @@ fn lobpcg_incomplete_cholesky_matches_dense() {
         ..LobpcgOptions::default()
     };
     let lob = Lobpcg::new(opts)
-        .solve_converged(&h, &m, &request(13, tol), &Silent)
+        .solve_converged(h.as_ref(), m.as_ref(), &request(13, tol), &Silent)
         .unwrap();
     assert_solution_quality(&lob, tol);
     assert!(
@@ -622,10 +638,10 @@ fn lobpcg_incomplete_cholesky_matches_dense() {
         lob.info.notes
     );
     let dense = DenseSolver
-        .solve_converged(&h, &m, &request(21, tol), &Silent)
+        .solve_converged(h.as_ref(), m.as_ref(), &request(21, tol), &Silent)
         .unwrap();
     // Same tolerances and reasoning as the Cholesky comparison above.
-    compare_with_dense(&m, &lob, &dense, 1e-8, 1e-6);
+    compare_with_dense(m.as_ref(), &lob, &dense, 1e-8, 1e-6);
 }
 
 #[test]
@@ -646,7 +662,7 @@ fn lobpcg_same_bits_for_any_thread_count() {
             .unwrap();
         pool.install(|| {
             Lobpcg::new(opts.clone())
-                .solve_converged(&h, &m, &request(9, 1e-9), &Silent)
+                .solve_converged(h.as_ref(), m.as_ref(), &request(9, 1e-9), &Silent)
                 .unwrap()
         })
     };
@@ -693,7 +709,8 @@ fn preconditioner_fallbacks_are_recorded() {
         preconditioner: PreconditionerKind::Cholesky,
         ..LobpcgOptions::default()
     };
-    let (pre, report) = precondition::build(&h, &m, &opts, 8, faer::Par::Seq).unwrap();
+    let (pre, report) =
+        precondition::build(h.as_ref(), m.as_ref(), &opts, 8, faer::Par::Seq).unwrap();
     assert!(
         matches!(pre, precondition::Preconditioner::Jacobi { .. }),
         "{pre:?}"
@@ -710,14 +727,18 @@ fn preconditioner_fallbacks_are_recorded() {
         .notes
         .iter()
         .any(|n| n.contains("falling back to Jacobi")));
-    assert_eq!(report.sigma, 100.0 * precondition::shift(&h, &m, &opts));
+    assert_eq!(
+        report.sigma,
+        100.0 * precondition::shift(h.as_ref(), m.as_ref(), &opts)
+    );
     // IC(0) breaks down for every diagonal shift (the 2 x 2 block [2 4; 4 2] stays
     // indefinite even with alpha = 1), then Jacobi.
     let opts = LobpcgOptions {
         preconditioner: PreconditionerKind::IncompleteCholesky,
         ..LobpcgOptions::default()
     };
-    let (pre, report) = precondition::build(&h, &m, &opts, 8, faer::Par::Seq).unwrap();
+    let (pre, report) =
+        precondition::build(h.as_ref(), m.as_ref(), &opts, 8, faer::Par::Seq).unwrap();
     assert!(matches!(pre, precondition::Preconditioner::Jacobi { .. }));
     assert_eq!(
         report
@@ -729,7 +750,7 @@ fn preconditioner_fallbacks_are_recorded() {
     );
     // The solve itself then finds the negative eigenvalue and reports that H is not PSD.
     let err = Lobpcg::default()
-        .solve(&h, &m, &request(4, 1e-8), &Silent)
+        .solve(h.as_ref(), m.as_ref(), &request(4, 1e-8), &Silent)
         .unwrap_err();
     assert!(
         matches!(err, EigenError::NotPositiveDefinite { what: "H", .. }),
@@ -783,7 +804,7 @@ fn measure_lobpcg() {
         max_iter: env("MAXIT", 1000),
     };
     let t = std::time::Instant::now();
-    let result = Lobpcg::new(opts).solve(&h, &m, &req, &Silent);
+    let result = Lobpcg::new(opts).solve(h.as_ref(), m.as_ref(), &req, &Silent);
     let secs = t.elapsed().as_secs_f64();
     let sol = result.unwrap_or_else(|e| panic!("{e}"));
     if !sol.converged() {
@@ -801,7 +822,7 @@ fn measure_lobpcg() {
     {
         let v = &sol.vectors;
         let mut mv = Mat::zeros(v.nrows(), v.ncols());
-        sparse::sym_mul_block(&m, v.as_ref(), mv.as_mut());
+        sparse::sym_mul_block(m.as_ref(), v.as_ref(), mv.as_mut());
         let g = v.transpose() * &mv;
         let nev = v.ncols();
         let (mut e0, mut e1) = (0.0f64, 0.0f64);
@@ -818,7 +839,7 @@ fn measure_lobpcg() {
         eprintln!("orthonormality: constant-mode row/col {e0:.2e}, the rest {e1:.2e}");
         let ones = Mat::from_fn(v.nrows(), 1, |_, _| 1.0);
         let mut m1 = Mat::zeros(v.nrows(), 1);
-        sparse::sym_mul_block(&m, ones.as_ref(), m1.as_mut());
+        sparse::sym_mul_block(m.as_ref(), ones.as_ref(), m1.as_mut());
         let c = m1.transpose() * v;
         let c2 = ones.transpose() * &mv;
         eprintln!(

@@ -155,7 +155,7 @@ mod tests {
             ..BasisOptions::default()
         };
         let problem = Problem::from_shape(&shape, &opts, &Silent).unwrap();
-        let (h, m) = (&problem.matrices().hessian, &problem.matrices().mass);
+        let (h, m) = (problem.matrices().hessian(), problem.matrices().mass());
         for size in [1, 2, 3] {
             let parts = run_ranks(size, |c| {
                 let part = sample_part(&shape, &opts, c).unwrap();
