@@ -3,7 +3,8 @@
 # The Markdown tables of docs/evaluation.md from one or more `freeform eval` reports (e.g.
 # the chunks of one run made with --only): per-shape errors and fitting residuals, the
 # averages over shapes per (test, basis) -- the same means as `freeform eval`'s own -- and
-# the precompute times. A shape present in several reports is taken from the last.
+# the precompute times. A shape present in several reports (as a result or a failure) is
+# taken from the last.
 import json, math, sys
 
 shapes, failures, opts = {}, {}, None
@@ -12,6 +13,10 @@ for path in sys.argv[1:]:
     if opts is not None and rep['options']['protocol'] != opts['protocol']:
         sys.exit(f"{path}: another protocol than the first report's; not merging")
     opts = rep['options']
+    # A later report's results and failures replace an earlier one's for the same shape.
+    for name in [s['name'] for s in rep['shapes']] + [f['name'] for f in rep['failures']]:
+        shapes.pop(name, None)
+        failures.pop(name, None)
     for s in rep['shapes']:
         shapes[s['name']] = s
     for f in rep['failures']:

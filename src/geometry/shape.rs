@@ -110,11 +110,12 @@ impl Shape {
     /// integration points sit up to half a cell inside the boundary, so these see fewer
     /// kernels. For a box, a grid over its six faces (corners and edges included) with at most
     /// `spacing` (metres) between neighbours; for a sphere, a Fibonacci lattice of about one
-    /// point per `spacing`^2 of surface; the vertices of a mesh; none for a point cloud (its
+    /// point per `spacing`^2 of surface; a mesh's vertices and a grid on each of its triangles
+    /// (a FEM mesh of it adds nodes inside large faces); none for a point cloud (its
     /// integration points are its own points, or a subset of them: it has no surface of its
     /// own, and checking a million splat centres would cost more than the basis) or an image.
-    /// At most [`MAX_SURFACE_PROBES`] for the primitives (the spacing widens beyond that); an
-    /// invalid spacing (not positive and finite) gives none.
+    /// At most [`MAX_SURFACE_PROBES`] (the spacing widens beyond that; a mesh keeps at least
+    /// its vertices); an invalid spacing (not positive and finite) gives none.
     pub fn surface_probes(&self, spacing: f64) -> Vec<Point3> {
         if !(spacing > 0.0 && spacing.is_finite()) {
             return Vec::new();
@@ -122,7 +123,7 @@ impl Shape {
         match self {
             Shape::Box { size } => box_surface_grid(size, spacing),
             Shape::Sphere { radius } => sphere_lattice(*radius, spacing),
-            Shape::Mesh(m) => m.vertices().to_vec(),
+            Shape::Mesh(m) => mesh_surface_grid(m.vertices(), m.triangles(), spacing),
             Shape::PointCloud(_) | Shape::Image(_) => Vec::new(),
         }
     }
@@ -165,6 +166,56 @@ fn box_surface_grid(size: &[f64; 3], spacing: f64) -> Vec<Point3> {
             } else {
                 out.push([at(0, i), at(1, j), 0.0]);
                 out.push([at(0, i), at(1, j), size[2]]);
+            }
+        }
+    }
+    out
+}
+
+/// A mesh's vertices, then on each triangle the points of its barycentric grid of n divisions
+/// per edge (n = its longest edge / `spacing`, rounded up) other than its corners: at most
+/// `spacing` apart along the edges and inside. An edge shared by two triangles gets its points
+/// from both (the same points up to round-off).
+fn mesh_surface_grid(vertices: &[Point3], triangles: &[[u32; 3]], spacing: f64) -> Vec<Point3> {
+    let corner = |t: &[u32; 3]| t.map(|i| vertices[i as usize]);
+    let longest = |v: &[Point3; 3]| {
+        (0..3)
+            .map(|e| {
+                let (a, b) = (v[e], v[(e + 1) % 3]);
+                ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+            })
+            .fold(0.0, f64::max)
+    };
+    let divisions = |v: &[Point3; 3], h: f64| ((longest(v) / h).ceil() as usize).clamp(1, 1 << 12);
+    // Grid points other than the corners: (n + 1)(n + 2) / 2 - 3.
+    let count = |h: f64| {
+        triangles
+            .iter()
+            .map(|t| {
+                let n = divisions(&corner(t), h);
+                (n + 1) * (n + 2) / 2 - 3
+            })
+            .sum::<usize>()
+            + vertices.len()
+    };
+    let mut h = spacing;
+    while count(h) > MAX_SURFACE_PROBES.max(vertices.len()) && h.is_finite() {
+        h *= 1.25;
+    }
+    let mut out = Vec::with_capacity(count(h));
+    out.extend_from_slice(vertices);
+    for t in triangles {
+        let v = corner(t);
+        let n = divisions(&v, h);
+        for i in 0..=n {
+            for j in 0..=n - i {
+                if (i == 0 && j == 0) || i == n || j == n {
+                    continue;
+                }
+                let (a, b) = (i as f64 / n as f64, j as f64 / n as f64);
+                out.push(
+                    [0, 1, 2].map(|c| v[0][c] + a * (v[1][c] - v[0][c]) + b * (v[2][c] - v[0][c])),
+                );
             }
         }
     }

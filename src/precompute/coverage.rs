@@ -17,24 +17,43 @@ use std::collections::BTreeSet;
 /// Factor by which one repair round grows a support radius.
 pub const ENLARGE_FACTOR: f64 = 1.25;
 
-/// Kernels whose supports grow around each badly covered point: the nearest this many
-/// centres (4 kernels in general position reproduce linear fields).
+/// Kernels whose supports grow around each badly covered point: this many (4 kernels in
+/// general position reproduce linear fields).
 const NEAREST: usize = 4;
 
-/// Grow by [`ENLARGE_FACTOR`] the supports of the [`NEAREST`] kernels nearest each of
-/// `points` (metres); returns the kernels grown (each once a round).
+/// Centres searched for kernels that do not reach a badly covered point yet.
+const SEARCHED: usize = 64;
+
+/// Grow by [`ENLARGE_FACTOR`] the supports of [`NEAREST`] kernels around each of `points`
+/// (metres): the nearest whose supports do not reach the point yet, so that kernels from new
+/// directions cover it (growing kernels that already cover a point whose covering centres are
+/// nearly coplanar, at a thin rim, leaves them coplanar); the nearest ones when all of the
+/// [`SEARCHED`] nearest reach it. Returns the kernels grown (each once a round).
 pub fn enlarge_near(kernels: &mut Kernels, points: &[Point3]) -> Result<BTreeSet<usize>> {
     let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(&kernels.centers)
         .map_err(|e| Error::param("kernels", kernels.len(), format!("k-d tree: {e:?}")))?;
-    let nearest = std::num::NonZero::new(NEAREST).expect("NEAREST > 0");
+    let searched = std::num::NonZero::new(SEARCHED).expect("SEARCHED > 0");
     let mut grow = BTreeSet::new();
     for p in points {
-        for r in tree
+        // Nearest first (kiddo sorts them).
+        let near = tree
             .query(p)
-            .nearest_n::<SquaredEuclidean<f64>>(nearest)
-            .execute()
-        {
-            grow.insert(r.item as usize);
+            .nearest_n::<SquaredEuclidean<f64>>(searched)
+            .execute();
+        let outside: Vec<usize> = near
+            .iter()
+            .map(|r| r.item as usize)
+            .filter(|&k| {
+                let c = kernels.centers[k];
+                let d2 = (0..3).map(|a| (p[a] - c[a]).powi(2)).sum::<f64>();
+                d2 >= kernels.radii[k] * kernels.radii[k]
+            })
+            .take(NEAREST)
+            .collect();
+        if outside.is_empty() {
+            grow.extend(near.iter().take(NEAREST).map(|r| r.item as usize));
+        } else {
+            grow.extend(outside);
         }
     }
     for &k in &grow {

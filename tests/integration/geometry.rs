@@ -1368,6 +1368,59 @@ fn surface_probes_lie_on_the_surface_and_leave_no_gap() {
             .fold(f64::INFINITY, f64::min);
         assert!(gap < h, "{q:?}: nearest probe {gap}");
     }
+    // A mesh: its vertices, then grids on its faces; every probe on a face, and no point of
+    // a face farther than h from a probe (random points on each face). The tetrahedron's
+    // edges are 1 to 2.2 m, so each face gets a grid of 10 to 22 divisions per edge.
+    let vertices: Vec<[f64; 3]> = vec![
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.2, 0.2, 2.0],
+    ];
+    let triangles = vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]];
+    let mesh = freeform::geometry::TriMesh::new(
+        vertices.clone(),
+        triangles.clone(),
+        &freeform::geometry::ShapeOptions::default(),
+    )
+    .unwrap();
+    let m = Shape::Mesh(mesh).surface_probes(h);
+    assert_eq!(&m[..4], &vertices[..]);
+    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let dist = |a: [f64; 3], b: [f64; 3]| {
+        let d = sub(a, b);
+        (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+    };
+    let faces: Vec<[[f64; 3]; 3]> = triangles
+        .iter()
+        .map(|t: &[u32; 3]| t.map(|i| vertices[i as usize]))
+        .collect();
+    // On a face: inside its plane and triangle (barycentric coordinates from least squares on
+    // the two edge vectors; 1e-12 is round-off on unit-size coordinates).
+    let on_face = |p: [f64; 3], f: &[[f64; 3]; 3]| {
+        let (e1, e2, d) = (sub(f[1], f[0]), sub(f[2], f[0]), sub(p, f[0]));
+        let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let (a11, a12, a22) = (dot(e1, e1), dot(e1, e2), dot(e2, e2));
+        let (b1, b2) = (dot(d, e1), dot(d, e2));
+        let det = a11 * a22 - a12 * a12;
+        let (u, v) = ((b1 * a22 - b2 * a12) / det, (a11 * b2 - a12 * b1) / det);
+        let q = [0, 1, 2].map(|c| f[0][c] + u * e1[c] + v * e2[c]);
+        dist(p, q) < 1e-12 && u >= -1e-12 && v >= -1e-12 && u + v <= 1.0 + 1e-12
+    };
+    for p in &m {
+        assert!(faces.iter().any(|f| on_face(*p, f)), "{p:?}");
+    }
+    for f in &faces {
+        for _ in 0..100 {
+            let (mut u, mut v) = (rng.next_f64(), rng.next_f64());
+            if u + v > 1.0 {
+                (u, v) = (1.0 - u, 1.0 - v);
+            }
+            let q = [0, 1, 2].map(|c| f[0][c] + u * (f[1][c] - f[0][c]) + v * (f[2][c] - f[0][c]));
+            let gap = m.iter().map(|p| dist(*p, q)).fold(f64::INFINITY, f64::min);
+            assert!(gap < h, "{q:?}: nearest probe {gap}");
+        }
+    }
     // A spacing that is not positive and finite gives none.
     assert!(Shape::Box { size }.surface_probes(0.0).is_empty());
     assert!(Shape::Box { size }.surface_probes(f64::NAN).is_empty());

@@ -173,9 +173,16 @@ fn surface_repair_covers_a_spike_tip() {
 
     let run = build_basis(&shape, &opts, &freeform::progress::Silent).unwrap();
     let cover = &run.report.coverage;
-    assert_eq!(cover.surface_points, 4, "{cover:?}");
+    // The probes: the vertices and grids on the faces at half the bulk spacing.
+    let volume: f64 = ip.volumes.iter().sum();
+    let probes =
+        shape.surface_probes(0.5 * freeform::precompute::density::bulk_spacing(volume, 200));
+    assert_eq!(cover.surface_points, probes.len(), "{cover:?}");
+    assert!(probes.len() > 100, "{}", probes.len());
     assert_eq!(cover.uncovered_surface_points, 0, "{cover:?}");
     assert!(cover.enlarged_kernels > 0, "{cover:?}");
+    let (_, on_faces) = evaluate(&run.basis.kernels, &probes, &sfo);
+    assert!(on_faces.failed.is_empty(), "{on_faces:?}");
     let (sf, after) = evaluate(&run.basis.kernels, &vertices, &sfo);
     assert!(after.failed.is_empty(), "{after:?}");
     // Partition of unity and linear reproduction are exact identities of the construction,
