@@ -202,6 +202,55 @@ fn surface_repair_covers_a_spike_tip() {
     assert!(run.basis.weights(&vertices).is_ok());
 }
 
+/// A wedge whose cross-section thins to a knife edge (a 1 m prism of the triangle (0, 0),
+/// (1, 0), (0, 0.2) in y, z), K = 300. By the rim the covering kernels lie nearly in one
+/// plane, and growing the nearest ones (which already reach the rim) kept them there: with
+/// that rule the basis failed (18 integration points with rcond down to 5e-10; checked with
+/// the previous build). The repair grows the nearest kernels that do not reach the point yet,
+/// from other directions: every integration point and every surface probe is covered.
+#[test]
+fn thin_rim_is_covered_by_kernels_from_other_directions() {
+    use freeform::geometry::{Shape, ShapeOptions, TriMesh};
+    use freeform::precompute::{build_basis, sample_with_material, BasisOptions};
+    let t = 0.2;
+    let vertices: Vec<Point3> = vec![
+        [0.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, t],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [1.0, 0.0, t],
+    ];
+    let triangles = vec![
+        [0, 2, 1],
+        [3, 4, 5],
+        [0, 1, 4],
+        [0, 4, 3],
+        [1, 2, 5],
+        [1, 5, 4],
+        [2, 0, 3],
+        [2, 3, 5],
+    ];
+    let mesh = TriMesh::new(vertices, triangles, &ShapeOptions::default()).unwrap();
+    let shape = Shape::Mesh(mesh);
+    let opts = BasisOptions {
+        kernels: 300,
+        modes: 6,
+        ..BasisOptions::default()
+    };
+    let run = build_basis(&shape, &opts, &freeform::progress::Silent).unwrap();
+    let cover = &run.report.coverage;
+    assert!(cover.enlarged_kernels > 0, "{cover:?}");
+    assert_eq!(cover.uncovered_surface_points, 0, "{cover:?}");
+    let (ip, _) = sample_with_material(&shape, &opts).unwrap();
+    let volume: f64 = ip.volumes.iter().sum();
+    let probes =
+        shape.surface_probes(0.5 * freeform::precompute::density::bulk_spacing(volume, 300));
+    let sfo = ShapeFunctionOptions::default();
+    let (_, on_surface) = evaluate(&run.basis.kernels, &probes, &sfo);
+    assert!(on_surface.failed.is_empty(), "{on_surface:?}");
+}
+
 /// The twist beam with kernels twice as fine around its held and turned ends, K = 2,000. The
 /// weighted sampling measures a point's distance to a centre in the finer of their two
 /// spacings, so the coarse corners beyond the refined bands get kernels of their own. (When it
