@@ -104,7 +104,8 @@ for s in "${shapes[@]}"; do
     reason=$(reduce "$file" "$s")
     [[ -n $reason ]] || reason=$(check "$file" "$s")
     status=kept
-    if [[ -n $reason && ${REPAIR:-1} == 1 ]]; then
+    [[ -z $reason ]] || status=skipped
+    if [[ $status == skipped && ${REPAIR:-1} == 1 ]]; then
         # A refused input is repaired by MeshFix (scripts/repair_off.py) at its own size,
         # then reduced and checked like any input; the reason says what was wrong.
         # (`reduce` overwrote FILE; the input is kept beside it until this is done.)
@@ -135,7 +136,7 @@ for s in "${shapes[@]}"; do
     fi
     rm -f "$out/$s.input"
     read -r nv nf _ < <(grep -v '^\s*#' "$file" | sed -n 2p)
-    if [[ $status == kept && -z $reason ]] || [[ $status == repaired ]]; then
+    if [[ $status != skipped ]]; then
         echo "$s,$nf_in,$nv,$nf,$status,${reason//,/;}" >> "$csv"
         kept=$((kept + 1))
         [[ $status == kept ]] || repaired=$((repaired + 1))

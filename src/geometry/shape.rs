@@ -2,6 +2,7 @@
 //! voxels of an image.
 
 use super::{Aabb, PointCloud, TriMesh, VoxelImage};
+use crate::linalg3::{norm, sub};
 use crate::Point3;
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -180,10 +181,7 @@ fn mesh_surface_grid(vertices: &[Point3], triangles: &[[u32; 3]], spacing: f64) 
     let corner = |t: &[u32; 3]| t.map(|i| vertices[i as usize]);
     let longest = |v: &[Point3; 3]| {
         (0..3)
-            .map(|e| {
-                let (a, b) = (v[e], v[(e + 1) % 3]);
-                ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
-            })
+            .map(|e| norm(&sub(&v[e], &v[(e + 1) % 3])))
             .fold(0.0, f64::max)
     };
     let divisions = |v: &[Point3; 3], h: f64| ((longest(v) / h).ceil() as usize).clamp(1, 1 << 12);
@@ -198,11 +196,13 @@ fn mesh_surface_grid(vertices: &[Point3], triangles: &[[u32; 3]], spacing: f64) 
             .sum::<usize>()
             + vertices.len()
     };
-    let mut h = spacing;
-    while count(h) > MAX_SURFACE_PROBES.max(vertices.len()) && h.is_finite() {
+    // At n = 1 a triangle adds no point, so the widening ends at the vertices at the latest.
+    let (mut h, mut total) = (spacing, count(spacing));
+    while total > MAX_SURFACE_PROBES.max(vertices.len()) && h.is_finite() {
         h *= 1.25;
+        total = count(h);
     }
-    let mut out = Vec::with_capacity(count(h));
+    let mut out = Vec::with_capacity(total);
     out.extend_from_slice(vertices);
     for t in triangles {
         let v = corner(t);

@@ -42,8 +42,9 @@ fn start_index(points: &[Point3]) -> usize {
     best.1
 }
 
+/// Squared distance between two points, m^2.
 #[inline]
-fn dist2(a: &Point3, b: &Point3) -> f64 {
+pub(super) fn dist2(a: &Point3, b: &Point3) -> f64 {
     let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
     d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
 }

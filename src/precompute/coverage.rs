@@ -6,6 +6,7 @@
 //! half a cell inside, do not reach: a box's corners see an eighth of the kernels an interior
 //! point sees, and a kernel density can pull kernels away from them.
 
+use super::centers::{dist2, morton_order};
 use super::density::bulk_spacing;
 use super::options::BasisOptions;
 use super::rkpm::{evaluate_chunk, ChunkedStats, Kernels, CHUNK_POINTS};
@@ -40,20 +41,15 @@ pub fn enlarge_near(kernels: &mut Kernels, points: &[Point3]) -> Result<BTreeSet
             .query(p)
             .nearest_n::<SquaredEuclidean<f64>>(searched)
             .execute();
-        let outside: Vec<usize> = near
-            .iter()
-            .map(|r| r.item as usize)
-            .filter(|&k| {
-                let c = kernels.centers[k];
-                let d2 = (0..3).map(|a| (p[a] - c[a]).powi(2)).sum::<f64>();
-                d2 >= kernels.radii[k] * kernels.radii[k]
-            })
-            .take(NEAREST)
-            .collect();
-        if outside.is_empty() {
-            grow.extend(near.iter().take(NEAREST).map(|r| r.item as usize));
-        } else {
-            grow.extend(outside);
+        let ids = near.iter().map(|r| r.item as usize);
+        let reaches = |k: usize| dist2(p, &kernels.centers[k]) < kernels.radii[k].powi(2);
+        let mut outside = 0;
+        for k in ids.clone().filter(|&k| !reaches(k)).take(NEAREST) {
+            grow.insert(k);
+            outside += 1;
+        }
+        if outside == 0 {
+            grow.extend(ids.take(NEAREST));
         }
     }
     for &k in &grow {
@@ -123,7 +119,7 @@ pub fn cover_surface(
         return Ok(out);
     }
     let mut order: Vec<usize> = (0..probes.len()).collect();
-    super::centers::morton_order(probes, &mut order);
+    morton_order(probes, &mut order);
     let sorted: Vec<Point3> = order.iter().map(|&i| probes[i]).collect();
     for round in 0..=opts.coverage_repair_rounds {
         let mut stats = ChunkedStats::default();
