@@ -47,6 +47,10 @@ impl AssembledPreconditioner {
         let nwant = request.nev - 1;
         let max_cols = (nwant + options.guard_for(nwant)).min(k - 1).max(1);
         let (pre, report) = precondition::build(h, m, options, max_cols, Par::rayon(0))?;
+        // It outlives the matrices it was built from.
+        let pre = pre.into_owned().ok_or_else(|| {
+            EigenError::InvalidRequest("a built preconditioner cannot be the caller's".into())
+        })?;
         Ok(Self {
             inner: Mutex::new(Workspace {
                 pre,

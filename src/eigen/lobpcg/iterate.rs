@@ -126,7 +126,7 @@ impl<'a> State<'a> {
             s: Block::new(k, ld),
             hs: Block::new(k, ld),
             ms: Block::new(k, ld),
-            tmp: Block::new(k, 2 * nx),
+            tmp: Block::new(k, nx),
             y0: y0b,
             my0,
             gram_h: Mat::zeros(ld, ld),
@@ -196,7 +196,6 @@ impl<'a> State<'a> {
             0.0,
             opts.svqb_drop,
             &mut self.small,
-            &mut self.tmp,
         );
         if let Some(v) = self.small.indefinite.take() {
             return Err(indefinite_block(v));
@@ -237,7 +236,7 @@ impl<'a> State<'a> {
         self.theta.copy_from_slice(&self.rr.theta[..nx]);
         let c = self.rr.ritz.as_ref().submatrix(0, 0, nx, nx);
         for blk in [&mut self.s, &mut self.hs, &mut self.ms] {
-            transform(blk, 0, c, 0, &mut self.tmp);
+            transform(blk, 0, c, 0);
         }
         Ok(())
     }
@@ -396,7 +395,6 @@ impl<'a> State<'a> {
                 opts.svqb_drop,
                 3,
                 &mut self.small,
-                &mut self.tmp,
             );
             if let Some(v) = self.small.indefinite.take() {
                 return indefinite_block(v);
@@ -483,7 +481,7 @@ impl<'a> State<'a> {
             }
             let c = self.coef.as_ref().submatrix(0, 0, ns, nout);
             for blk in [&mut self.s, &mut self.hs, &mut self.ms] {
-                transform(blk, 0, c, 0, &mut self.tmp);
+                transform(blk, 0, c, 0);
             }
             self.np = np_new;
             self.theta.copy_from_slice(&self.rr.theta[..nx]);

@@ -86,7 +86,6 @@ pub(super) fn svqb(
     col_drop: f64,
     svqb_drop: f64,
     small: &mut Small,
-    tmp: &mut Block,
 ) -> usize {
     if w == 0 {
         return 0;
@@ -155,10 +154,10 @@ pub(super) fn svqb(
         }
     }
     let tv = t.as_ref().submatrix(0, 0, w, r);
-    transform(s, c0, tv, c0, tmp);
-    transform(ms, c0, tv, c0, tmp);
+    transform(s, c0, tv, c0);
+    transform(ms, c0, tv, c0);
     if let Some(hs) = hs {
-        transform(hs, c0, tv, c0, tmp);
+        transform(hs, c0, tv, c0);
     }
     r
 }
@@ -182,7 +181,6 @@ pub(super) fn ortho_against_basis(
     svqb_drop: f64,
     passes: usize,
     small: &mut Small,
-    tmp: &mut Block,
 ) -> usize {
     if w == 0 {
         return 0;
@@ -229,14 +227,14 @@ pub(super) fn ortho_against_basis(
         if pass > 0 && cmax <= ORTHO_DONE {
             break;
         }
-        subtract_product(s, c, w0, tmp);
-        subtract_product(ms, c, w0, tmp);
+        subtract_product(s, c, w0);
+        subtract_product(ms, c, w0);
         let col_drop = if pass == 0 {
             ortho_drop * ortho_drop
         } else {
             0.0
         };
-        w = svqb(s, ms, None, w0, w, col_drop, svqb_drop, small, tmp);
+        w = svqb(s, ms, None, w0, w, col_drop, svqb_drop, small);
     }
     w
 }
@@ -277,10 +275,7 @@ mod tests {
             }
         }
         let mut small = Small::new(k, ld);
-        let mut tmp = Block::new(k, 6);
-        let r = svqb(
-            &mut s, &mut ms, None, 2, w, 0.0, 1e-14, &mut small, &mut tmp,
-        );
+        let r = svqb(&mut s, &mut ms, None, 2, w, 0.0, 1e-14, &mut small);
         assert_eq!(r, w);
         let g = s.cols(2, w).transpose() * ms.cols(2, w);
         let e = &g - Mat::<f64>::identity(w, w);

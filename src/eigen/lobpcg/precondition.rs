@@ -30,10 +30,24 @@ use std::time::Instant;
 /// A built preconditioner.
 pub(super) enum Preconditioner<'a> {
     Cholesky(Box<Factor>),
-    Incomplete(Box<IncompleteCholesky>),
+    Incomplete(Box<IncompleteCholesky<'a>>),
     Jacobi { inv_diag: Vec<f64> },
     Identity,
     User(&'a dyn eigen::Preconditioner),
+}
+
+impl Preconditioner<'_> {
+    /// The same preconditioner holding no borrow of H and M (an IC(0) factor copies the
+    /// column indices it shares with them); `None` for a caller's, which is borrowed by nature.
+    pub fn into_owned(self) -> Option<Preconditioner<'static>> {
+        Some(match self {
+            Self::Cholesky(factor) => Preconditioner::Cholesky(factor),
+            Self::Incomplete(ic) => Preconditioner::Incomplete(Box::new(ic.into_owned())),
+            Self::Jacobi { inv_diag } => Preconditioner::Jacobi { inv_diag },
+            Self::Identity => Preconditioner::Identity,
+            Self::User(_) => return None,
+        })
+    }
 }
 
 /// A sparse Cholesky factor with its solve workspace.
@@ -78,13 +92,13 @@ pub(super) fn shift(h: SparseMatrixRef<'_>, m: SparseMatrixRef<'_>, opts: &Lobpc
 }
 
 /// Build the preconditioner for block products of up to `max_cols` columns.
-pub(super) fn build(
-    h: SparseMatrixRef<'_>,
-    m: SparseMatrixRef<'_>,
+pub(super) fn build<'a>(
+    h: SparseMatrixRef<'a>,
+    m: SparseMatrixRef<'a>,
     opts: &LobpcgOptions,
     max_cols: usize,
     par: Par,
-) -> Result<(Preconditioner<'static>, SetupReport), EigenError> {
+) -> Result<(Preconditioner<'a>, SetupReport), EigenError> {
     let mut report = SetupReport {
         sigma: shift(h, m, opts),
         ..SetupReport::default()
@@ -313,12 +327,12 @@ pub(super) fn escalate(
 
 /// IC(0) of H + sigma M, with Manteuffel's diagonal shift alpha = 0, 1e-3, 1e-2, 1e-1, 1 on
 /// breakdown; `None` (with a note) if every attempt breaks down.
-fn incomplete(
-    h: SparseMatrixRef<'_>,
-    m: SparseMatrixRef<'_>,
+fn incomplete<'a>(
+    h: SparseMatrixRef<'a>,
+    m: SparseMatrixRef<'a>,
     sigma: f64,
     report: &mut SetupReport,
-) -> Option<IncompleteCholesky> {
+) -> Option<IncompleteCholesky<'a>> {
     let t0 = Instant::now();
     for alpha in [0.0, 1e-3, 1e-2, 1e-1, 1.0] {
         match IncompleteCholesky::factor(h, m, sigma, alpha) {

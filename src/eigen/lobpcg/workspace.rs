@@ -139,58 +139,59 @@ pub(super) fn inner(
 }
 
 /// In place, row by row: columns `c0..c0 + c.ncols()` of `blk` become
-/// (columns `s0..s0 + c.nrows()` of `blk`) * c. `tmp` needs at least c.ncols() columns.
-/// The source and destination column ranges may overlap.
-pub(super) fn transform(
-    blk: &mut Block,
-    s0: usize,
-    c: MatRef<'_, f64>,
-    c0: usize,
-    tmp: &mut Block,
-) {
+/// (columns `s0..s0 + c.nrows()` of `blk`) * c. Each chunk of rows goes through its own
+/// scratch of DENSE_CHUNK rows (one per rayon job, reused over its chunks): a K-row scratch
+/// would cost a block of memory (0.64 GB at K = 1,000,000). The source and destination column
+/// ranges may overlap.
+pub(super) fn transform(blk: &mut Block, s0: usize, c: MatRef<'_, f64>, c0: usize) {
     let (n, nout) = (c.nrows(), c.ncols());
     if nout == 0 {
         return;
     }
-    let (ld, tld) = (blk.ld, tmp.ld);
-    blk.data
-        .par_chunks_mut(ld * DENSE_CHUNK)
-        .zip(tmp.data.par_chunks_mut(tld * DENSE_CHUNK))
-        .for_each(|(bc, tc)| {
+    let ld = blk.ld;
+    blk.data.par_chunks_mut(ld * DENSE_CHUNK).for_each_init(
+        Vec::new,
+        |scratch: &mut Vec<f64>, bc| {
+            let rows = bc.len() / ld;
+            scratch.resize(rows * nout, 0.0);
             {
                 let src = chunk_view(bc, ld, s0, n);
-                let dst = chunk_view_mut(tc, tld, 0, nout);
+                let dst = chunk_view_mut(&mut scratch[..], nout, 0, nout);
                 faer::linalg::matmul::matmul(dst, Accum::Replace, src, c, 1.0, Par::Seq);
             }
-            for (brow, trow) in bc.chunks_mut(ld).zip(tc.chunks(tld)) {
-                brow[c0..c0 + nout].copy_from_slice(&trow[..nout]);
+            for (brow, trow) in bc.chunks_mut(ld).zip(scratch.chunks(nout)) {
+                brow[c0..c0 + nout].copy_from_slice(trow);
             }
-        });
+        },
+    );
 }
 
 /// In place, row by row: columns `w0..w0 + c.ncols()` of `blk` -= (columns
-/// `0..c.nrows()` of `blk`) * c. The two column ranges must not overlap.
-pub(super) fn subtract_product(blk: &mut Block, c: MatRef<'_, f64>, w0: usize, tmp: &mut Block) {
+/// `0..c.nrows()` of `blk`) * c, through per-job scratch as [`transform`]. The two column
+/// ranges must not overlap.
+pub(super) fn subtract_product(blk: &mut Block, c: MatRef<'_, f64>, w0: usize) {
     let (nb, w) = (c.nrows(), c.ncols());
     if w == 0 || nb == 0 {
         return;
     }
-    let (ld, tld) = (blk.ld, tmp.ld);
-    blk.data
-        .par_chunks_mut(ld * DENSE_CHUNK)
-        .zip(tmp.data.par_chunks_mut(tld * DENSE_CHUNK))
-        .for_each(|(bc, tc)| {
+    let ld = blk.ld;
+    blk.data.par_chunks_mut(ld * DENSE_CHUNK).for_each_init(
+        Vec::new,
+        |scratch: &mut Vec<f64>, bc| {
+            let rows = bc.len() / ld;
+            scratch.resize(rows * w, 0.0);
             {
                 let src = chunk_view(bc, ld, 0, nb);
-                let dst = chunk_view_mut(tc, tld, 0, w);
+                let dst = chunk_view_mut(&mut scratch[..], w, 0, w);
                 faer::linalg::matmul::matmul(dst, Accum::Replace, src, c, 1.0, Par::Seq);
             }
-            for (brow, trow) in bc.chunks_mut(ld).zip(tc.chunks(tld)) {
-                for (x, y) in brow[w0..w0 + w].iter_mut().zip(&trow[..w]) {
+            for (brow, trow) in bc.chunks_mut(ld).zip(scratch.chunks(w)) {
+                for (x, y) in brow[w0..w0 + w].iter_mut().zip(trow) {
                     *x -= *y;
                 }
             }
-        });
+        },
+    );
 }
 
 /// Columns `c0..c0 + row.len()` of `blk` -= y row^T (y: K values).
@@ -324,9 +325,8 @@ mod tests {
         let expect = v.transpose() * v;
         assert!((&g - &expect).norm_max() < 1e-12);
         let c = Mat::from_fn(3, 2, |i, j| (i + 2 * j) as f64 - 1.5);
-        let mut tmp = Block::new(7, 4);
         let before = b.cols(2, 3).to_owned();
-        transform(&mut b, 2, c.as_ref(), 1, &mut tmp);
+        transform(&mut b, 2, c.as_ref(), 1);
         assert!((b.cols(1, 2) - &before * &c).norm_max() < 1e-12);
     }
 }
