@@ -40,7 +40,6 @@ pub mod scene;
 pub mod sim;
 mod simd;
 pub mod sparse;
-pub mod triangle;
 
 pub use error::{Error, ErrorKind, Result};
 

@@ -110,9 +110,10 @@ impl MemoryEstimate {
         let nev = opts.modes as f64 + 1.0;
         let eigensolver = match opts.solver {
             SolverConfig::Dense => 5.0 * 8.0 * k * k,
-            // The IC(0) factor (lower triangle, 12 bytes per entry; H + sigma M is not
-            // formed), S, H S, M S and two temporaries of K x 3 (m + 1).
-            SolverConfig::Lobpcg(_) => 6.0 * nnz + 5.0 * 8.0 * k * 3.0 * nev,
+            // The IC(0) factor (lower triangle, 8 bytes per entry: its indices are the
+            // pencil's; H + sigma M is not formed), S, H S, M S of K x 3 (m + 1) and the
+            // preconditioner's scratch of K x (m + 1).
+            SolverConfig::Lobpcg(_) => 4.0 * nnz + 8.0 * k * (9.0 + 1.0) * nev,
             // SLEPc in one process: PETSc holds its own copies of the matrices; the figure the
             // native path had before it stopped forming H + sigma M.
             SolverConfig::Slepc(_) => 16.0 * nnz + 6.0 * nnz + 5.0 * 8.0 * k * 3.0 * nev,
