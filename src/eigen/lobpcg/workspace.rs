@@ -139,11 +139,37 @@ pub(super) fn inner(
 }
 
 /// In place, row by row: columns `c0..c0 + c.ncols()` of `blk` become
-/// (columns `s0..s0 + c.nrows()` of `blk`) * c. Each chunk of rows goes through its own
-/// scratch of DENSE_CHUNK rows (one per rayon job, reused over its chunks): a K-row scratch
-/// would cost a block of memory (0.64 GB at K = 1,000,000). The source and destination column
-/// ranges may overlap.
+/// (columns `s0..s0 + c.nrows()` of `blk`) * c. The source and destination column ranges may
+/// overlap.
 pub(super) fn transform(blk: &mut Block, s0: usize, c: MatRef<'_, f64>, c0: usize) {
+    chunk_products(blk, s0, c, |brow, trow| {
+        brow[c0..c0 + trow.len()].copy_from_slice(trow)
+    });
+}
+
+/// In place, row by row: columns `w0..w0 + c.ncols()` of `blk` -= (columns
+/// `0..c.nrows()` of `blk`) * c. The two column ranges must not overlap.
+pub(super) fn subtract_product(blk: &mut Block, c: MatRef<'_, f64>, w0: usize) {
+    if c.nrows() == 0 {
+        return;
+    }
+    chunk_products(blk, 0, c, |brow, trow| {
+        for (x, y) in brow[w0..w0 + trow.len()].iter_mut().zip(trow) {
+            *x -= *y;
+        }
+    });
+}
+
+/// For each chunk of DENSE_CHUNK rows of `blk`: t = (its columns `s0..s0 + c.nrows()`) * c,
+/// then `update(row of blk, row of t)` row by row. t lives in a scratch of DENSE_CHUNK rows per
+/// rayon job (reused over its chunks): a K-row scratch would cost a block of memory (0.64 GB
+/// at K = 1,000,000 for the Rayleigh-Ritz update).
+fn chunk_products(
+    blk: &mut Block,
+    s0: usize,
+    c: MatRef<'_, f64>,
+    update: impl Fn(&mut [f64], &[f64]) + Sync,
+) {
     let (n, nout) = (c.nrows(), c.ncols());
     if nout == 0 {
         return;
@@ -152,43 +178,14 @@ pub(super) fn transform(blk: &mut Block, s0: usize, c: MatRef<'_, f64>, c0: usiz
     blk.data.par_chunks_mut(ld * DENSE_CHUNK).for_each_init(
         Vec::new,
         |scratch: &mut Vec<f64>, bc| {
-            let rows = bc.len() / ld;
-            scratch.resize(rows * nout, 0.0);
+            scratch.resize(bc.len() / ld * nout, 0.0);
             {
                 let src = chunk_view(bc, ld, s0, n);
                 let dst = chunk_view_mut(&mut scratch[..], nout, 0, nout);
                 faer::linalg::matmul::matmul(dst, Accum::Replace, src, c, 1.0, Par::Seq);
             }
             for (brow, trow) in bc.chunks_mut(ld).zip(scratch.chunks(nout)) {
-                brow[c0..c0 + nout].copy_from_slice(trow);
-            }
-        },
-    );
-}
-
-/// In place, row by row: columns `w0..w0 + c.ncols()` of `blk` -= (columns
-/// `0..c.nrows()` of `blk`) * c, through per-job scratch as [`transform`]. The two column
-/// ranges must not overlap.
-pub(super) fn subtract_product(blk: &mut Block, c: MatRef<'_, f64>, w0: usize) {
-    let (nb, w) = (c.nrows(), c.ncols());
-    if w == 0 || nb == 0 {
-        return;
-    }
-    let ld = blk.ld;
-    blk.data.par_chunks_mut(ld * DENSE_CHUNK).for_each_init(
-        Vec::new,
-        |scratch: &mut Vec<f64>, bc| {
-            let rows = bc.len() / ld;
-            scratch.resize(rows * w, 0.0);
-            {
-                let src = chunk_view(bc, ld, 0, nb);
-                let dst = chunk_view_mut(&mut scratch[..], w, 0, w);
-                faer::linalg::matmul::matmul(dst, Accum::Replace, src, c, 1.0, Par::Seq);
-            }
-            for (brow, trow) in bc.chunks_mut(ld).zip(scratch.chunks(w)) {
-                for (x, y) in brow[w0..w0 + w].iter_mut().zip(trow) {
-                    *x -= *y;
-                }
+                update(brow, trow);
             }
         },
     );
