@@ -240,21 +240,20 @@ fn shared_lower_pencil<'a>(
     let sym = h.symbolic();
     let rows = sym.row_idx();
     let n = h.nrows();
-    if (0..n).any(|j| !rows[sym.col_range(j)].windows(2).all(|w| w[0] < w[1])) {
-        return None;
-    }
     let (hv, mv) = (h.val(), m.val());
-    let lower: usize = (0..n)
-        .map(|i| rows[sym.col_range(i)].partition_point(|&k| k as usize <= i))
-        .sum();
     let mut ptr = Vec::with_capacity(n + 1);
     let mut idx_start = Vec::with_capacity(n);
-    let mut val = Vec::with_capacity(lower);
+    // The lower triangle of a symmetric pattern with its diagonal.
+    let mut val = Vec::with_capacity((hv.len() + n) / 2);
     ptr.push(0);
     for i in 0..n {
         let range = sym.col_range(i);
-        let len = rows[range.clone()].partition_point(|&k| k as usize <= i);
-        if len == 0 || rows[range.start + len - 1] as usize != i {
+        let column = &rows[range.clone()];
+        if !column.windows(2).all(|w| w[0] < w[1]) {
+            return None;
+        }
+        let len = column.partition_point(|&k| k as usize <= i);
+        if len == 0 || column[len - 1] as usize != i {
             // Missing diagonal: a zero pivot.
             return Some(Err(Breakdown { row: i }));
         }
