@@ -718,7 +718,8 @@ impl PyWorld {
     /// shorthands), ``worst_penetration`` (metres), ``worst_penetration_fraction``,
     /// ``worst_visible_penetration`` (metres) and ``worst_visible_penetration_fraction`` (an
     /// object's own surface points into another object), ``steps_over_tolerance``,
-    /// ``step_ms_mean`` (ms), per object ``samples``, ``thickness`` (metres),
+    /// ``step_ms_mean`` (ms), per object ``samples`` (of them ``feature_samples``, points on
+    /// convex edges and corners), ``thickness`` (metres),
     /// ``derived_surface_triangles`` (point clouds, splats and images; None for others) and
     /// ``surface_points``, and the pair ``stiffness`` (Pa/m^2, objects x objects, row-major).
     fn contact_summary<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {

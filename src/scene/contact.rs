@@ -106,8 +106,11 @@ impl WorldContact {
                 })
             })?;
             let count = counts[index].unwrap_or_default();
-            samples
-                .push(ContactSamples::new(shape, o.basis(), count, settings.radius).map_err(ctx)?);
+            samples.push(
+                ContactSamples::new(shape, o.basis(), count, settings.radius)
+                    .and_then(|s| s.with_features(shape, o.basis(), settings.feature_spacing))
+                    .map_err(ctx)?,
+            );
         }
         let n = objects.len();
         let stiffness: Vec<f64> = (0..n * n)
@@ -155,14 +158,13 @@ impl WorldContact {
             .zip(&shapes)
             .zip(&samples)
             .map(|((o, shape), s)| {
-                let area: f64 = s.area.iter().sum();
-                let spacing = (area / s.len().max(1) as f64).sqrt();
-                shape.and_then(|sh| SurfacePoints::new(sh, o.basis(), spacing).ok())
+                shape.and_then(|sh| SurfacePoints::new(sh, o.basis(), s.spacing()).ok())
             })
             .collect();
         let summary = ContactSummary {
             penetration_tolerance: settings.penetration_tolerance,
             samples: samples.iter().map(ContactSamples::len).collect(),
+            feature_samples: samples.iter().map(|s| s.features).collect(),
             derived_surface_triangles: surface_triangles,
             thickness: samples.iter().map(|s| s.thickness).collect(),
             self_contact: self_exclusion.iter().map(Option::is_some).collect(),
@@ -224,10 +226,11 @@ impl WorldContact {
                         ob.name()
                     ),
                 };
+                let (ra, rb) = (&w.samples(a).radius, &w.samples(b).radius);
                 if let Some(c) = cands.iter().find(|c| {
                     let (p, q) = (pair[0][c.i], pair[1][c.j]);
                     let r = (0..3).map(|k| (p[k] - q[k]).powi(2)).sum::<f64>().sqrt();
-                    d - r > self.tolerance * diag
+                    ra[c.i] + rb[c.j] - r > self.tolerance * diag
                 }) {
                     let p = pair[0][c.i];
                     return Err(fail(format!(
@@ -367,7 +370,10 @@ impl WorldContact {
                 _ => Vec::new(),
             })
             .collect();
-        match deepest_visible(&surface, &samples, &thickness) {
+        let radii: Vec<&[f64]> = (0..n)
+            .map(|i| self.world.samples(i).radius.as_slice())
+            .collect();
+        match deepest_visible(&surface, &samples, &radii) {
             Some((depth, a, b)) if depth > 0.0 => {
                 let diag = objects[a].sim().diagonal().min(objects[b].sim().diagonal());
                 (depth, depth / diag)

@@ -190,6 +190,8 @@ pub struct ContactSummary {
     pub penetration_tolerance: f64,
     /// Contact samples per object, in object order.
     pub samples: Vec<usize>,
+    /// Of those, the feature samples (points on convex edges and corners) per object.
+    pub feature_samples: Vec<usize>,
     /// Triangles of each object's derived contact surface (point clouds, splats and images;
     /// written as its `contact_surface` render set), None for shapes with their own surface.
     pub derived_surface_triangles: Vec<Option<usize>>,

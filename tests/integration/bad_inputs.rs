@@ -193,6 +193,7 @@ const RUN_SCENES: &[Case] = &[
     (&["@scene/contact_zero_samples.toml"], "invalid contact_samples = 0: an object in contact needs at least one contact sample"),
     (&["@scene/contact_bad_tolerance.toml"], "contact.penetration_tolerance = 2"),
     (&["@scene/contact_self_exclusion.toml"], "contact.self_exclusion = 0.5: the self-contact exclusion is a multiple of the contact distance, above 1"),
+    (&["@scene/contact_feature_spacing.toml"], "contact.feature_spacing = -1: the feature samples' spacing along an edge is a fraction of the contact thickness"),
     (&["@scene/contact_huge_radius.toml"], "below half the object's smallest extent"),
     (&["@scene/contact_negative_friction.toml"], "contact.friction = -0.2: a friction coefficient must be >= 0"),
     (&["@scene/contact_nan_friction.toml"], "contact.pair[0].friction = NaN is not a number"),

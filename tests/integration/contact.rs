@@ -196,6 +196,74 @@ fn pair_energy_gradient_and_hessian_match_finite_differences() {
     );
 }
 
+/// Feature samples (points on the edges, contact distance t against a sphere and 0 against
+/// each other) through the same energy: with them more pairs are active, and the gradient
+/// and exact Hessian still match central differences.
+#[test]
+fn feature_point_pairs_match_finite_differences() {
+    let scene = SceneBuilder::new(0.01, 1)
+        .cache(no_cache())
+        .object(block("a", 0.2, [0.0, 0.0, 0.0], [0.0; 3]))
+        .object(block("b", 0.2, [0.196, 0.01, 0.0], [0.0; 3]))
+        .contact(ContactSettings {
+            penetration_tolerance: 0.5,
+            ..ContactSettings::default()
+        })
+        .build()
+        .unwrap();
+    let w = world(&scene);
+    let shape = Shape::Box { size: [0.2; 3] };
+    let layout = w.object(0).sim().layout();
+    let n = layout.dofs();
+    let make = |spacing: f64| -> Vec<ContactSamples> {
+        (0..2)
+            .map(|i| {
+                ContactSamples::new(&shape, w.object(i).basis(), 300, None)
+                    .and_then(|s| s.with_features(&shape, w.object(i).basis(), spacing))
+                    .unwrap()
+            })
+            .collect()
+    };
+    let (plain, with) = (make(0.0), make(0.5));
+    assert!(with
+        .iter()
+        .all(|s| s.features > 0 && s.radius.contains(&0.0)));
+    fn contact<'s>(
+        samples: &'s [ContactSamples],
+        w: &World,
+        layout: freeform::sim::elastic::Layout,
+    ) -> PairContact<'s> {
+        let n = layout.dofs();
+        let bodies = (0..2)
+            .map(|i| Body {
+                samples: &samples[i],
+                layout,
+                offset: i * n,
+                diagonal: w.object(i).sim().diagonal(),
+                self_exclusion: None,
+            })
+            .collect();
+        PairContact::new(bodies, vec![1e9; 4])
+    }
+    let (c0, c1) = (contact(&plain, &w, layout), contact(&with, &w, layout));
+    let mut z: Vec<f64> = (0..2)
+        .flat_map(|i| w.object(i).sim().z().to_vec())
+        .collect();
+    // A deformed state, as in the test above but 1.3 times larger: at that one's state a
+    // feature pair lies within the differences' step of its contact distance (a kink of
+    // the C1 energy, which central differences cannot see through).
+    for (k, v) in z.iter_mut().enumerate() {
+        *v += 1.3e-3 * ((k as f64) * 0.7).sin();
+    }
+    let mut g = vec![0.0; 2 * n];
+    let st = c1.energy_gradient(&z, &mut g);
+    // The edges of b lying in a's face add point pairs to the sphere pairs.
+    assert!(st.active > c0.stats(&z).active, "{st:?}");
+    let mut h = faer::Mat::<f64>::zeros(2 * n, 2 * n);
+    c1.add_hessian(&z, PairHessian::Exact, &mut h);
+    assert_derivatives_match_central_differences(&c1, &z, &g, &h);
+}
+
 /// Self-contact pairs (one body's own samples) through the same energy: gradient and exact
 /// Hessian against central differences, the PSD Hessian semi-definite, and the pairs found
 /// deeper than a tolerance. The exclusion is set below the sample spacing so that neighbours
@@ -443,6 +511,58 @@ fn a_stack_of_three_blocks_comes_to_rest() {
     for o in w.objects() {
         assert_eq!(o.summary().monitors.newton_nonconverged_steps, Some(0));
     }
+}
+
+/// A cube dropped corner first onto another's face: without feature samples its corner
+/// stands 0.73 t past its own spheres and sinks into the face below unseen by them (the
+/// visible figure well above the tolerance); the corner's feature sample keeps it within
+/// the tolerance of the face's envelope.
+#[test]
+fn a_corner_landing_on_a_face_stays_out_of_it() {
+    let s = 0.15;
+    let visible = |feature_spacing: f64| {
+        let mut top = block("top", s, [0.5 * s, s + 0.005, 0.5 * s], [0.0, -1.0, 0.0]);
+        // The body diagonal (1, 1, 1) turned to +y: the corner at the origin points down.
+        top.placement.rotation = Some(freeform::sim::motion::AxisAngle {
+            axis: [-1.0, 0.0, 1.0],
+            degrees: (1.0f64 / 3f64.sqrt()).acos().to_degrees(),
+        });
+        let scene = SceneBuilder::new(0.01, 12)
+            .cache(no_cache())
+            .gravity([0.0, -9.81, 0.0])
+            .object(block("low", s, [0.0, 0.0, 0.0], [0.0; 3]))
+            .object(top)
+            .collider(Collider::new(ColliderShape::Plane {
+                point: [0.0, 0.0, 0.0],
+                normal: [0.0, 1.0, 0.0],
+            }))
+            .contact(ContactSettings {
+                feature_spacing,
+                ..ContactSettings::default()
+            })
+            .build()
+            .unwrap();
+        let mut w = world(&scene);
+        for _ in 0..12 {
+            w.step().unwrap();
+        }
+        let c = w.contact_summary().unwrap();
+        assert!(c.steps.iter().any(|r| r.islands == vec![2]), "they touch");
+        (
+            c.worst_visible_penetration_fraction,
+            c.worst_penetration_fraction,
+            c.penetration_tolerance,
+        )
+    };
+    let (without, _, tol) = visible(0.0);
+    let (with, samples, _) = visible(0.5);
+    assert!(without > 1.5 * tol, "without features: {without}");
+    // The corner is a sample now, held within the tolerance by the penalty; the face's
+    // envelope between its samples is what it is measured against in both figures.
+    assert!(
+        samples <= tol && with <= tol,
+        "with features: {with}, {samples}"
+    );
 }
 
 /// Without `[contact]` objects pass through each other as before; with it the same far-apart

@@ -53,6 +53,7 @@ density = 500.0
 stiffness = 1e8
 radius = 0.02
 samples = 500
+feature_spacing = 0.5
 penetration_tolerance = 0.01
 friction = 0.5
 friction_velocity = 1e-3
@@ -196,6 +197,11 @@ const ACCEPTED: &[(&str, &[&str], &str)] = &[
         "keyframes may start before the run's t = 0",
     ),
     ("friction", &["0"], "frictionless"),
+    (
+        "feature_spacing",
+        &["0"],
+        "no feature samples (the default)",
+    ),
     ("poisson", &["0"], "a material without lateral contraction"),
     (
         "lobpcg.guard",

@@ -135,8 +135,14 @@ impl<'a> PairContact<'a> {
         &self.bodies
     }
 
+    /// The largest contact distance of a sample of body `a` and one of body `b`, metres.
     fn distance(&self, a: usize, b: usize) -> f64 {
         self.bodies[a].samples.thickness + self.bodies[b].samples.thickness
+    }
+
+    /// The contact distance of a candidate pair: the sum of its samples' radii, metres.
+    fn pair_distance(&self, c: &Candidate) -> f64 {
+        self.bodies[c.a].samples.radius[c.i] + self.bodies[c.b].samples.radius[c.j]
     }
 
     fn slice<'z>(&self, a: usize, z: &'z [f64]) -> &'z [f64] {
@@ -186,7 +192,7 @@ impl<'a> PairContact<'a> {
         };
         let mut out = Vec::new();
         for c in cands {
-            let d = self.distance(c.a, c.b);
+            let d = self.pair_distance(&c);
             let (xi, xj) = (x[c.a][c.i], x[c.b][c.j]);
             let v: [f64; 3] = std::array::from_fn(|k| xi[k] - xj[k]);
             let r = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
@@ -571,10 +577,12 @@ impl<'a> PairContact<'a> {
             let v: [f64; 3] = std::array::from_fn(|k| dx[c.a][c.i][k] - dx[c.b][c.j][k]);
             let r0 = (d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2]).sqrt();
             let qa = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
-            if r0 == 0.0 || qa == 0.0 {
+            let d = self.pair_distance(&c);
+            // Two feature points (radius 0) never touch.
+            if r0 == 0.0 || qa == 0.0 || d == 0.0 {
                 continue;
             }
-            let floor = STEP_FLOOR * r0.min(self.distance(c.a, c.b));
+            let floor = STEP_FLOOR * r0.min(d);
             let qb = 2.0 * (d0[0] * v[0] + d0[1] * v[1] + d0[2] * v[2]);
             let qc = r0 * r0 - floor * floor;
             let disc = qb * qb - 4.0 * qa * qc;

@@ -51,6 +51,32 @@ pub fn check_count(name: &'static str, count: usize) -> Result<()> {
     Ok(())
 }
 
+/// Narrowest feature sample spacing, a fraction of the thickness: a neighbour's sphere then
+/// reaches between two of them by t / 3200, and narrower adds points for nothing.
+pub const MIN_FEATURE_SPACING: f64 = 0.05;
+
+/// `spacing` as the feature samples' spacing along an edge, a fraction of the contact
+/// thickness (`contact.feature_spacing`): 0 (no feature samples) or in
+/// [[`MIN_FEATURE_SPACING`], 10].
+///
+/// # Errors
+/// [`Error::InvalidParameter`] otherwise.
+pub fn check_feature_spacing(spacing: f64) -> Result<()> {
+    if spacing == 0.0 || (MIN_FEATURE_SPACING..=10.0).contains(&spacing) {
+        return Ok(());
+    }
+    Err(Error::param(
+        "contact.feature_spacing",
+        spacing,
+        format!(
+            "the feature samples' spacing along an edge is a fraction of the contact \
+             thickness, 0 (none, the default) or in [{MIN_FEATURE_SPACING}, 10] (0.5 is the \
+             measured setting; narrower gains nothing, wider than a few thicknesses lets a \
+             neighbour's sphere reach between them)"
+        ),
+    ))
+}
+
 /// Bytes that `count` contact samples with `handles` = m + 1 weights each hold during a run:
 /// the weights, the rest and deformed centres, the area, and the broad phase's tree and
 /// candidate lists (about 64 bytes a sample).
@@ -66,8 +92,15 @@ pub struct ContactSamples {
     pub rest: Vec<Point3>,
     /// Surface area each sample stands for, N, m^2.
     pub area: Vec<f64>,
-    /// Contact thickness t, metres: the radius of the samples' spheres.
+    /// Contact thickness t, metres: the radius of the ordinary samples' spheres (and the
+    /// largest radius of any sample).
     pub thickness: f64,
+    /// Radius of each sample's sphere, N, metres: t for the ordinary samples, 0 for the
+    /// feature samples (the last [`ContactSamples::features`] of them, points).
+    pub radius: Vec<f64>,
+    /// How many samples, at the end, are feature samples: centred on the surface's convex
+    /// edges and corners ([`super::features`]).
+    pub features: usize,
     /// Skinning weight values at the samples, N x (m + 1), row-major.
     weights: Vec<f64>,
     handles: usize,
@@ -173,12 +206,77 @@ impl ContactSamples {
             ),
         })?;
         Ok(ContactSamples {
+            radius: vec![t; rest.len()],
             rest,
             area,
             thickness: t,
+            features: 0,
             weights: w.values,
             handles: w.modes,
         })
+    }
+
+    /// These samples with feature samples added: points (radius 0) on the convex edges and
+    /// corners of `shape` (the shape these samples were made on) where they stand out past
+    /// the ordinary spheres, `spacing` t apart along each edge
+    /// ([`super::features::feature_points`]), each standing for an ordinary sample's area.
+    /// `spacing` 0 adds none.
+    ///
+    /// # Errors
+    /// A `spacing` that is negative or not finite, or a basis that does not cover the new
+    /// samples.
+    pub fn with_features(
+        mut self,
+        shape: &Shape,
+        basis: &Basis,
+        spacing: f64,
+    ) -> Result<ContactSamples> {
+        check_feature_spacing(spacing)?;
+        if spacing == 0.0 || self.features > 0 {
+            return Ok(self);
+        }
+        let points = super::features::feature_points(
+            shape,
+            &self.rest,
+            self.thickness,
+            spacing * self.thickness,
+        )
+        .map_err(|candidates| {
+            Error::param(
+                "contact.feature_spacing",
+                spacing,
+                format!(
+                    "the object's edges would need {candidates} feature sample candidates at \
+                     this spacing and a thickness of {:.3e} m (at most {}); use a larger \
+                     feature_spacing or contact.radius",
+                    self.thickness,
+                    super::features::MAX_FEATURE_CANDIDATES
+                ),
+            )
+        })?;
+        if points.is_empty() {
+            return Ok(self);
+        }
+        let w = basis.weights(&points).map_err(|e| Error::Scene {
+            message: format!(
+                "the skinning weights cannot be evaluated at the contact samples on the \
+                 object's edges and corners ({e}); more kernels or a larger support factor \
+                 cover them, or contact.feature_spacing = 0 leaves them out"
+            ),
+        })?;
+        let a = self.area.iter().sum::<f64>() / self.len().max(1) as f64;
+        self.features = points.len();
+        self.area.extend(std::iter::repeat_n(a, points.len()));
+        self.radius.extend(std::iter::repeat_n(0.0, points.len()));
+        self.rest.extend(points);
+        self.weights.extend(w.values);
+        Ok(self)
+    }
+
+    /// The ordinary samples' spacing, metres: sqrt(their area / their count).
+    pub fn spacing(&self) -> f64 {
+        let n = self.len() - self.features;
+        (self.area[..n].iter().sum::<f64>() / n.max(1) as f64).sqrt()
     }
 
     /// Number of samples.

@@ -63,20 +63,24 @@ impl SurfacePoints {
 /// The deepest reach of a surface point of one object into another's sample envelope (the
 /// union of its samples' spheres), metres, with the two objects (surface point's object
 /// first); None when no surface point is inside another object's envelope. `surface[i]` and
-/// `samples[i]` are object i's deformed surface points and sample centres, `thickness[i]` its
-/// samples' radius.
+/// `samples[i]` are object i's deformed surface points and sample centres, `radius[i]` its
+/// samples' radii (one per sample).
 pub fn deepest_visible(
     surface: &[Vec<Point3>],
     samples: &[&[Point3]],
-    thickness: &[f64],
+    radius: &[&[f64]],
 ) -> Option<(f64, usize, usize)> {
     let n = surface.len();
+    let largest: Vec<f64> = radius
+        .iter()
+        .map(|r| r.iter().fold(0.0, |m: f64, &v| m.max(v)))
+        .collect();
     let mut x: Vec<&[Point3]> = surface.iter().map(Vec::as_slice).collect();
     x.extend(samples.iter().copied());
     // Only (surface of i, samples of j) with i != j: every other pair is out of reach.
     let reach = |a: usize, b: usize| {
         if a < n && b >= n && b - n != a {
-            thickness[b - n]
+            largest[b - n]
         } else {
             f64::NEG_INFINITY
         }
@@ -86,7 +90,7 @@ pub fn deepest_visible(
     for c in pairs {
         let (p, q) = (x[c.a][c.i], x[c.b][c.j]);
         let r = (0..3).map(|k| (p[k] - q[k]).powi(2)).sum::<f64>().sqrt();
-        let depth = thickness[c.b - n] - r;
+        let depth = radius[c.b - n][c.j] - r;
         if deepest.is_none_or(|(d, _, _)| depth > d) {
             deepest = Some((depth, c.a, c.b - n));
         }
@@ -196,8 +200,9 @@ mod tests {
         assert!(p.len() > 6 * 16);
     }
 
-    /// Two unit-radius envelopes: a surface point 0.25 inside a sample's sphere of radius 0.5
-    /// is found with its objects; a point outside every sphere gives nothing.
+    /// Two envelopes: a surface point 0.25 inside a sample's sphere of radius 0.5 is found
+    /// with its objects; a point 0.1 inside a smaller sphere (radius 0.2) is measured against
+    /// that sphere's own radius; a point outside every sphere gives nothing.
     #[test]
     fn the_deepest_surface_point_is_found() {
         let surface = vec![
@@ -205,17 +210,22 @@ mod tests {
             vec![[9.0, 9.0, 9.0]],
         ];
         let a_samples = vec![[9.0, 9.0, 9.3]];
-        let b_samples = vec![[0.25, 0.0, 0.0]];
+        let b_samples = vec![[0.25, 0.0, 0.0], [5.1, 0.0, 0.0]];
         let samples: Vec<&[Point3]> = vec![&a_samples, &b_samples];
-        let (d, i, j) = deepest_visible(&surface, &samples, &[0.5, 0.5]).unwrap();
+        let radii: [&[f64]; 2] = [&[0.5], &[0.5, 0.2]];
+        let (d, i, j) = deepest_visible(&surface, &samples, &radii).unwrap();
         assert_eq!((i, j), (0, 1));
         assert!((d - 0.25).abs() < 1e-15);
         // Object 1's point is 0.3 from object 0's sample: 0.2 deep.
         let only_b = vec![vec![], vec![[9.0, 9.0, 9.0]]];
-        let (d, i, j) = deepest_visible(&only_b, &samples, &[0.5, 0.5]).unwrap();
+        let (d, i, j) = deepest_visible(&only_b, &samples, &radii).unwrap();
         assert_eq!((i, j), (1, 0));
         assert!((d - 0.2).abs() < 1e-12);
-        let far = vec![vec![[5.0, 0.0, 0.0]], vec![]];
-        assert_eq!(deepest_visible(&far, &samples, &[0.5, 0.5]), None);
+        // 0.1 from the small sphere (radius 0.2), 0.4 from nothing of radius 0.5.
+        let small = vec![vec![[5.0, 0.0, 0.0]], vec![]];
+        let (d, _, _) = deepest_visible(&small, &samples, &radii).unwrap();
+        assert!((d - 0.1).abs() < 1e-12, "{d}");
+        let far = vec![vec![[5.0, 3.0, 0.0]], vec![]];
+        assert_eq!(deepest_visible(&far, &samples, &radii), None);
     }
 }
