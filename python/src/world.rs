@@ -717,7 +717,9 @@ impl PyWorld {
     /// ``contact`` gives them (without the ``island_count`` and ``largest_island``
     /// shorthands), ``worst_penetration`` (metres), ``worst_penetration_fraction``,
     /// ``worst_visible_penetration`` (metres) and ``worst_visible_penetration_fraction`` (an
-    /// object's own surface points into another object), ``steps_over_tolerance``,
+    /// object's own surface points into another object), ``worst_visible_at`` (a dict:
+    /// ``step``, ``surface_object``, ``other_object``, ``rest_point``; or None),
+    /// ``steps_over_tolerance``,
     /// ``step_ms_mean`` (ms), per object ``samples`` (of them ``feature_samples``, points on
     /// convex edges and corners), ``thickness`` (metres),
     /// ``derived_surface_triangles`` (point clouds, splats and images; None for others) and

@@ -4,7 +4,7 @@
 //! two objects start interpenetrating, and each step's reports, warnings and contact row.
 
 use super::object::SceneObject;
-use super::report::{ContactStepRow, ContactSummary};
+use super::report::{ContactStepRow, ContactSummary, VisibleSpot};
 use crate::geometry::{Aabb, Shape};
 use crate::report::{Stopwatch, Warning};
 use crate::sim::contact::pairs::candidates;
@@ -173,6 +173,7 @@ impl WorldContact {
             worst_penetration_fraction: 0.0,
             worst_visible_penetration: 0.0,
             worst_visible_penetration_fraction: 0.0,
+            worst_visible_at: None,
             surface_points: surface
                 .iter()
                 .map(|p| p.as_ref().map_or(0, SurfacePoints::len))
@@ -304,7 +305,7 @@ impl WorldContact {
             .zip(objects.iter_mut())
             .map(|(r, o)| o.record(r, warnings))
             .collect();
-        let (visible, visible_fraction) = self.visible_penetration(objects);
+        let (visible, visible_fraction, spot) = self.visible_penetration(objects);
         let mut row = ContactStepRow {
             step: reports.first().map_or(0, |r| r.step),
             wall_ms: 0.0,
@@ -337,6 +338,12 @@ impl WorldContact {
         let s = &mut self.summary;
         s.worst_penetration = s.worst_penetration.max(row.penetration);
         s.worst_penetration_fraction = s.worst_penetration_fraction.max(row.penetration_fraction);
+        if row.visible_penetration_fraction > s.worst_visible_penetration_fraction {
+            s.worst_visible_at = spot.map(|v| VisibleSpot {
+                step: row.step,
+                ..v
+            });
+        }
         s.worst_visible_penetration = s.worst_visible_penetration.max(row.visible_penetration);
         s.worst_visible_penetration_fraction = s
             .worst_visible_penetration_fraction
@@ -350,7 +357,7 @@ impl WorldContact {
 
     /// The deepest reach of an object's own surface points into another object's sample
     /// envelope now: (metres, fraction of the smaller rest diagonal of the two).
-    fn visible_penetration(&self, objects: &[SceneObject]) -> (f64, f64) {
+    fn visible_penetration(&self, objects: &[SceneObject]) -> (f64, f64, Option<VisibleSpot>) {
         let n = objects.len();
         let samples: Vec<&[Point3]> = (0..n).map(|i| self.world.positions(i)).collect();
         let thickness: Vec<f64> = (0..n).map(|i| self.world.samples(i).thickness).collect();
@@ -374,11 +381,19 @@ impl WorldContact {
             .map(|i| self.world.samples(i).radius.as_slice())
             .collect();
         match deepest_visible(&surface, &samples, &radii) {
-            Some((depth, a, b)) if depth > 0.0 => {
+            Some(d) if d.depth > 0.0 => {
+                let (a, b) = (d.object, d.other);
                 let diag = objects[a].sim().diagonal().min(objects[b].sim().diagonal());
-                (depth, depth / diag)
+                let at = self.surface[a].as_ref().map(|p| p.rest[d.point]);
+                let spot = at.map(|rest_point| VisibleSpot {
+                    step: 0,
+                    surface_object: objects[a].name().to_string(),
+                    other_object: objects[b].name().to_string(),
+                    rest_point,
+                });
+                (d.depth, d.depth / diag, spot)
             }
-            _ => (0.0, 0.0),
+            _ => (0.0, 0.0, None),
         }
     }
 }

@@ -50,7 +50,7 @@ pub use frames::{FrameObserver, FrameWriter};
 pub use gradient::{WorldGradients, WorldRecording};
 pub use object::{PreparedObject, SceneObject, CONTACT_SURFACE_SET};
 pub use render_set::RenderSet;
-pub use report::{ContactStepRow, ContactSummary, ObjectSummary, RunSummary, StepRow};
+pub use report::{ContactStepRow, ContactSummary, ObjectSummary, RunSummary, StepRow, VisibleSpot};
 pub use run::run;
 pub use settings::RunSettings;
 pub use shape::{ObjectShape, ShapeSource};

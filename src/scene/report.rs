@@ -183,6 +183,21 @@ impl ContactStepRow {
     }
 }
 
+/// Where a visible penetration was: which object's surface point reached into which object,
+/// at which step, and where the point lies on its own object at rest.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct VisibleSpot {
+    /// The step it was measured after (as the rows' `step`).
+    pub step: usize,
+    /// The object whose surface point it is.
+    pub surface_object: String,
+    /// The object whose sample envelope the point reached into.
+    pub other_object: String,
+    /// The point in its object's rest frame (before placement), metres: an edge or corner
+    /// of a box shows as coordinates at 0 or the box's size.
+    pub rest_point: [f64; 3],
+}
+
 /// Object-object contact over a run.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ContactSummary {
@@ -211,6 +226,8 @@ pub struct ContactSummary {
     pub worst_visible_penetration: f64,
     /// The same relative to the smaller diagonal of its two objects.
     pub worst_visible_penetration_fraction: f64,
+    /// Where the worst visible penetration (by fraction) was, None if nothing reached in.
+    pub worst_visible_at: Option<VisibleSpot>,
     /// Surface points per object the visible penetration is measured at (0: its surface is
     /// not covered by its kernels, so it is not measured).
     pub surface_points: Vec<usize>,

@@ -552,11 +552,20 @@ fn a_corner_landing_on_a_face_stays_out_of_it() {
             c.worst_visible_penetration_fraction,
             c.worst_penetration_fraction,
             c.penetration_tolerance,
+            c.worst_visible_at.clone(),
         )
     };
-    let (without, _, tol) = visible(0.0);
-    let (with, samples, _) = visible(0.5);
+    let (without, _, tol, spot) = visible(0.0);
+    let (with, samples, _, _) = visible(0.5);
     assert!(without > 1.5 * tol, "without features: {without}");
+    // The report says where: the top cube's lowest corner (its rest-frame origin) in the
+    // block below.
+    let spot = spot.expect("a visible penetration has a spot");
+    assert_eq!(
+        (spot.surface_object.as_str(), spot.other_object.as_str()),
+        ("top", "low")
+    );
+    assert!(spot.rest_point.iter().all(|c| c.abs() < 1e-12), "{spot:?}");
     // The corner is a sample now, held within the tolerance by the penalty; the face's
     // envelope between its samples is what it is measured against in both figures.
     assert!(

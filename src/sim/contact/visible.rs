@@ -60,16 +60,28 @@ impl SurfacePoints {
     }
 }
 
+/// The deepest surface point found by [`deepest_visible`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Deepest {
+    /// How far it reaches into the other object's envelope, metres (negative: outside).
+    pub depth: f64,
+    /// The object whose surface point it is.
+    pub object: usize,
+    /// The point's index among that object's surface points.
+    pub point: usize,
+    /// The object whose envelope it reaches into.
+    pub other: usize,
+}
+
 /// The deepest reach of a surface point of one object into another's sample envelope (the
-/// union of its samples' spheres), metres, with the two objects (surface point's object
-/// first); None when no surface point is inside another object's envelope. `surface[i]` and
-/// `samples[i]` are object i's deformed surface points and sample centres, `radius[i]` its
-/// samples' radii (one per sample).
+/// union of its samples' spheres); None when no surface point is inside another object's
+/// envelope. `surface[i]` and `samples[i]` are object i's deformed surface points and sample
+/// centres, `radius[i]` its samples' radii (one per sample).
 pub fn deepest_visible(
     surface: &[Vec<Point3>],
     samples: &[&[Point3]],
     radius: &[&[f64]],
-) -> Option<(f64, usize, usize)> {
+) -> Option<Deepest> {
     let n = surface.len();
     let largest: Vec<f64> = radius
         .iter()
@@ -86,13 +98,18 @@ pub fn deepest_visible(
         }
     };
     let (pairs, _) = candidates(&x, &reach);
-    let mut deepest: Option<(f64, usize, usize)> = None;
+    let mut deepest: Option<Deepest> = None;
     for c in pairs {
         let (p, q) = (x[c.a][c.i], x[c.b][c.j]);
         let r = (0..3).map(|k| (p[k] - q[k]).powi(2)).sum::<f64>().sqrt();
         let depth = radius[c.b - n][c.j] - r;
-        if deepest.is_none_or(|(d, _, _)| depth > d) {
-            deepest = Some((depth, c.a, c.b - n));
+        if deepest.is_none_or(|d| depth > d.depth) {
+            deepest = Some(Deepest {
+                depth,
+                object: c.a,
+                point: c.i,
+                other: c.b - n,
+            });
         }
     }
     deepest
@@ -213,18 +230,18 @@ mod tests {
         let b_samples = vec![[0.25, 0.0, 0.0], [5.1, 0.0, 0.0]];
         let samples: Vec<&[Point3]> = vec![&a_samples, &b_samples];
         let radii: [&[f64]; 2] = [&[0.5], &[0.5, 0.2]];
-        let (d, i, j) = deepest_visible(&surface, &samples, &radii).unwrap();
-        assert_eq!((i, j), (0, 1));
-        assert!((d - 0.25).abs() < 1e-15);
+        let d = deepest_visible(&surface, &samples, &radii).unwrap();
+        assert_eq!((d.object, d.point, d.other), (0, 0, 1));
+        assert!((d.depth - 0.25).abs() < 1e-15);
         // Object 1's point is 0.3 from object 0's sample: 0.2 deep.
         let only_b = vec![vec![], vec![[9.0, 9.0, 9.0]]];
-        let (d, i, j) = deepest_visible(&only_b, &samples, &radii).unwrap();
-        assert_eq!((i, j), (1, 0));
-        assert!((d - 0.2).abs() < 1e-12);
+        let d = deepest_visible(&only_b, &samples, &radii).unwrap();
+        assert_eq!((d.object, d.point, d.other), (1, 0, 0));
+        assert!((d.depth - 0.2).abs() < 1e-12);
         // 0.1 from the small sphere (radius 0.2), 0.4 from nothing of radius 0.5.
         let small = vec![vec![[5.0, 0.0, 0.0]], vec![]];
-        let (d, _, _) = deepest_visible(&small, &samples, &radii).unwrap();
-        assert!((d - 0.1).abs() < 1e-12, "{d}");
+        let d = deepest_visible(&small, &samples, &radii).unwrap();
+        assert!((d.depth - 0.1).abs() < 1e-12, "{d:?}");
         let far = vec![vec![[5.0, 3.0, 0.0]], vec![]];
         assert_eq!(deepest_visible(&far, &samples, &radii), None);
     }
