@@ -113,6 +113,14 @@ placement = {{ translation = [0.1, 0.275, 0.1], velocity = [0.0, -1.0, 0.0] }}
     assert all(n > 0 for n in summary["surface_points"])
     assert any(r["sample_pairs_active"] > 0 for r in summary["steps"])
     assert summary["worst_penetration_fraction"] < summary["penetration_tolerance"]
+    # Feature samples are off by default; the worst visible penetration says where it was.
+    assert summary["feature_samples"] == [0, 0]
+    spot = summary["worst_visible_at"]
+    if summary["worst_visible_penetration"] > 0.0:
+        assert {spot["surface_object"], spot["other_object"]} == {"low", "egg"}
+        assert len(spot["rest_point"]) == 3 and 1 <= spot["step"] <= STEPS
+    else:
+        assert spot is None
 
 
 def test_no_contact_section_no_contact_report(tmp_path):
