@@ -64,6 +64,19 @@ int main(int argc, char **argv) {
     printf("worst %.17g %.17g over %zu visible %.17g %.17g\n", c.worst_penetration,
            c.worst_penetration_fraction, c.steps_over_tolerance, v.worst_penetration,
            v.worst_penetration_fraction);
+    /* Where the worst visible penetration was: which object's surface point, into which. */
+    ff_visible_spot spot;
+    rc = ff_world_visible_spot(w, &spot);
+    if (rc != FF_OK) {
+        fprintf(stderr, "ff_world_visible_spot failed (%d): %s\n", rc, ff_last_error());
+        ff_world_free(w);
+        return 1;
+    }
+    if (spot.found)
+        printf("spot %zu %s %s %.17g %.17g %.17g\n", spot.step,
+               ff_world_object_name(w, spot.surface_object),
+               ff_world_object_name(w, spot.other_object), spot.rest_point[0],
+               spot.rest_point[1], spot.rest_point[2]);
     ff_world_free(w);
     return 0;
 }

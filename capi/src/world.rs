@@ -422,6 +422,53 @@ pub unsafe extern "C" fn ff_world_visible_penetration(
     })
 }
 
+/// Where the run's worst visible penetration was (C struct `ff_visible_spot`), from
+/// [`ff_world_visible_spot`]: the `[contact]` report's `worst_visible_at`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FfVisibleSpot {
+    /// 1 if a surface point has reached into another object so far, else 0 (then every
+    /// other field is 0).
+    pub found: c_int,
+    /// The step it was measured after, 1-based.
+    pub step: usize,
+    /// Index of the object whose surface point it is.
+    pub surface_object: usize,
+    /// Index of the object whose contact samples it reached into.
+    pub other_object: usize,
+    /// The point in its object's rest frame (before placement), metres.
+    pub rest_point: [f64; 3],
+}
+
+/// Where the run's worst visible penetration was into `*out` (see [`FfVisibleSpot`]): `found`
+/// 0 without `[contact]`, before the first step, or while no surface point has reached in.
+#[no_mangle]
+pub unsafe extern "C" fn ff_world_visible_spot(
+    world: *const FfWorld,
+    out: *mut FfVisibleSpot,
+) -> c_int {
+    call("ff_world_visible_spot", || {
+        let w = unsafe { world_ref(world)? };
+        if out.is_null() {
+            return Err((Status::NullPointer, "out is NULL".into()));
+        }
+        let spot = w
+            .world
+            .contact_summary()
+            .and_then(|s| s.worst_visible_at.as_ref());
+        let rep = spot.map_or_else(FfVisibleSpot::default, |v| FfVisibleSpot {
+            found: 1,
+            step: v.step,
+            surface_object: v.surface_index,
+            other_object: v.other_index,
+            rest_point: v.rest_point,
+        });
+        // SAFETY: checked non-NULL; the caller provides a writable ff_visible_spot.
+        unsafe { *out = rep };
+        Ok(())
+    })
+}
+
 /// Steps of object `object` that did not converge so far (0 for NULL or a bad index).
 #[no_mangle]
 pub unsafe extern "C" fn ff_world_nonconverged_steps(

@@ -245,6 +245,37 @@ fn c_visible_penetration_equals_the_rust_world_on_an_edge_impact() {
     assert!(c_worst.3 > 0.0 && c_worst.4 > 0.0, "{stdout}");
     assert!(c_rows.iter().any(|r| r.visible.1 > 0.0), "{stdout}");
     assert_eq!((c_rows, c_worst), rust_rows(&tilted));
+    // Where: the `spot` line (step, the two names, the point at rest) is the Rust world's
+    // worst_visible_at, printed to 17 digits (so equal exactly).
+    let scene = Scene::load(&tilted).unwrap();
+    let mut world = World::new(&scene, &RunSettings::for_scene_file(&tilted), &Silent).unwrap();
+    for _ in 0..STEPS {
+        world.step().unwrap();
+    }
+    let v = world
+        .contact_summary()
+        .unwrap()
+        .worst_visible_at
+        .clone()
+        .unwrap();
+    let expected = format!(
+        "spot {} {} {} {:?} {:?} {:?}",
+        v.step, v.surface_object, v.other_object, v.rest_point[0], v.rest_point[1], v.rest_point[2]
+    );
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with("spot"))
+        .expect("a spot line");
+    let f: Vec<&str> = line.split_whitespace().collect();
+    let g: Vec<&str> = expected.split_whitespace().collect();
+    assert_eq!(f[..4], g[..4], "{line} / {expected}");
+    for k in 4..7 {
+        assert_eq!(
+            f[k].parse::<f64>().unwrap(),
+            g[k].parse::<f64>().unwrap(),
+            "{line}"
+        );
+    }
 }
 
 #[test]
@@ -282,6 +313,22 @@ fn visible_penetration_checks_its_pointers_and_is_zero_before_the_first_step() {
         );
         let msg = CStr::from_ptr(ff_last_error()).to_string_lossy();
         assert!(msg.contains("out is NULL"), "{msg}");
+        // No spot before the first step; the same NULL checks.
+        let mut spot = FfVisibleSpot {
+            found: 7,
+            step: 3,
+            ..FfVisibleSpot::default()
+        };
+        assert_eq!(ff_world_visible_spot(w, &mut spot), 0);
+        assert_eq!(spot, FfVisibleSpot::default());
+        assert_eq!(
+            ff_world_visible_spot(std::ptr::null(), &mut spot),
+            Status::NullPointer as i32
+        );
+        assert_eq!(
+            ff_world_visible_spot(w, null_mut()),
+            Status::NullPointer as i32
+        );
         ff_world_free(w);
     }
 }

@@ -155,6 +155,15 @@ typedef struct ff_visible_penetration {
     double worst_penetration_fraction; /* the same / smaller diagonal of its two objects */
 } ff_visible_penetration;
 
+/* Where the run's worst visible penetration was (see ff_world_visible_spot). */
+typedef struct ff_visible_spot {
+    int found;             /* 1 once a surface point has reached into another object, else 0 */
+    size_t step;           /* the step it was measured after, 1-based */
+    size_t surface_object; /* index of the object whose surface point it is */
+    size_t other_object;   /* index of the object whose contact samples it reached into */
+    double rest_point[3];  /* the point in its object's rest frame (before placement), metres */
+} ff_visible_spot;
+
 /* Open the scene file scene_path and set up every object (basis from the scene's cache or
  * computed, reduced model, render points), as `freeform run` does: relative paths in the
  * scene resolve against the scene file's directory; no frames are written, nothing is
@@ -184,6 +193,10 @@ int ff_world_contact_report(const ff_world *world, ff_contact_report *out);
 /* The visible penetration of the last world step and the worst of the run into *out. A scene
  * without [contact] gives all zeros (enabled 0); before the first step, step is 0. */
 int ff_world_visible_penetration(const ff_world *world, ff_visible_penetration *out);
+
+/* Where the run's worst visible penetration was into *out: found 0 without [contact], before
+ * the first step, or while no surface point has reached in (all fields 0 then). */
+int ff_world_visible_spot(const ff_world *world, ff_visible_spot *out);
 
 /* Steps of object `object` that did not converge so far (0 for NULL or a bad index). */
 size_t ff_world_nonconverged_steps(const ff_world *world, size_t object);

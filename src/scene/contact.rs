@@ -388,7 +388,9 @@ impl WorldContact {
                 let spot = at.map(|rest_point| VisibleSpot {
                     step: 0,
                     surface_object: objects[a].name().to_string(),
+                    surface_index: a,
                     other_object: objects[b].name().to_string(),
+                    other_index: b,
                     rest_point,
                 });
                 (d.depth, d.depth / diag, spot)

@@ -191,8 +191,12 @@ pub struct VisibleSpot {
     pub step: usize,
     /// The object whose surface point it is.
     pub surface_object: String,
+    /// Its index in the scene's objects.
+    pub surface_index: usize,
     /// The object whose sample envelope the point reached into.
     pub other_object: String,
+    /// Its index in the scene's objects.
+    pub other_index: usize,
     /// The point in its object's rest frame (before placement), metres: an edge or corner
     /// of a box shows as coordinates at 0 or the box's size.
     pub rest_point: [f64; 3],
