@@ -79,24 +79,9 @@ fn assert_derivatives_match_central_differences(
 /// overlapping blocks match central differences, the PSD Hessian is positive semi-definite,
 /// the pair is found deeper than a tolerance below its depth, and the step bound caps a
 /// segment that would move the samples by metres.
-#[test]
-fn pair_energy_gradient_and_hessian_match_finite_differences() {
-    // Two blocks overlapping by 4 mm (the tolerance is raised so the world accepts them).
-    let scene = SceneBuilder::new(0.01, 1)
-        .cache(no_cache())
-        .object(block("a", 0.2, [0.0, 0.0, 0.0], [0.0; 3]))
-        .object(block("b", 0.2, [0.196, 0.01, 0.0], [0.0; 3]))
-        .contact(ContactSettings {
-            penetration_tolerance: 0.5,
-            ..ContactSettings::default()
-        })
-        .build()
-        .unwrap();
-    let w = world(&scene);
-    let shape = Shape::Box { size: [0.2; 3] };
-    let samples: Vec<ContactSamples> = (0..2)
-        .map(|i| ContactSamples::new(&shape, w.object(i).basis(), 300, None).unwrap())
-        .collect();
+/// The pair energy of the two objects of `w` with these samples (one per object), penalty
+/// 1e9 Pa/m^2, no self-contact.
+fn pair_contact<'s>(samples: &'s [ContactSamples], w: &World) -> PairContact<'s> {
     let layout = w.object(0).sim().layout();
     let n = layout.dofs();
     let bodies = (0..2)
@@ -108,14 +93,47 @@ fn pair_energy_gradient_and_hessian_match_finite_differences() {
             self_exclusion: None,
         })
         .collect();
-    let contact = PairContact::new(bodies, vec![1e9; 4]);
+    PairContact::new(bodies, vec![1e9; 4])
+}
+
+/// The stacked z of the two objects of `w`, deformed: a small smooth perturbation of
+/// `amplitude` on every coordinate.
+fn deformed_state(w: &World, amplitude: f64) -> Vec<f64> {
     let mut z: Vec<f64> = (0..2)
         .flat_map(|i| w.object(i).sim().z().to_vec())
         .collect();
-    // A deformed state: small smooth perturbations of every coordinate.
     for (k, v) in z.iter_mut().enumerate() {
-        *v += 1e-3 * ((k as f64) * 0.7).sin();
+        *v += amplitude * ((k as f64) * 0.7).sin();
     }
+    z
+}
+
+/// Two 0.2 m blocks overlapping by 4 mm (the tolerance is raised so the world accepts them).
+fn overlapping_blocks() -> World {
+    let scene = SceneBuilder::new(0.01, 1)
+        .cache(no_cache())
+        .object(block("a", 0.2, [0.0, 0.0, 0.0], [0.0; 3]))
+        .object(block("b", 0.2, [0.196, 0.01, 0.0], [0.0; 3]))
+        .contact(ContactSettings {
+            penetration_tolerance: 0.5,
+            ..ContactSettings::default()
+        })
+        .build()
+        .unwrap();
+    world(&scene)
+}
+
+#[test]
+fn pair_energy_gradient_and_hessian_match_finite_differences() {
+    let w = overlapping_blocks();
+    let shape = Shape::Box { size: [0.2; 3] };
+    let samples: Vec<ContactSamples> = (0..2)
+        .map(|i| ContactSamples::new(&shape, w.object(i).basis(), 300, None).unwrap())
+        .collect();
+    let layout = w.object(0).sim().layout();
+    let n = layout.dofs();
+    let contact = pair_contact(&samples, &w);
+    let z = deformed_state(&w, 1e-3);
     let mut g = vec![0.0; 2 * n];
     let st = contact.energy_gradient(&z, &mut g);
     assert!(st.active > 20, "the blocks must touch: {st:?}");
@@ -201,17 +219,7 @@ fn pair_energy_gradient_and_hessian_match_finite_differences() {
 /// and exact Hessian still match central differences.
 #[test]
 fn feature_point_pairs_match_finite_differences() {
-    let scene = SceneBuilder::new(0.01, 1)
-        .cache(no_cache())
-        .object(block("a", 0.2, [0.0, 0.0, 0.0], [0.0; 3]))
-        .object(block("b", 0.2, [0.196, 0.01, 0.0], [0.0; 3]))
-        .contact(ContactSettings {
-            penetration_tolerance: 0.5,
-            ..ContactSettings::default()
-        })
-        .build()
-        .unwrap();
-    let w = world(&scene);
+    let w = overlapping_blocks();
     let shape = Shape::Box { size: [0.2; 3] };
     let layout = w.object(0).sim().layout();
     let n = layout.dofs();
@@ -228,33 +236,11 @@ fn feature_point_pairs_match_finite_differences() {
     assert!(with
         .iter()
         .all(|s| s.features > 0 && s.radius.contains(&0.0)));
-    fn contact<'s>(
-        samples: &'s [ContactSamples],
-        w: &World,
-        layout: freeform::sim::elastic::Layout,
-    ) -> PairContact<'s> {
-        let n = layout.dofs();
-        let bodies = (0..2)
-            .map(|i| Body {
-                samples: &samples[i],
-                layout,
-                offset: i * n,
-                diagonal: w.object(i).sim().diagonal(),
-                self_exclusion: None,
-            })
-            .collect();
-        PairContact::new(bodies, vec![1e9; 4])
-    }
-    let (c0, c1) = (contact(&plain, &w, layout), contact(&with, &w, layout));
-    let mut z: Vec<f64> = (0..2)
-        .flat_map(|i| w.object(i).sim().z().to_vec())
-        .collect();
+    let (c0, c1) = (pair_contact(&plain, &w), pair_contact(&with, &w));
     // A deformed state, as in the test above but 1.3 times larger: at that one's state a
     // feature pair lies within the differences' step of its contact distance (a kink of
     // the C1 energy, which central differences cannot see through).
-    for (k, v) in z.iter_mut().enumerate() {
-        *v += 1.3e-3 * ((k as f64) * 0.7).sin();
-    }
+    let z = deformed_state(&w, 1.3e-3);
     let mut g = vec![0.0; 2 * n];
     let st = c1.energy_gradient(&z, &mut g);
     // The edges of b lying in a's face add point pairs to the sphere pairs.

@@ -87,7 +87,7 @@ fn check_candidates(count: f64) -> Result<(), usize> {
 }
 
 /// The 8 corners, then points `step` apart (at most) along the 12 edges of the box [0, l].
-fn box_candidates(l: &[f64; 3], step: f64) -> Vec<Point3> {
+pub(super) fn box_candidates(l: &[f64; 3], step: f64) -> Vec<Point3> {
     let mut out: Vec<Point3> = (0..8)
         .map(|c| std::array::from_fn(|d| if c >> d & 1 == 1 { l[d] } else { 0.0 }))
         .collect();
@@ -185,91 +185,6 @@ impl CellGrid {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Ordinary samples as the box sampler places them: a lattice about t apart on each face
-    /// of the box [0, l], clamped t inside.
-    fn lattice(l: &[f64; 3], t: f64) -> Vec<Point3> {
-        let mut centres = Vec::new();
-        for axis in 0..3 {
-            let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
-            let (nu, nv) = ((l[u] / t) as usize, (l[v] / t) as usize);
-            for side in [0.0, l[axis]] {
-                for iu in 0..nu {
-                    for iv in 0..nv {
-                        let mut p = [0.0; 3];
-                        p[axis] = side;
-                        p[u] = (iu as f64 + 0.5) * l[u] / nu as f64;
-                        p[v] = (iv as f64 + 0.5) * l[v] / nv as f64;
-                        centres.push(std::array::from_fn(|d| p[d].clamp(t, l[d] - t)));
-                    }
-                }
-            }
-        }
-        centres
-    }
-
-    /// Every point of a box's edges is within 3/4 of the spacing of a feature point, every
-    /// corner is one, and every feature point lies on an edge.
-    #[test]
-    fn box_edges_are_covered_by_feature_points() {
-        let l = [0.3, 0.2, 0.1];
-        let t = 0.01;
-        let centres = lattice(&l, t);
-        let spacing = 0.5 * t;
-        let r = 0.75 * spacing;
-        let f = feature_points(&Shape::Box { size: l }, &centres, t, spacing).unwrap();
-        assert!(!f.is_empty());
-        // Every corner is a feature centre.
-        for c in &box_candidates(&l, 1.0)[..8] {
-            assert!(f.iter().any(|p| p == c), "corner {c:?}");
-        }
-        // Dense points on the edges: each within r of a kept point (the greedy keeps a
-        // candidate, walking along the edge, unless a kept one lies within r; a point
-        // between two candidates is nearer than the next candidate to every kept point
-        // behind it).
-        for p in box_candidates(&l, 0.1 * r) {
-            let best = f
-                .iter()
-                .map(|q| (0..3).map(|d| (p[d] - q[d]).powi(2)).sum::<f64>().sqrt())
-                .fold(f64::INFINITY, f64::min);
-            assert!(best <= r * (1.0 + 1e-9), "{p:?}: {best}");
-        }
-        // Every feature lies on an edge: two of its coordinates on the box's faces.
-        for p in &f {
-            let on = (0..3)
-                .filter(|&d| p[d].abs() < 1e-12 || (p[d] - l[d]).abs() < 1e-12)
-                .count();
-            assert!(on >= 2, "{p:?}");
-        }
-    }
-
-    /// A cube given as a mesh (two triangles a face): its corners are feature points and
-    /// every feature point lies on an edge, or on a face diagonal (a mesh edge too) within t
-    /// of a corner, where the face itself stands out of the samples clamped t inside.
-    #[test]
-    fn a_mesh_cube_gets_features_on_its_edges_and_corners() {
-        let (v, f) = crate::geometry::generate::box_mesh([1.0, 1.0, 1.0]);
-        let mesh =
-            crate::geometry::TriMesh::new(v, f, &crate::geometry::ShapeOptions::default()).unwrap();
-        let t = 0.04;
-        let centres = lattice(&[1.0; 3], t);
-        let f = feature_points(&Shape::Mesh(mesh), &centres, t, 0.5 * t).unwrap();
-        for c in box_candidates(&[1.0; 3], 1.0).iter().take(8) {
-            assert!(f.iter().any(|p| p == c), "corner {c:?}");
-        }
-        for p in &f {
-            let on = (0..3)
-                .filter(|&d| p[d].abs() < 1e-12 || (p[d] - 1.0).abs() < 1e-12)
-                .count();
-            let corner = (0..3)
-                .map(|d| p[d].min(1.0 - p[d]).powi(2))
-                .sum::<f64>()
-                .sqrt();
-            assert!(on >= 2 || corner <= t, "{p:?}");
-        }
-        // About 12 edges / (0.75-1 spacing) points each.
-        assert!((12 * 50..=12 * 70).contains(&f.len()), "{}", f.len());
-    }
 
     /// Edges far longer than the spacing are refused with the candidate count, not walked.
     #[test]

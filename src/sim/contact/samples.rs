@@ -464,6 +464,7 @@ fn mesh_samples(
 
 #[cfg(test)]
 mod tests {
+    use super::super::features::{box_candidates, feature_points};
     use super::*;
 
     /// Box samples cover the area exactly and lie t inside every face they are near.
@@ -509,5 +510,68 @@ mod tests {
             // The BVH projection is exact to rounding; 1e-6 t is the stop test's slack.
             assert!((depth - 0.05).abs() < 1e-6, "{x:?} depth {depth}");
         }
+    }
+
+    /// Every point of a box's edges is within 3/4 of the spacing of a feature point, every
+    /// corner is one, and every feature point lies on an edge.
+    #[test]
+    fn box_edges_are_covered_by_feature_points() {
+        let l = [0.3, 0.2, 0.1];
+        let t = 0.01;
+        let (centres, _) = box_samples(&l, 2200, t); // spacing t
+        let spacing = 0.5 * t;
+        let r = 0.75 * spacing;
+        let f = feature_points(&Shape::Box { size: l }, &centres, t, spacing).unwrap();
+        assert!(!f.is_empty());
+        // Every corner is a feature centre.
+        for c in &box_candidates(&l, 1.0)[..8] {
+            assert!(f.iter().any(|p| p == c), "corner {c:?}");
+        }
+        // Dense points on the edges: each within r of a kept point (the greedy keeps a
+        // candidate, walking along the edge, unless a kept one lies within r; a point
+        // between two candidates is nearer than the next candidate to every kept point
+        // behind it).
+        for p in box_candidates(&l, 0.1 * r) {
+            let best = f
+                .iter()
+                .map(|q| (0..3).map(|d| (p[d] - q[d]).powi(2)).sum::<f64>().sqrt())
+                .fold(f64::INFINITY, f64::min);
+            assert!(best <= r * (1.0 + 1e-9), "{p:?}: {best}");
+        }
+        // Every feature lies on an edge: two of its coordinates on the box's faces.
+        for p in &f {
+            let on = (0..3)
+                .filter(|&d| p[d].abs() < 1e-12 || (p[d] - l[d]).abs() < 1e-12)
+                .count();
+            assert!(on >= 2, "{p:?}");
+        }
+    }
+
+    /// A cube given as a mesh (two triangles a face): its corners are feature points and
+    /// every feature point lies on an edge, or on a face diagonal (a mesh edge too) within t
+    /// of a corner, where the face itself stands out of the samples clamped t inside.
+    #[test]
+    fn a_mesh_cube_gets_features_on_its_edges_and_corners() {
+        let (v, f) = crate::geometry::generate::box_mesh([1.0, 1.0, 1.0]);
+        let mesh =
+            crate::geometry::TriMesh::new(v, f, &crate::geometry::ShapeOptions::default()).unwrap();
+        let t = 0.04;
+        let (centres, _) = box_samples(&[1.0; 3], 3750, t); // spacing t
+        let f = feature_points(&Shape::Mesh(mesh), &centres, t, 0.5 * t).unwrap();
+        for c in box_candidates(&[1.0; 3], 1.0).iter().take(8) {
+            assert!(f.iter().any(|p| p == c), "corner {c:?}");
+        }
+        for p in &f {
+            let on = (0..3)
+                .filter(|&d| p[d].abs() < 1e-12 || (p[d] - 1.0).abs() < 1e-12)
+                .count();
+            let corner = (0..3)
+                .map(|d| p[d].min(1.0 - p[d]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            assert!(on >= 2 || corner <= t, "{p:?}");
+        }
+        // About 12 edges / (0.75-1 spacing) points each.
+        assert!((12 * 50..=12 * 70).contains(&f.len()), "{}", f.len());
     }
 }
