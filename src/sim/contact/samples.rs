@@ -223,8 +223,9 @@ impl ContactSamples {
     /// `spacing` 0 adds none.
     ///
     /// # Errors
-    /// A `spacing` that is negative or not finite, or a basis that does not cover the new
-    /// samples.
+    /// A `spacing` neither 0 nor in [[`MIN_FEATURE_SPACING`], 10]; edges too long for it
+    /// (more than [`super::features::MAX_FEATURE_CANDIDATES`] candidate points); or a basis
+    /// that does not cover the new samples.
     pub fn with_features(
         mut self,
         shape: &Shape,
