@@ -356,7 +356,8 @@ impl WorldContact {
     }
 
     /// The deepest reach of an object's own surface points into another object's sample
-    /// envelope now: (metres, fraction of the smaller rest diagonal of the two).
+    /// envelope now: (metres, fraction of the smaller rest diagonal of the two, where: the
+    /// spot with its step left 0 for the caller).
     fn visible_penetration(&self, objects: &[SceneObject]) -> (f64, f64, Option<VisibleSpot>) {
         let n = objects.len();
         let samples: Vec<&[Point3]> = (0..n).map(|i| self.world.positions(i)).collect();
