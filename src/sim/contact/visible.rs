@@ -238,7 +238,7 @@ mod tests {
         let d = deepest_visible(&only_b, &samples, &radii).unwrap();
         assert_eq!((d.object, d.point, d.other), (1, 0, 0));
         assert!((d.depth - 0.2).abs() < 1e-12);
-        // 0.1 from the small sphere (radius 0.2), 0.4 from nothing of radius 0.5.
+        // 0.1 from the small sphere's centre (radius 0.2): 0.1 deep; no large sphere is near.
         let small = vec![vec![[5.0, 0.0, 0.0]], vec![]];
         let d = deepest_visible(&small, &samples, &radii).unwrap();
         assert!((d.depth - 0.1).abs() < 1e-12, "{d:?}");
