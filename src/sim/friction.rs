@@ -42,6 +42,20 @@ fn f1_over_y(y: f64, eps: f64) -> f64 {
     }
 }
 
+/// Which curvature of the friction potential a Newton model uses ([`model_hessian`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Curvature {
+    /// The exact Hessian ([`hessian`]): Newton converges quadratically once every contact
+    /// stays sticking or sliding, but along s a sliding contact has no curvature, so a step
+    /// can overshoot where s turns through zero (the potential's kink, smoothed over eps).
+    #[default]
+    Exact,
+    /// The Hessian of the potential's quadratic majorizer at d ([`majorizer_hessian`]): a
+    /// model that lies above the friction potential along every line, so a step never
+    /// overshoots the kink; Newton then converges linearly where contacts slide.
+    Majorizer,
+}
+
 /// The projector I - n n^T of a unit normal.
 pub fn tangent_projector(n: &[f64; 3]) -> Mat3 {
     std::array::from_fn(|r| std::array::from_fn(|c| if r == c { 1.0 } else { 0.0 } - n[r] * n[c]))
@@ -72,6 +86,29 @@ pub fn hessian(mu_lambda: f64, eps: f64, p: &Mat3, d: &[f64; 3]) -> Mat3 {
         (1.0 / y, -1.0 / (y * y * y))
     };
     std::array::from_fn(|r| std::array::from_fn(|c| mu_lambda * (a * p[r][c] + b * s[r] * s[c])))
+}
+
+/// The Hessian of the quadratic majorizer of D at the relative displacement d: with q = |s|^2,
+/// f0(sqrt q) is concave in q, so D(d') <= D(d) + mu lambda f1(y) / (2 y) (|s'|^2 - y^2) for
+/// every d'; the right side's Hessian is mu lambda f1(y)/y P (positive semi-definite, at least
+/// the exact Hessian along every direction).
+pub fn majorizer_hessian(mu_lambda: f64, eps: f64, p: &Mat3, d: &[f64; 3]) -> Mat3 {
+    let a = mu_lambda * f1_over_y(norm(&project(p, d)), eps);
+    std::array::from_fn(|r| std::array::from_fn(|c| a * p[r][c]))
+}
+
+/// The friction Hessian a model of the given curvature uses.
+pub fn model_hessian(
+    curvature: Curvature,
+    mu_lambda: f64,
+    eps: f64,
+    p: &Mat3,
+    d: &[f64; 3],
+) -> Mat3 {
+    match curvature {
+        Curvature::Exact => hessian(mu_lambda, eps, p, d),
+        Curvature::Majorizer => majorizer_hessian(mu_lambda, eps, p, d),
+    }
 }
 
 /// A collider contact at the start of a step, as lagged friction keeps it
@@ -206,6 +243,38 @@ mod tests {
                 "{scale}: {check:?}"
             );
             assert!(norm(&g) <= ml * (1.0 + 1e-12));
+        }
+    }
+
+    /// The majorizer's quadratic (value and gradient of D at d, Hessian
+    /// [`majorizer_hessian`]) lies on or above D at every other d', sticking or sliding at
+    /// either end, and its Hessian minus the exact one is positive semi-definite.
+    #[test]
+    fn majorizer_bounds_the_potential() {
+        let p = tangent_projector(&[0.0, 0.6, 0.8]);
+        let (ml, eps) = (2.5, 1e-3);
+        let dirs = [[0.7, -0.3, 0.5], [-0.2, 0.9, -0.4], [0.1, 0.2, -0.9]];
+        for scale in [0.0, 3e-4, 9e-4, 2e-3, 5e-2] {
+            let d = dirs[0].map(|v| v * scale);
+            let e = potential(ml, eps, &project(&p, &d));
+            let g = gradient(ml, eps, &p, &d);
+            let hm = majorizer_hessian(ml, eps, &p, &d);
+            let he = hessian(ml, eps, &p, &d);
+            for dir in &dirs {
+                // The difference is PSD: v^T (Hm - He) v >= 0 up to rounding of entries of
+                // size mu lambda / min(y, eps).
+                let gap = dot(dir, &mat_vec(&hm, dir)) - dot(dir, &mat_vec(&he, dir));
+                assert!(gap >= -1e-9 * ml / eps, "{scale} {dir:?}: {gap}");
+                for step in [-3e-2, -1e-3, -2e-4, 5e-5, 7e-4, 4e-3, 1e-1] {
+                    let v = dir.map(|c| c * step);
+                    let d2: [f64; 3] = std::array::from_fn(|k| d[k] + v[k]);
+                    let quad = e + dot(&g, &v) + 0.5 * dot(&v, &mat_vec(&hm, &v));
+                    let actual = potential(ml, eps, &project(&p, &d2));
+                    // Rounding of the quadratic's terms, each at most ~mu lambda (|v| + eps).
+                    let slack = 1e-12 * ml * (1.0 + norm(&v) / eps);
+                    assert!(actual <= quad + slack, "{scale} {step}: {actual} > {quad}");
+                }
+            }
         }
     }
 }

@@ -27,6 +27,7 @@
 //! h = 1e-4 s; docs/limits.md).
 
 pub use crate::sim::elastic::Precision;
+use crate::sim::friction::Curvature;
 use faer::linalg::solvers::{Llt, Solve};
 use faer::{Mat, Side};
 use serde::{Deserialize, Serialize};
@@ -202,14 +203,14 @@ pub struct EvalInfo {
 pub trait Potential {
     /// Energy (J), gradient written to `grad`.
     fn energy_gradient(&self, z: &[f64], grad: &mut [f64]) -> (f64, EvalInfo);
-    /// PSD approximation of the Hessian at z.
-    fn hessian(&self, z: &[f64]) -> Mat<f64>;
+    /// PSD approximation of the Hessian at z, its friction terms curved as `friction` says.
+    fn hessian(&self, z: &[f64], friction: Curvature) -> Mat<f64>;
     /// A cheaper PSD approximation for quasi-Newton bases (default: [`Potential::hessian`]);
     /// `stride` and `precision` as in [`NewtonOptions::refresh_stride`] and
     /// [`NewtonOptions::refresh_precision`].
     fn base_hessian(&self, z: &[f64], stride: usize, precision: Precision) -> Mat<f64> {
         let _ = (stride, precision);
-        self.hessian(z)
+        self.hessian(z, Curvature::Exact)
     }
     /// The largest step fraction alpha the line search may take along `dir` from `z`
     /// (default: unbounded). Object-object contact bounds it so that no sample pair passes
@@ -222,18 +223,25 @@ pub trait Potential {
     /// Where it exists Newton factorizes it first and takes the PSD approximation only when
     /// the exact one is not positive definite: near a minimum it is, and the projected
     /// curvature (clipped compression modes, dropped contact curvature) slows Newton to a
-    /// linear rate (docs/performance.md, "Object-object contact").
-    fn exact_hessian(&self, z: &[f64]) -> Option<Mat<f64>> {
-        let _ = z;
+    /// linear rate (docs/performance.md, "Object-object contact"). Its friction terms are
+    /// curved as `friction` says.
+    fn exact_hessian(&self, z: &[f64], friction: Curvature) -> Option<Mat<f64>> {
+        let _ = (z, friction);
         None
     }
     /// The Newton step at z for the gradient `grad` when the potential solves its system in
     /// its own structure (an island of objects: block sparse,
     /// [`crate::sim::contact::system`]); default [`NewtonSystem::Dense`]: factorize
-    /// [`Potential::exact_hessian`] or [`Potential::hessian`] densely.
-    fn newton_system(&self, z: &[f64], grad: &[f64]) -> NewtonSystem {
-        let _ = (z, grad);
+    /// [`Potential::exact_hessian`] or [`Potential::hessian`] densely. Friction terms are
+    /// curved as `friction` says.
+    fn newton_system(&self, z: &[f64], grad: &[f64], friction: Curvature) -> NewtonSystem {
+        let _ = (z, grad, friction);
         NewtonSystem::Dense
+    }
+    /// Whether it has friction terms, whose Hessian depends on the [`Curvature`] asked for
+    /// (default: none).
+    fn has_friction(&self) -> bool {
+        false
     }
 }
 
@@ -402,11 +410,12 @@ fn newton_direction(
     z: &[f64],
     grad: &[f64],
     delta: &[f64],
+    friction: Curvature,
     base: &mut Option<Llt<f64>>,
     rep: &mut SolveReport,
 ) -> Vec<f64> {
     use crate::report::Stopwatch;
-    if let Some(h) = timed(&mut rep.hessian_s, || pot.exact_hessian(z)) {
+    if let Some(h) = timed(&mut rep.hessian_s, || pot.exact_hessian(z, friction)) {
         rep.factorizations += 1;
         let solved = timed(&mut rep.solve_s, || {
             let f = h.llt(Side::Lower).ok()?;
@@ -419,7 +428,7 @@ fn newton_direction(
         }
         rep.projected_fallbacks += 1;
     }
-    let h = timed(&mut rep.hessian_s, || pot.hessian(z));
+    let h = timed(&mut rep.hessian_s, || pot.hessian(z, friction));
     let sw = Stopwatch::start();
     rep.factorizations += 1;
     let d = match h.llt(Side::Lower) {
@@ -475,6 +484,15 @@ pub fn minimize(
     rep.initial_energy = e;
     let mut trial = vec![0.0; n];
     let mut tgrad = vec![0.0; n];
+    // The friction curvature of the next Newton model, and that of the model the convergence
+    // measure's step comes from. The next model takes the majorizer after a line search that
+    // had to cut back the step for a real decrease (the exact model overshot, most often where
+    // a contact's slip turns through zero, the friction potential's kink), the exact curvature
+    // otherwise. Convergence is judged only on an exact model's step: where contacts slide
+    // the majorizer's is shorter.
+    let mut curvature = Curvature::Exact;
+    let mut measured_with = Curvature::Exact;
+    let judged = |c: Curvature| c == Curvature::Exact || !pot.has_friction();
     loop {
         // The convergence measure uses the best Hessian model at hand: the latest factorized
         // Hessian (Newton; L-BFGS after a refresh), else the rest matrix S.
@@ -491,7 +509,7 @@ pub fn minimize(
             rep.residual = f64::INFINITY;
             break;
         }
-        if rep.residual <= opts.tol && rep.iterations > 0 {
+        if rep.residual <= opts.tol && rep.iterations > 0 && judged(measured_with) {
             rep.converged = true;
             break;
         }
@@ -551,11 +569,20 @@ pub fn minimize(
             }
             HessianStrategy::Newton => {
                 let sw = Stopwatch::start();
-                let system = pot.newton_system(z, &grad);
+                let system = pot.newton_system(z, &grad, curvature);
+                if !matches!(system, NewtonSystem::Indefinite) {
+                    measured_with = curvature;
+                }
                 let d = match system {
-                    NewtonSystem::Dense => {
-                        newton_direction(pot, z, &grad, &delta, &mut state.base, &mut rep)
-                    }
+                    NewtonSystem::Dense => newton_direction(
+                        pot,
+                        z,
+                        &grad,
+                        &delta,
+                        curvature,
+                        &mut state.base,
+                        &mut rep,
+                    ),
                     NewtonSystem::Solved {
                         solver,
                         direction,
@@ -598,6 +625,7 @@ pub fn minimize(
         } else {
             1.0
         };
+        let first_alpha = alpha;
         let mut accepted = None;
         for _ in 0..40 {
             for i in 0..n {
@@ -610,13 +638,13 @@ pub fn minimize(
             let armijo = et <= e + 1e-4 * alpha * slope;
             let flat = et <= e + noise && dot(&tgrad, &dir).abs() <= -slope;
             if et.is_finite() && (armijo || flat) {
-                accepted = Some((et, it));
+                accepted = Some((et, it, armijo));
                 break;
             }
             rep.line_search_cutbacks += 1;
             alpha *= 0.5;
         }
-        let Some((et, it)) = accepted else {
+        let Some((et, it, armijo)) = accepted else {
             if opts.hessian == HessianStrategy::Lbfgs && !hist.is_empty() {
                 // Start the quasi-Newton model afresh before giving up.
                 hist.clear();
@@ -642,6 +670,13 @@ pub fn minimize(
                     hist.pop_front();
                 }
             }
+        }
+        if opts.hessian == HessianStrategy::Newton {
+            curvature = if armijo && alpha < first_alpha {
+                Curvature::Majorizer
+            } else {
+                Curvature::Exact
+            };
         }
         z.copy_from_slice(&trial);
         std::mem::swap(&mut grad, &mut tgrad);
@@ -705,13 +740,13 @@ mod tests {
             }
             (e, EvalInfo::default())
         }
-        fn hessian(&self, _z: &[f64]) -> Mat<f64> {
+        fn hessian(&self, _z: &[f64], _friction: Curvature) -> Mat<f64> {
             Mat::from_fn(2, 2, |i, j| if i == j { A[i] } else { 0.0 })
         }
         fn base_hessian(&self, z: &[f64], _stride: usize, precision: Precision) -> Mat<f64> {
             match precision {
                 Precision::Single => Mat::from_fn(2, 2, |i, j| if i == j { -1.0 } else { 0.0 }),
-                Precision::Double => self.hessian(z),
+                Precision::Double => self.hessian(z, Curvature::Exact),
             }
         }
     }
@@ -752,8 +787,8 @@ mod tests {
             let (_, info) = Quadratic.energy_gradient(z, grad);
             (f64::NAN, info)
         }
-        fn hessian(&self, z: &[f64]) -> Mat<f64> {
-            Quadratic.hessian(z)
+        fn hessian(&self, z: &[f64], friction: Curvature) -> Mat<f64> {
+            Quadratic.hessian(z, friction)
         }
     }
 
@@ -787,10 +822,10 @@ mod tests {
             grad[0] = x * x * x - 2.0 * x + 0.5;
             (x.powi(4) / 4.0 - x * x + 0.5 * x, EvalInfo::default())
         }
-        fn hessian(&self, z: &[f64]) -> Mat<f64> {
+        fn hessian(&self, z: &[f64], _friction: Curvature) -> Mat<f64> {
             Mat::from_fn(1, 1, |_, _| 3.0 * z[0] * z[0] + 1.0)
         }
-        fn exact_hessian(&self, z: &[f64]) -> Option<Mat<f64>> {
+        fn exact_hessian(&self, z: &[f64], _friction: Curvature) -> Option<Mat<f64>> {
             self.exact
                 .then(|| Mat::from_fn(1, 1, |_, _| 3.0 * z[0] * z[0] - 2.0))
         }
@@ -860,5 +895,106 @@ mod tests {
         assert_eq!(rep.cholesky_fallbacks, 0);
         let left = root(-2.0, -1.0);
         assert!((z - left).abs() < 1e-9 || (z - right).abs() < 1e-9, "{z}");
+    }
+
+    /// E = k/2 |z - a|^2 + D(P z): a unit mass on a spring, with one lagged friction contact
+    /// of normal e_z whose tangential slip is z's first two coordinates. The spring's pull
+    /// k |a_t| is below mu lambda, so the minimiser sticks (|s| < eps); from a start that
+    /// slides the other way the exact model jumps across the kink at s = 0 to the far side
+    /// and back.
+    struct StickingSpring {
+        asked: std::cell::RefCell<Vec<Curvature>>,
+    }
+
+    const K: f64 = 1.0;
+    const MU_LAMBDA: f64 = 1.0;
+    const EPS: f64 = 1e-3;
+    const TARGET: [f64; 3] = [0.1, 0.05, -0.2];
+
+    fn tangent() -> crate::linalg3::Mat3 {
+        crate::sim::friction::tangent_projector(&[0.0, 0.0, 1.0])
+    }
+
+    impl Potential for StickingSpring {
+        fn energy_gradient(&self, z: &[f64], grad: &mut [f64]) -> (f64, EvalInfo) {
+            use crate::sim::friction::{gradient, potential, project};
+            let p = tangent();
+            let d = [z[0], z[1], z[2]];
+            let g = gradient(MU_LAMBDA, EPS, &p, &d);
+            let mut e = potential(MU_LAMBDA, EPS, &project(&p, &d));
+            for k in 0..3 {
+                grad[k] = K * (z[k] - TARGET[k]) + g[k];
+                e += 0.5 * K * (z[k] - TARGET[k]).powi(2);
+            }
+            (e, EvalInfo::default())
+        }
+        fn hessian(&self, z: &[f64], friction: Curvature) -> Mat<f64> {
+            self.asked.borrow_mut().push(friction);
+            let h = crate::sim::friction::model_hessian(
+                friction,
+                MU_LAMBDA,
+                EPS,
+                &tangent(),
+                &[z[0], z[1], z[2]],
+            );
+            Mat::from_fn(3, 3, |r, c| h[r][c] + if r == c { K } else { 0.0 })
+        }
+        fn exact_hessian(&self, z: &[f64], friction: Curvature) -> Option<Mat<f64>> {
+            Some(self.hessian(z, friction))
+        }
+        fn has_friction(&self) -> bool {
+            true
+        }
+    }
+
+    fn sticking_spring() -> (Vec<f64>, SolveReport, Vec<Curvature>) {
+        let rest = Mat::<f64>::identity(3, 3).llt(Side::Lower).unwrap();
+        let measure = |d: &[f64]| d.iter().map(|v| v.abs()).fold(0.0, f64::max);
+        let options = NewtonOptions {
+            hessian: HessianStrategy::Newton,
+            tol: 1e-10,
+            max_iter: 200,
+            ..NewtonOptions::default()
+        };
+        let ctx = SolverContext {
+            rest: &rest,
+            measure: &measure,
+            options: &options,
+        };
+        let pot = StickingSpring {
+            asked: Default::default(),
+        };
+        let mut z = vec![-2.0, -1.0, 0.3];
+        let rep = minimize(&pot, &mut z, &ctx, &mut QuasiNewtonState::default());
+        (z, rep, pot.asked.into_inner())
+    }
+
+    #[test]
+    fn the_friction_majorizer_follows_a_cut_back_and_convergence_an_exact_model() {
+        // The minimiser: z_n = a_n; z_t = a_t y / |a_t| with y < eps solving
+        // y (k + mu lambda (2/eps - y/eps^2)) = k |a_t| (bisection).
+        let at = TARGET[0].hypot(TARGET[1]);
+        let f = |y: f64| y * (K + MU_LAMBDA * (2.0 / EPS - y / (EPS * EPS))) - K * at;
+        let (mut lo, mut hi) = (0.0, EPS);
+        for _ in 0..200 {
+            let mid = 0.5 * (lo + hi);
+            if f(mid) > 0.0 {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        let y = 0.5 * (lo + hi);
+        let best = [TARGET[0] * y / at, TARGET[1] * y / at, TARGET[2]];
+        let (z, rep, asked) = sticking_spring();
+        assert!(rep.converged, "{rep:?}");
+        // The tolerance 1e-10 bounds the last Newton step; the error after it is smaller.
+        for k in 0..3 {
+            assert!((z[k] - best[k]).abs() < 1e-9, "{z:?} {best:?}");
+        }
+        // The majorizer was taken after a cut-back line search, and convergence judged on
+        // an exact model's step (the last one built).
+        assert!(asked.contains(&Curvature::Majorizer), "{asked:?}");
+        assert_eq!(asked.last(), Some(&Curvature::Exact), "{asked:?}");
     }
 }

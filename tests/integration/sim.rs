@@ -229,6 +229,7 @@ fn every_term_matches_finite_differences_and_a_toy_term_joins_with_one_call() {
         dt: 0.01,
         zpred: &zpred,
         friction: Some((&lag, 1e-3)),
+        friction_curvature: freeform::sim::friction::Curvature::Exact,
         env: s.environment(),
     };
     let mut rng = SplitMix64::new(11);

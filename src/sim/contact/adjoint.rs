@@ -13,7 +13,7 @@ use super::energy::{PairContact, PairHessian};
 use super::step::{ContactWorld, IslandSolve};
 use super::system::BlockHessian;
 use super::IslandSolver;
-use crate::sim::friction::lagged_force_adjoint;
+use crate::sim::friction::{lagged_force_adjoint, Curvature};
 use crate::sim::newton::{Potential, RestSolve};
 use crate::sim::object::StepStart;
 use crate::sim::ReducedSim;
@@ -80,12 +80,13 @@ impl ContactWorld {
             .map(|((s, st), b)| {
                 let zp = &z[b.offset..b.offset + b.layout.dofs()];
                 let pot = s.potential(st);
-                pot.exact_hessian(zp).unwrap_or_else(|| pot.hessian(zp))
+                pot.exact_hessian(zp, Curvature::Exact)
+                    .unwrap_or_else(|| pot.hessian(zp, Curvature::Exact))
             })
             .collect();
         let mut blocks = BlockHessian::new(diag);
         contact.add_hessian_blocks(z, PairHessian::Exact, &mut blocks);
-        contact.add_friction_hessian_blocks(&lag, eps, z, &mut blocks);
+        contact.add_friction_hessian_blocks(&lag, eps, z, Curvature::Exact, &mut blocks);
         let lambda = match self.solver {
             IslandSolver::Dense => dense_solve(&blocks, rhs, step)?,
             IslandSolver::Blocks => {

@@ -16,6 +16,7 @@ use super::samples::ContactSamples;
 use super::system::BlockHessian;
 use crate::linalg3::Mat3;
 use crate::sim::elastic::Layout;
+use crate::sim::friction::{self, Curvature};
 use crate::sim::terms::add_outer_blocks;
 use crate::Point3;
 use faer::prelude::ReborrowMut;
@@ -304,7 +305,7 @@ impl<'a> PairContact<'a> {
                 let mu = mu[p.c.a * n + p.c.b];
                 PairLag {
                     c: p.c,
-                    projector: crate::sim::friction::tangent_projector(&p.u),
+                    projector: friction::tangent_projector(&p.u),
                     start: std::array::from_fn(|k| x[p.c.a][p.c.i][k] - x[p.c.b][p.c.j][k]),
                     normal: p.u,
                     distance: p.r,
@@ -325,7 +326,6 @@ impl<'a> PairContact<'a> {
         z: &[f64],
         grad: &mut [f64],
     ) -> f64 {
-        use crate::sim::friction;
         if lag.is_empty() {
             return 0.0;
         }
@@ -345,19 +345,22 @@ impl<'a> PairContact<'a> {
         e
     }
 
-    /// Add the Hessian of the friction potential at `z` to `h` (square, the island's size).
+    /// Add the exact Hessian of the friction potential at `z` to `h` (square, the island's
+    /// size).
     pub fn add_friction_hessian(&self, lag: &[PairLag], eps: f64, z: &[f64], h: &mut Mat<f64>) {
         let mut blocks = self.empty_blocks();
-        self.add_friction_hessian_blocks(lag, eps, z, &mut blocks);
+        self.add_friction_hessian_blocks(lag, eps, z, Curvature::Exact, &mut blocks);
         self.add_dense(&blocks, h);
     }
 
-    /// Add the Hessian of the friction potential at `z` to the island's block matrix `h`.
+    /// Add the Hessian of the friction potential at `z` to the island's block matrix `h`,
+    /// exact or its majorizer's (`curvature`).
     pub fn add_friction_hessian_blocks(
         &self,
         lag: &[PairLag],
         eps: f64,
         z: &[f64],
+        curvature: Curvature,
         h: &mut BlockHessian,
     ) {
         if lag.is_empty() {
@@ -370,7 +373,7 @@ impl<'a> PairContact<'a> {
                 let d = l.displacement(&x);
                 (
                     l.c,
-                    crate::sim::friction::hessian(l.mu_lambda(), eps, &l.projector, &d),
+                    friction::model_hessian(curvature, l.mu_lambda(), eps, &l.projector, &d),
                 )
             })
             .collect();

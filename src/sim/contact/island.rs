@@ -13,6 +13,7 @@ use super::energy::{PairContact, PairHessian, PairLag};
 use super::system::BlockHessian;
 use super::{ContactStats, IslandSolver};
 use crate::report::Stopwatch;
+use crate::sim::friction::Curvature;
 use crate::sim::newton::{
     self, BlockRest, EvalInfo, HessianStrategy, NewtonSystem, Potential, QuasiNewtonState,
     RestSolve, SolverContext,
@@ -39,7 +40,7 @@ impl IslandPotential<'_> {
     /// result does not depend on the thread count), then the contact and friction terms;
     /// exact (`exact`: may be indefinite) or with the objects' and the pairs' curvature
     /// projected to PSD.
-    fn blocks(&self, z: &[f64], exact: bool) -> BlockHessian {
+    fn blocks(&self, z: &[f64], exact: bool, friction: Curvature) -> BlockHessian {
         use rayon::prelude::*;
         let diag: Vec<Mat<f64>> = self
             .parts
@@ -47,8 +48,12 @@ impl IslandPotential<'_> {
             .zip(&self.offsets)
             .map(|(p, &o)| {
                 let zp = &z[o..o + p.dofs()];
-                let h = if exact { p.exact_hessian(zp) } else { None };
-                h.unwrap_or_else(|| p.hessian(zp))
+                let h = if exact {
+                    p.exact_hessian(zp, friction)
+                } else {
+                    None
+                };
+                h.unwrap_or_else(|| p.hessian(zp, friction))
             })
             .collect();
         let mut h = BlockHessian::new(diag);
@@ -60,7 +65,7 @@ impl IslandPotential<'_> {
         self.contact.add_hessian_blocks(z, pairs, &mut h);
         let (lag, eps) = &self.friction;
         self.contact
-            .add_friction_hessian_blocks(lag, *eps, z, &mut h);
+            .add_friction_hessian_blocks(lag, *eps, z, friction, &mut h);
         h
     }
 
@@ -116,15 +121,15 @@ impl Potential for IslandPotential<'_> {
         (e, info)
     }
 
-    fn hessian(&self, z: &[f64]) -> Mat<f64> {
-        self.blocks(z, false).to_dense()
+    fn hessian(&self, z: &[f64], friction: Curvature) -> Mat<f64> {
+        self.blocks(z, false, friction).to_dense()
     }
 
     /// The exact Hessian first, the projected one when it is not positive definite (as
     /// [`Potential::exact_hessian`] describes), solved densely or in blocks.
-    fn newton_system(&self, z: &[f64], grad: &[f64]) -> NewtonSystem {
+    fn newton_system(&self, z: &[f64], grad: &[f64], friction: Curvature) -> NewtonSystem {
         for exact in [true, false] {
-            if let Some((solver, direction)) = self.solve(self.blocks(z, exact), grad) {
+            if let Some((solver, direction)) = self.solve(self.blocks(z, exact, friction), grad) {
                 return NewtonSystem::Solved {
                     solver,
                     direction,
@@ -133,6 +138,10 @@ impl Potential for IslandPotential<'_> {
             }
         }
         NewtonSystem::Indefinite
+    }
+
+    fn has_friction(&self) -> bool {
+        !self.friction.0.is_empty() || self.parts.iter().any(|p| p.has_friction())
     }
 
     /// The object-object bound and each member's swept collider bound (the same guard

@@ -12,6 +12,7 @@
 //! differently, and with them the iteration counts). A step solved by conjugate gradients is
 //! not checked for a positive definite H as a formed one is: only the directions they explore.
 
+use crate::sim::friction::Curvature;
 use crate::sim::newton::{dot, Potential, RestSolve};
 use crate::sim::object::StepPotential;
 use crate::{Error, Result};
@@ -82,7 +83,7 @@ impl AdjointSolver {
             }
         }
         let h = pot
-            .exact_hessian(z)
+            .exact_hessian(z, Curvature::Exact)
             .ok_or_else(|| Error::Gradient("the potential has no exact Hessian".into()))?;
         let factor = Llt::new(h.as_ref(), Side::Lower).map_err(|_| {
             Error::Gradient(format!(

@@ -646,7 +646,8 @@ impl ReducedSim {
     /// The PSD Hessian of the step potential at `z` (what `Newton` factorizes).
     pub fn step_hessian(&self, zpred: &[f64], t: f64, z: &[f64]) -> Mat<f64> {
         let start = self.start_at(zpred, t);
-        self.potential(&start).hessian(z)
+        self.potential(&start)
+            .hessian(z, crate::sim::friction::Curvature::Exact)
     }
 
     /// A step start with predictor `zpred` and end time `t`, friction lagged from now.

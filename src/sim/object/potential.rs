@@ -3,7 +3,7 @@
 
 use crate::sim::elastic::{Layout, Precision};
 use crate::sim::environment::Environment;
-use crate::sim::friction::ColliderLag;
+use crate::sim::friction::{ColliderLag, Curvature};
 use crate::sim::newton::{EvalInfo, Potential};
 use crate::sim::terms::{ExactHessian, HessianKind, ParameterAdjoint, StepAt, Terms};
 use faer::Mat;
@@ -44,6 +44,7 @@ impl<'a> StepPotential<'a> {
                 dt,
                 zpred: &start.zpred,
                 friction: start.friction.as_ref().map(|(l, e)| (l.as_slice(), *e)),
+                friction_curvature: Curvature::Exact,
                 env,
             },
         }
@@ -59,6 +60,14 @@ impl<'a> StepPotential<'a> {
         self.terms.exact_operator(&self.at, z)
     }
 
+    /// The step with its friction terms curved as `friction` says.
+    fn curved(&self, friction: Curvature) -> StepAt<'a> {
+        StepAt {
+            friction_curvature: friction,
+            ..self.at
+        }
+    }
+
     /// The terms' parameter adjoints at the step's end `z` ([`Terms::parameter_adjoint`]).
     pub(crate) fn parameter_adjoint(&self, z: &[f64], adjoint: &[f64], out: &mut ParameterAdjoint) {
         self.terms.parameter_adjoint(&self.at, z, adjoint, out);
@@ -70,8 +79,12 @@ impl Potential for StepPotential<'_> {
         self.terms.energy_gradient(&self.at, z, grad)
     }
 
-    fn hessian(&self, z: &[f64]) -> Mat<f64> {
-        self.base_hessian(z, 1, Precision::Double)
+    fn hessian(&self, z: &[f64], friction: Curvature) -> Mat<f64> {
+        let kind = HessianKind::Projected {
+            stride: 1,
+            precision: Precision::Double,
+        };
+        self.terms.hessian(&self.curved(friction), z, kind)
     }
 
     fn base_hessian(&self, z: &[f64], stride: usize, precision: Precision) -> Mat<f64> {
@@ -79,8 +92,15 @@ impl Potential for StepPotential<'_> {
         self.terms.hessian(&self.at, z, kind)
     }
 
-    fn exact_hessian(&self, z: &[f64]) -> Option<Mat<f64>> {
-        Some(self.terms.hessian(&self.at, z, HessianKind::Exact))
+    fn exact_hessian(&self, z: &[f64], friction: Curvature) -> Option<Mat<f64>> {
+        Some(
+            self.terms
+                .hessian(&self.curved(friction), z, HessianKind::Exact),
+        )
+    }
+
+    fn has_friction(&self) -> bool {
+        self.at.friction.is_some_and(|(lag, _)| !lag.is_empty())
     }
 
     /// The terms' step bound (the colliders' swept bound,

@@ -9,7 +9,7 @@ use crate::precompute::skinning::SkinningWeights;
 use crate::sim::collider::{Kinematics, Obstacle, Penetration};
 use crate::sim::elastic::Layout;
 use crate::sim::environment::Environment;
-use crate::sim::friction::ColliderLag;
+use crate::sim::friction::{ColliderLag, Curvature};
 use crate::Point3;
 use faer::Mat;
 
@@ -410,13 +410,15 @@ impl ContactTerm {
         e
     }
 
-    /// Add the (positive semi-definite, exact) Hessian of the friction potential to `h`.
+    /// Add the (positive semi-definite) Hessian of the friction potential to `h`, exact or
+    /// its majorizer's (`curvature`).
     pub fn add_friction_hessian(
         &self,
         layout: Layout,
         lag: &[ColliderLag],
         eps: f64,
         z: &[f64],
+        curvature: Curvature,
         h: &mut Mat<f64>,
     ) {
         use crate::sim::friction;
@@ -427,7 +429,7 @@ impl ContactTerm {
                 let d: [f64; 3] = std::array::from_fn(|k| x[k] - l.carried[k]);
                 (
                     l.point,
-                    friction::hessian(l.mu_lambda, eps, &l.projector, &d),
+                    friction::model_hessian(curvature, l.mu_lambda, eps, &l.projector, &d),
                 )
             })
             .collect();
@@ -510,7 +512,7 @@ impl Term for ContactTerm {
         };
         self.add_penalty_hessian(at.env.kinematics(), at.layout, at.t, z, which, h);
         if let Some((lag, eps)) = at.friction {
-            self.add_friction_hessian(at.layout, lag, eps, z, h);
+            self.add_friction_hessian(at.layout, lag, eps, z, at.friction_curvature, h);
         }
     }
 

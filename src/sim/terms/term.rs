@@ -5,7 +5,7 @@
 use super::adjoint::ParameterAdjoint;
 use crate::sim::elastic::{Layout, Precision};
 use crate::sim::environment::Environment;
-use crate::sim::friction::ColliderLag;
+use crate::sim::friction::{ColliderLag, Curvature};
 use crate::sim::newton::EvalInfo;
 use faer::Mat;
 use std::fmt;
@@ -24,6 +24,9 @@ pub struct StepAt<'a> {
     /// Lagged collider friction contacts and the smoothing displacement eps_v h, metres
     /// (None: frictionless).
     pub friction: Option<(&'a [ColliderLag], f64)>,
+    /// The curvature the friction's Hessian takes ([`crate::sim::friction::Curvature`]):
+    /// exact, or its majorizer in a Newton model.
+    pub friction_curvature: Curvature,
     /// Gravity and the colliders, as the step's owner holds them.
     pub env: &'a Environment,
 }
