@@ -25,6 +25,8 @@ pub struct StepRow {
     pub energy: f64,
     /// Line-search step halvings.
     pub line_search_cutbacks: usize,
+    /// Newton models whose friction took its majorizer's curvature (after a cut-back).
+    pub majorized_models: usize,
     /// Whether the line search failed.
     pub line_search_failed: bool,
     /// Smallest det F over the cubature points.
@@ -54,6 +56,7 @@ impl From<&StepReport> for StepRow {
             residual: s.residual,
             energy: s.energy,
             line_search_cutbacks: s.line_search_cutbacks,
+            majorized_models: s.majorized_models,
             line_search_failed: s.line_search_failed,
             min_det: s.info.min_det,
             inverted: s.info.inverted,

@@ -331,6 +331,9 @@ pub struct SolveReport {
     /// Times the exact Hessian ([`Potential::exact_hessian`]) was not positive definite and
     /// its PSD approximation was factorized instead.
     pub projected_fallbacks: usize,
+    /// Newton models whose friction terms took their majorizer's curvature (after a line
+    /// search that cut back; [`crate::sim::friction::Curvature`]).
+    pub majorized_models: usize,
     /// Diagnostics at the final state.
     pub info: EvalInfo,
     /// Seconds spent in energy/gradient evaluations.
@@ -572,6 +575,9 @@ pub fn minimize(
                 let system = pot.newton_system(z, &grad, curvature);
                 if !matches!(system, NewtonSystem::Indefinite) {
                     measured_with = curvature;
+                }
+                if curvature == Curvature::Majorizer && pot.has_friction() {
+                    rep.majorized_models += 1;
                 }
                 let d = match system {
                     NewtonSystem::Dense => newton_direction(
@@ -995,6 +1001,8 @@ mod tests {
         // The majorizer was taken after a cut-back line search, and convergence judged on
         // an exact model's step (the last one built).
         assert!(asked.contains(&Curvature::Majorizer), "{asked:?}");
+        let majorized = asked.iter().filter(|c| **c == Curvature::Majorizer).count();
+        assert_eq!(rep.majorized_models, majorized, "{rep:?}");
         assert_eq!(asked.last(), Some(&Curvature::Exact), "{asked:?}");
     }
 }
