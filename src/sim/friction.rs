@@ -50,9 +50,9 @@ pub enum Curvature {
     /// can overshoot where s turns through zero (the potential's kink, smoothed over eps).
     #[default]
     Exact,
-    /// The Hessian of the potential's quadratic majorizer at d ([`majorizer_hessian`]): a
-    /// model that lies above the friction potential along every line, so a step never
-    /// overshoots the kink; Newton then converges linearly where contacts slide.
+    /// The Hessian of the potential's quadratic majorizer at d ([`majorizer_hessian`]): its
+    /// friction part lies on or above the friction potential along every line, so it does
+    /// not carry a step across the kink; Newton then converges linearly where contacts slide.
     Majorizer,
 }
 
