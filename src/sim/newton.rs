@@ -495,7 +495,9 @@ pub fn minimize(
     // the majorizer's is shorter.
     let mut curvature = Curvature::Exact;
     let mut measured_with = Curvature::Exact;
-    let judged = |c: Curvature| c == Curvature::Exact || !pot.has_friction();
+    // Fixed for the solve: friction contacts are lagged from the step's start.
+    let has_friction = pot.has_friction();
+    let judged = |c: Curvature| c == Curvature::Exact || !has_friction;
     loop {
         // The convergence measure uses the best Hessian model at hand: the latest factorized
         // Hessian (Newton; L-BFGS after a refresh), else the rest matrix S.
@@ -576,7 +578,7 @@ pub fn minimize(
                 if !matches!(system, NewtonSystem::Indefinite) {
                     measured_with = curvature;
                 }
-                if curvature == Curvature::Majorizer && pot.has_friction() {
+                if curvature == Curvature::Majorizer && has_friction {
                     rep.majorized_models += 1;
                 }
                 let d = match system {
@@ -976,7 +978,7 @@ mod tests {
     }
 
     #[test]
-    fn the_friction_majorizer_follows_a_cut_back_and_convergence_an_exact_model() {
+    fn newton_takes_the_friction_majorizer_after_a_cut_back_and_converges_on_an_exact_model() {
         // The minimiser: z_n = a_n; z_t = a_t y / |a_t| with y < eps solving
         // y (k + mu lambda (2/eps - y/eps^2)) = k |a_t| (bisection).
         let at = TARGET[0].hypot(TARGET[1]);

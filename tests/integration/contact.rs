@@ -75,10 +75,6 @@ fn assert_derivatives_match_central_differences(
     );
 }
 
-/// The energy's gradient and exact Hessian in the stacked reduced coordinates of two
-/// overlapping blocks match central differences, the PSD Hessian is positive semi-definite,
-/// the pair is found deeper than a tolerance below its depth, and the step bound caps a
-/// segment that would move the samples by metres.
 /// The pair energy of the two objects of `w` with these samples (one per object), penalty
 /// 1e9 Pa/m^2, no self-contact.
 fn pair_contact<'s>(samples: &'s [ContactSamples], w: &World) -> PairContact<'s> {
@@ -123,6 +119,10 @@ fn overlapping_blocks() -> World {
     world(&scene)
 }
 
+/// The energy's gradient and exact Hessian in the stacked reduced coordinates of two
+/// overlapping blocks match central differences, the PSD Hessian is positive semi-definite,
+/// the pair is found deeper than a tolerance below its depth, and the step bound caps a
+/// segment that would move the samples by metres.
 #[test]
 fn pair_energy_gradient_and_hessian_match_finite_differences() {
     let w = overlapping_blocks();
