@@ -40,6 +40,7 @@ pub mod scene;
 pub mod sim;
 mod simd;
 pub mod sparse;
+pub mod triangle;
 
 pub use error::{Error, ErrorKind, Result};
 

@@ -757,7 +757,14 @@ pub fn constant_mode(m: SparseMatrixRef<'_>) -> Result<Vec<f64>, EigenError> {
     let k = m.nrows();
     // Compensated sum: a plain running sum of ~1e7 entries loses ~1e-10 relative, which
     // would show up directly as y0^T M y0 - 1.
-    let total = compensated_sum(m.val().iter().copied());
+    constant_mode_from_sum(k, compensated_sum(m.val().iter().copied()))
+}
+
+/// [`constant_mode`] from `total` = 1^T M 1 (however M is stored), length `k`.
+///
+/// # Errors
+/// [`EigenError::NotPositiveDefinite`] if `total` <= 0 or is not finite.
+pub fn constant_mode_from_sum(k: usize, total: f64) -> Result<Vec<f64>, EigenError> {
     if total.is_nan() || total <= 0.0 || !total.is_finite() {
         return Err(EigenError::NotPositiveDefinite {
             what: "M",

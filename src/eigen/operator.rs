@@ -10,6 +10,7 @@
 
 use crate::eigen::{EigenError, SplitMix64};
 use crate::sparse::{self, SparseMatrix, SparseMatrixRef};
+use crate::triangle::UpperRef;
 use faer::{Mat, MatMut, MatRef};
 use std::ops::Range;
 
@@ -64,6 +65,47 @@ pub trait LinearOperator: Sync {
     /// Default: none (matrix-free).
     fn assembled(&self) -> Option<SparseMatrixRef<'_>> {
         None
+    }
+
+    /// The assembled matrix behind this operator stored as its upper triangle only (half the
+    /// memory; `crate::triangle`), if that is how it is held: the native solver then applies
+    /// it with the upper-triangle kernels and factors IC(0) from it. Default: none.
+    fn upper_triangle(&self) -> Option<UpperRef<'_>> {
+        None
+    }
+}
+
+/// A symmetric matrix stored as its upper triangle is an operator (matrix-free to every
+/// solver but the native LOBPCG, which reads [`LinearOperator::upper_triangle`]).
+impl LinearOperator for UpperRef<'_> {
+    fn dim(&self) -> usize {
+        UpperRef::dim(self)
+    }
+
+    fn apply(&self, x: MatRef<'_, f64>, mut out: MatMut<'_, f64>) -> Result<(), OperatorError> {
+        check_block_shapes(self.dim(), &x, &out)?;
+        // The kernel takes row-major blocks: copy in and out (this generic path is not the
+        // native solver's, which applies the kernel to its own row-major blocks).
+        let (k, b) = (x.nrows(), x.ncols());
+        let xr: Vec<f64> = (0..k)
+            .flat_map(|i| (0..b).map(move |j| x[(i, j)]))
+            .collect();
+        let mut yr = vec![0.0; k * b];
+        self.mul_row_major(&xr, b, &mut yr, b, b);
+        for i in 0..k {
+            for j in 0..b {
+                out[(i, j)] = yr[i * b + j];
+            }
+        }
+        Ok(())
+    }
+
+    fn diagonal(&self) -> Option<Vec<f64>> {
+        Some(UpperRef::diagonal(self))
+    }
+
+    fn upper_triangle(&self) -> Option<UpperRef<'_>> {
+        Some(*self)
     }
 }
 

@@ -144,7 +144,7 @@ fn leaves_import_no_stage() {
 /// Modules every stage may use (reports, 3 x 3 algebra, materials and the energy density, errors,
 /// progress, the random generator, sparse kernels, the derivative checker, the option names):
 /// they import no stage, only each other.
-const LEAVES: [&str; 12] = [
+const LEAVES: [&str; 13] = [
     "derivatives",
     "elasticity",
     "error",
@@ -157,6 +157,7 @@ const LEAVES: [&str; 12] = [
     "report",
     "simd",
     "sparse",
+    "triangle",
 ];
 
 /// Edges out of a leaf that are known and allowed. `error -> eigen`: `crate::Error` wraps

@@ -13,7 +13,8 @@ use crate::eigen::operator_problem::{
     check_solution_operators, constant_mode_of, estimate_norm_1, OperatorProblem,
 };
 use crate::eigen::{
-    check_solution, constant_mode, EigenError, EigenInfo, EigenRequest, EigenSolution, EigenStatus,
+    check_solution, constant_mode, constant_mode_from_sum, EigenError, EigenInfo, EigenRequest,
+    EigenSolution, EigenStatus,
 };
 use crate::progress::Progress;
 use crate::sparse;
@@ -31,6 +32,20 @@ pub(super) fn solve(
     let clock = Instant::now();
     let (h, m) = (problem.h, problem.m);
     let assembled = h.assembled().zip(m.assembled());
+    // Upper triangles of one pattern (another pair of upper triangles goes matrix-free).
+    let upper = h
+        .upper_triangle()
+        .zip(m.upper_triangle())
+        .filter(|(a, b)| a.same_pattern(b));
+    if let Some((hu, mu)) = upper {
+        for (name, a) in [("H", hu), ("M", mu)] {
+            if let Some((i, j)) = a.first_non_finite() {
+                return Err(EigenError::NonFinite(format!(
+                    "{name}[{i}, {j}] is NaN or infinite (H and M stored as upper triangles)"
+                )));
+            }
+        }
+    }
     let k = h.dim();
     let nev = request.nev;
     let nwant = nev - 1;
@@ -46,13 +61,15 @@ pub(super) fn solve(
             detail: format!("diagonal entry M[{i}, {i}] = {d:e}"),
         });
     }
-    let y0 = match m.assembled() {
-        Some(a) => constant_mode(a)?,
-        None => constant_mode_of(m)?,
+    let y0 = match (m.assembled(), upper) {
+        (Some(a), _) => constant_mode(a)?,
+        (None, Some((_, mu))) => constant_mode_from_sum(k, mu.sum_all())?,
+        (None, None) => constant_mode_of(m)?,
     };
-    let norms = match assembled {
-        Some((ha, ma)) => (sparse::norm_1(ha), sparse::norm_1(ma)),
-        None => (estimate_norm_1(h, "H")?, estimate_norm_1(m, "M")?),
+    let norms = match (assembled, upper) {
+        (Some((ha, ma)), _) => (sparse::norm_1(ha), sparse::norm_1(ma)),
+        (None, Some((hu, mu))) => (hu.norm_1(), mu.norm_1()),
+        (None, None) => (estimate_norm_1(h, "H")?, estimate_norm_1(m, "M")?),
     };
     let check = |values: &[f64], vectors: &Mat<f64>, info: &mut EigenInfo| match assembled {
         Some((ha, ma)) => {
@@ -66,7 +83,13 @@ pub(super) fn solve(
         ..EigenInfo::default()
     };
     let seconds_norms = clock.elapsed().as_secs_f64();
-    if assembled.is_none() {
+    if upper.is_some() {
+        info.notes.push(
+            "H and M stored as upper triangles of one pattern: products by the two-pass \
+             upper-triangle kernel; exact 1-norms"
+                .into(),
+        );
+    } else if assembled.is_none() {
         info.notes.push(format!(
             "matrix-free: H and M applied as operators; 1-norms estimated (||H||_1 ~ {:.3e}, \
              ||M||_1 ~ {:.3e}, Hager-Higham lower bounds) for the relative residuals",
@@ -89,16 +112,17 @@ pub(super) fn solve(
     let par = Par::rayon(0);
     progress.begin("eigen (lobpcg)", Some(request.max_iter as u64));
     let clock = Instant::now();
-    let built = match (problem.preconditioner, assembled) {
-        (Some(user), _) => Ok((
+    let built = match (problem.preconditioner, assembled, upper) {
+        (Some(user), ..) => Ok((
             Preconditioner::User(user),
             SetupReport {
                 notes: vec!["preconditioner: the caller's".into()],
                 ..SetupReport::default()
             },
         )),
-        (None, Some((ha, ma))) => precondition::build(ha, ma, opts, nx, par),
-        (None, None) => precondition::build_matrix_free(h, m, opts),
+        (None, Some((ha, ma)), _) => precondition::build(ha, ma, opts, nx, par),
+        (None, None, Some((hu, mu))) => precondition::build_upper(hu, mu, opts),
+        (None, None, None) => precondition::build_matrix_free(h, m, opts),
     };
     let (mut pre, mut report) = match built {
         Ok(built) => built,

@@ -19,6 +19,7 @@
 use super::workspace::{Block, ROW_CHUNK};
 use crate::simd::multiversion;
 use crate::sparse::{self, SparseMatrixRef};
+use crate::triangle::UpperRef;
 use rayon::prelude::*;
 use std::borrow::Cow;
 
@@ -93,6 +94,47 @@ impl<'a> IncompleteCholesky<'a> {
         for &end in &ic.ptr[1..] {
             ic.val[end - 1] *= 1.0 + alpha;
         }
+        let rows = Rows {
+            ptr: &ic.ptr,
+            idx_start: &ic.idx_start,
+            idx: &ic.idx,
+        };
+        factor_rows(rows, &mut ic.val)?;
+        Ok(ic)
+    }
+
+    /// [`IncompleteCholesky::factor`] for H and M stored as upper triangles of one pattern
+    /// (`crate::triangle`): column i of that pattern is row i of the factor, so the factor
+    /// borrows its indices and its values are `1.0 * h + sigma * m` entry by entry, the bits
+    /// [`IncompleteCholesky::factor`] gives from both-triangle storage of the same matrices.
+    ///
+    /// # Panics
+    /// If `h` and `m` do not share their pattern (caller bug: the solver checks it).
+    pub fn factor_upper(
+        h: UpperRef<'a>,
+        m: UpperRef<'a>,
+        sigma: f64,
+        alpha: f64,
+    ) -> Result<Self, Breakdown> {
+        assert!(h.same_pattern(&m), "factor_upper: two patterns");
+        let pattern = h.pattern();
+        let ptr: Vec<usize> = pattern.col_ptr().iter().map(|&p| p as usize).collect();
+        let mut val: Vec<f64> = h
+            .val()
+            .iter()
+            .zip(m.val())
+            .map(|(&a, &b)| 1.0 * a + sigma * b)
+            .collect();
+        // Manteuffel's shift on the diagonal (last in each column of the pattern).
+        for &end in &ptr[1..] {
+            val[end - 1] *= 1.0 + alpha;
+        }
+        let mut ic = IncompleteCholesky {
+            idx_start: ptr[..ptr.len() - 1].to_vec(),
+            ptr,
+            idx: Cow::Borrowed(pattern.row_idx()),
+            val,
+        };
         let rows = Rows {
             ptr: &ic.ptr,
             idx_start: &ic.idx_start,

@@ -2,11 +2,14 @@
 //! assembled matrix goes through the row-major sparse kernels (and H and M together through
 //! the fused pair kernel, one pass over the shared pattern): the historic path, bit for bit.
 //! Anything else goes through [`apply_checked`] on views of the blocks, so a caller's operator
-//! is checked for shape, error and finite output on every application.
+//! is checked for shape, error and finite output on every application. Matrices stored as
+//! upper triangles of one pattern go through `crate::triangle`'s kernels (H and M together in
+//! one pass too).
 
 use super::workspace::Block;
 use crate::eigen::{apply_checked, EigenError, LinearOperator};
 use crate::sparse;
+use crate::triangle::{self, UpperRef};
 
 /// Which of the two operators.
 #[derive(Clone, Copy)]
@@ -21,6 +24,8 @@ pub(super) struct Operators<'a> {
     m: &'a dyn LinearOperator,
     /// Both assembled with one pattern (checked once here, not at every product).
     shared: Option<sparse::SharedPattern<'a>>,
+    /// Both stored as upper triangles of one pattern.
+    upper: Option<(UpperRef<'a>, UpperRef<'a>)>,
     pub norm_h: f64,
     pub norm_m: f64,
 }
@@ -36,10 +41,15 @@ impl<'a> Operators<'a> {
             (Some(a), Some(b)) => sparse::SharedPattern::new(a, b),
             _ => None,
         };
+        let upper = h
+            .upper_triangle()
+            .zip(m.upper_triangle())
+            .filter(|(a, b)| a.same_pattern(b));
         Self {
             h,
             m,
             shared,
+            upper,
             norm_h,
             norm_m,
         }
@@ -67,6 +77,10 @@ impl<'a> Operators<'a> {
         w: usize,
     ) -> Result<(), EigenError> {
         let (op, name) = self.op(which);
+        if let Some(a) = op.upper_triangle() {
+            a.mul_row_major(&s.data[c0..], s.ld, &mut out.data[c0..], out.ld, w);
+            return Ok(());
+        }
         match op.assembled() {
             Some(a) => {
                 sparse::sym_mul_row_major(a, &s.data[c0..], s.ld, &mut out.data[c0..], out.ld, w);
@@ -88,6 +102,20 @@ impl<'a> Operators<'a> {
         if let Some(pair) = &self.shared {
             debug_assert_eq!(hs.ld, ms.ld);
             pair.mul_row_major(
+                &s.data[c0..],
+                s.ld,
+                &mut hs.data[c0..],
+                &mut ms.data[c0..],
+                hs.ld,
+                w,
+            );
+            return Ok(());
+        }
+        if let Some((a, b)) = self.upper {
+            debug_assert_eq!(hs.ld, ms.ld);
+            triangle::mul_pair_row_major(
+                a,
+                b,
                 &s.data[c0..],
                 s.ld,
                 &mut hs.data[c0..],

@@ -19,6 +19,7 @@ use super::options::{LobpcgOptions, PreconditionerKind};
 use super::workspace::{Block, ROW_CHUNK};
 use crate::eigen::{self, EigenError};
 use crate::sparse::{self, SparseMatrixRef};
+use crate::triangle::UpperRef;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
@@ -333,9 +334,20 @@ fn incomplete<'a>(
     sigma: f64,
     report: &mut SetupReport,
 ) -> Option<IncompleteCholesky<'a>> {
+    incomplete_with(sigma, report, |alpha| {
+        IncompleteCholesky::factor(h, m, sigma, alpha)
+    })
+}
+
+/// [`incomplete`] with the factorization of one diagonal shift alpha given by `factor`.
+fn incomplete_with<'a>(
+    sigma: f64,
+    report: &mut SetupReport,
+    factor: impl Fn(f64) -> Result<IncompleteCholesky<'a>, Breakdown>,
+) -> Option<IncompleteCholesky<'a>> {
     let t0 = Instant::now();
     for alpha in [0.0, 1e-3, 1e-2, 1e-1, 1.0] {
-        match IncompleteCholesky::factor(h, m, sigma, alpha) {
+        match factor(alpha) {
             Ok(ic) => {
                 report.numeric_seconds = t0.elapsed().as_secs_f64();
                 report.factor_entries = ic.entries();
@@ -358,6 +370,70 @@ fn incomplete<'a>(
         "preconditioner: IC(0) failed for every diagonal shift; falling back to Jacobi".into(),
     );
     None
+}
+
+/// The preconditioner for H and M stored as upper triangles of one pattern: IC(0) for `Auto`
+/// and `IncompleteCholesky` (the exact factor would need both triangles: `Auto` does not
+/// consider it), Jacobi and Identity as for matrices. The shift is `shift_factor * tr(H) /
+/// tr(M)`, the same bits as [`build`]'s.
+///
+/// # Errors
+/// [`EigenError::InvalidRequest`] for `Cholesky`; [`EigenError::NotPositiveDefinite`] for a
+/// non-positive shift or diagonal of H + sigma M.
+pub(super) fn build_upper<'a>(
+    h: UpperRef<'a>,
+    m: UpperRef<'a>,
+    opts: &LobpcgOptions,
+) -> Result<(Preconditioner<'a>, SetupReport), EigenError> {
+    let kind = opts.preconditioner;
+    if kind == PreconditionerKind::Cholesky {
+        return Err(EigenError::InvalidRequest(
+            "preconditioner cholesky factors H + sigma M with fill, which needs both triangles, \
+             but H and M are stored as upper triangles (matrix_storage = \"upper\"): choose \
+             auto, incomplete_cholesky, jacobi or identity, or matrix_storage = \"full\""
+                .into(),
+        ));
+    }
+    let (dh, dm) = (h.diagonal(), m.diagonal());
+    let trace = |d: &[f64]| d.iter().sum::<f64>();
+    let mut report = SetupReport {
+        sigma: opts.shift_factor * (trace(&dh) / trace(&dm)),
+        ..SetupReport::default()
+    };
+    if !(report.sigma.is_finite() && report.sigma > 0.0) {
+        return Err(EigenError::NotPositiveDefinite {
+            what: "H + sigma M",
+            detail: format!(
+                "shift sigma = {:e} from tr(H)/tr(M) is not positive",
+                report.sigma
+            ),
+        });
+    }
+    if kind == PreconditionerKind::Identity {
+        report.sigma = 0.0;
+        report.notes.push("preconditioner: none (identity)".into());
+        return Ok((Preconditioner::Identity, report));
+    }
+    if kind != PreconditionerKind::Jacobi {
+        report.notes.push(
+            "preconditioner: H and M stored as upper triangles: IC(0) (the exact Cholesky \
+             factor is not considered)"
+                .into(),
+        );
+        let sigma = report.sigma;
+        let ic = incomplete_with(sigma, &mut report, |alpha| {
+            IncompleteCholesky::factor_upper(h, m, sigma, alpha)
+        });
+        if let Some(ic) = ic {
+            return Ok((Preconditioner::Incomplete(Box::new(ic)), report));
+        }
+    }
+    let inv_diag = jacobi_from_diagonals(&dh, &dm, report.sigma)?;
+    report.notes.push(format!(
+        "preconditioner: Jacobi, diag(H + sigma M)^-1, sigma = {:.3e}",
+        report.sigma
+    ));
+    Ok((Preconditioner::Jacobi { inv_diag }, report))
 }
 
 /// Limits on the exact factor for `Auto`.
