@@ -149,6 +149,10 @@ impl UpperPattern {
     }
 }
 
+/// One source segment's part of the plan: its columns' first own-segment entries, and its
+/// runs with the segment each goes to.
+type SourcePlan = (Vec<u32>, Vec<(usize, CrossRun)>);
+
 /// The second-pass runs and each column's first own-segment entry (module docs).
 fn plan(sym: SymbolicSparseColMatRef<'_, u32>, seg: usize) -> (Vec<u32>, Vec<Vec<CrossRun>>) {
     let k = sym.ncols();
@@ -156,7 +160,7 @@ fn plan(sym: SymbolicSparseColMatRef<'_, u32>, seg: usize) -> (Vec<u32>, Vec<Vec
     let segments = k.div_ceil(seg);
     // One task per source segment; the runs into each destination are then joined in source
     // order, so every list is in ascending column order.
-    let per_source: Vec<(Vec<u32>, Vec<(usize, CrossRun)>)> = (0..segments)
+    let per_source: Vec<SourcePlan> = (0..segments)
         .into_par_iter()
         .map(|s| {
             let cols = s * seg..((s + 1) * seg).min(k);

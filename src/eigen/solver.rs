@@ -40,6 +40,13 @@ pub trait Eigensolver {
         self.solve(h, m, request, progress)?.into_converged()
     }
 
+    /// Whether [`Eigensolver::solve_operators`] works on operators that hold their matrix as an
+    /// upper triangle ([`crate::eigen::LinearOperator::upper_triangle`]) at full speed: callers
+    /// holding such storage give it as is to these and mirror it for the others. Default: no.
+    fn solves_upper_triangles(&self) -> bool {
+        false
+    }
+
     /// Solve an eigenproblem given by operators ([`OperatorProblem`]): H and M applied to
     /// blocks of vectors, never assembled, with an optional caller's preconditioner. Same
     /// result contract as [`Eigensolver::solve`].

@@ -118,6 +118,19 @@ pub static MAX_ITER: OptionName = OptionName {
     help: "Eigensolver iteration cap",
 };
 
+/// How H_w and M are stored: both triangles, the upper triangle only, or auto.
+pub static MATRIX_STORAGE: OptionName = OptionName {
+    library: "BasisOptions::matrix_storage",
+    flag: Some("--matrix-storage"),
+    scene: None,
+    python: Some("matrix_storage"),
+    c: None,
+    value_prefix: "",
+    help: "How H_w and M are stored: full (both triangles, fastest products), upper (the \
+           upper triangle alone: half their memory, products ~1.3x slower; native LOBPCG \
+           only) or auto (full unless only upper fits in the memory available)",
+};
+
 /// Young's modulus E, Pa.
 pub static YOUNGS: OptionName = OptionName {
     library: "Material::youngs",
@@ -325,7 +338,7 @@ pub static PETSC_OPTIONS: OptionName = OptionName {
 };
 
 /// Every row, for the checks that hold each front end to the table.
-pub static ALL: [&OptionName; 26] = [
+pub static ALL: [&OptionName; 27] = [
     &KERNELS,
     &MODES,
     &POINTS,
@@ -335,6 +348,7 @@ pub static ALL: [&OptionName; 26] = [
     &SUPPORT_NEIGHBOR,
     &TOL,
     &MAX_ITER,
+    &MATRIX_STORAGE,
     &YOUNGS,
     &POISSON,
     &DENSITY,

@@ -18,15 +18,27 @@
 use super::rkpm::ShapeFunctions;
 use crate::eigen::RowPencil;
 use crate::sparse::{self, SparseMatrix, SparseMatrixRef};
+use crate::triangle::{UpperPattern, UpperPencil};
 use crate::{Error, Result};
 use faer::sparse::SymbolicSparseColMat;
 use rayon::prelude::*;
+use std::sync::OnceLock;
 
-/// H_w and M, K x K, both triangles stored, with one sparsity pattern held once for both: 20
-/// bytes a stored entry (two f64 values, one u32 row index) instead of 24 for two matrices
-/// with a pattern each. [`Assembled::hessian`] and [`Assembled::mass`] are views of it.
+/// H_w and M, K x K, with one sparsity pattern held once for both: both triangles (20 bytes a
+/// stored entry: two f64 values, one u32 row index), or the upper triangle alone
+/// ([`crate::triangle::UpperPencil`], half that; [`super::options::MatrixStorage`]).
+/// [`Assembled::hessian`] and [`Assembled::mass`] are views of the both-triangle matrices: of
+/// upper-triangle storage they mirror it on first use (the memory of full storage on top).
 #[derive(Debug, Clone)]
 pub struct Assembled {
+    /// Both triangles: set at construction, or mirrored from `upper` on first use.
+    full: OnceLock<Full>,
+    upper: Option<UpperPencil>,
+}
+
+/// Both triangles of H_w and M on one pattern.
+#[derive(Debug, Clone)]
+struct Full {
     pattern: SymbolicSparseColMat<u32>,
     hessian: Vec<f64>,
     mass: Vec<f64>,
@@ -52,33 +64,76 @@ impl Assembled {
             "Assembled: one value per stored entry"
         );
         Assembled {
-            pattern,
-            hessian,
-            mass,
+            full: OnceLock::from(Full {
+                pattern,
+                hessian,
+                mass,
+            }),
+            upper: None,
         }
     }
 
-    /// Weight-space Hessian H_w, K x K, Pa m (units of E x length).
+    /// The pencil stored as upper triangles (H_w first, M second).
+    pub fn from_upper(upper: UpperPencil) -> Self {
+        Assembled {
+            full: OnceLock::new(),
+            upper: Some(upper),
+        }
+    }
+
+    /// Both triangles, mirrored from the upper triangles on first use.
+    fn full(&self) -> &Full {
+        self.full.get_or_init(|| match &self.upper {
+            Some(upper) => {
+                let (pattern, hessian, mass) = upper.to_full();
+                Full {
+                    pattern,
+                    hessian,
+                    mass,
+                }
+            }
+            // Every constructor sets `full` or `upper`.
+            None => unreachable!("Assembled holds full or upper storage"),
+        })
+    }
+
+    /// Weight-space Hessian H_w, K x K, Pa m (units of E x length), both triangles.
     pub fn hessian(&self) -> SparseMatrixRef<'_> {
-        SparseMatrixRef::new(self.pattern.as_ref(), &self.hessian)
+        let full = self.full();
+        SparseMatrixRef::new(full.pattern.as_ref(), &full.hessian)
     }
 
-    /// Consistent mass matrix M, K x K, m^3 (density is not in it).
+    /// Consistent mass matrix M, K x K, m^3 (density is not in it), both triangles.
     pub fn mass(&self) -> SparseMatrixRef<'_> {
-        SparseMatrixRef::new(self.pattern.as_ref(), &self.mass)
+        let full = self.full();
+        SparseMatrixRef::new(full.pattern.as_ref(), &full.mass)
     }
 
-    /// Entries stored in each matrix (both triangles).
+    /// H_w and M as upper triangles, when that is how they are stored.
+    pub fn upper(&self) -> Option<&UpperPencil> {
+        self.upper.as_ref()
+    }
+
+    /// Entries of each matrix with both triangles counted (as if stored in full).
     pub fn nnz(&self) -> usize {
-        self.hessian.len()
+        match (&self.upper, self.full.get()) {
+            (_, Some(full)) => full.hessian.len(),
+            (Some(upper), None) => 2 * upper.pattern().nnz() - upper.pattern().dim(),
+            (None, None) => unreachable!("Assembled holds full or upper storage"),
+        }
     }
 
     /// H_w and M as two owned matrices (the pattern copied for the second).
     pub fn into_pair(self) -> (SparseMatrix, SparseMatrix) {
-        let pattern = self.pattern.clone();
+        self.full();
+        let full = self
+            .full
+            .into_inner()
+            .unwrap_or_else(|| unreachable!("set by full() above"));
+        let pattern = full.pattern.clone();
         (
-            SparseMatrix::new(self.pattern, self.hessian),
-            SparseMatrix::new(pattern, self.mass),
+            SparseMatrix::new(full.pattern, full.hessian),
+            SparseMatrix::new(pattern, full.mass),
         )
     }
 }
@@ -278,6 +333,61 @@ impl Accumulator {
 }
 
 impl Accumulator {
+    /// H_w and M as upper triangles of one pattern ([`UpperPencil`], CSC: column j holds rows
+    /// i <= j ascending), the same sums as [`Accumulator::finish`]'s matrices, bit for bit,
+    /// in half their memory. Each accumulated row is freed once moved.
+    ///
+    /// # Errors
+    /// As [`Accumulator::finish`].
+    pub fn finish_upper(self) -> Result<Assembled> {
+        let k = self.rows.len();
+        if self.own != (0..k) {
+            return Err(Error::param(
+                "rows",
+                format!("{:?}", self.own),
+                "an accumulator of some rows only has no full matrices: use finish_rows",
+            ));
+        }
+        let mut rows = self.rows;
+        // Row i of the upper triangle holds columns j >= i; column j of the CSC gets them in
+        // ascending i, so its rows are sorted and its diagonal (from row j) comes last.
+        let mut ptr = vec![0u32; k + 1];
+        for r in &rows {
+            for &j in r.cols.iter() {
+                ptr[j as usize + 1] += 1;
+            }
+        }
+        for j in 0..k {
+            ptr[j + 1] = ptr[j]
+                .checked_add(ptr[j + 1])
+                .ok_or_else(|| Error::param("kernels", k, "more than u32::MAX stored entries"))?;
+        }
+        let nnz = ptr[k] as usize;
+        let (mut idx, mut hval, mut mval) = (vec![0u32; nnz], vec![0.0; nnz], vec![0.0; nnz]);
+        let mut next = ptr[..k].to_vec();
+        for (i, row) in rows.iter_mut().enumerate() {
+            let r = std::mem::take(row);
+            for (e, &j) in r.cols.iter().enumerate() {
+                let at = next[j as usize] as usize;
+                idx[at] = i as u32;
+                hval[at] = r.h[e];
+                mval[at] = r.m[e];
+                next[j as usize] += 1;
+            }
+        }
+        drop((rows, next));
+        crate::report::release_freed_memory();
+        if let Some(bad) = hval.iter().chain(&mval).position(|v| !v.is_finite()) {
+            return Err(Error::NonFinite {
+                what: "assembled matrices (check volumes and material values)",
+                index: bad,
+            });
+        }
+        let pattern = UpperPattern::new(k, ptr, idx)
+            .map_err(|e| Error::param("assembly", "upper triangle", format!("internal: {e}")))?;
+        Ok(Assembled::from_upper(UpperPencil::new(pattern, hval, mval)))
+    }
+
     /// The wanted rows ([`Accumulator::for_rows`]) of H_w and M with both triangles, as the
     /// same rows of [`Accumulator::finish`]'s matrices, bit for bit, without forming the
     /// K x K matrices.

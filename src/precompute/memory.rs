@@ -13,7 +13,7 @@
 //! - the eigensolve (while H_w and M are held): LOBPCG's IC(0) factor and its dense
 //!   K x 3 (m + 1) blocks; SLEPc's copies; the dense solver's K x K matrices.
 
-use super::options::{default_points, BasisOptions};
+use super::options::{default_points, BasisOptions, MatrixStorage};
 use super::rkpm::CHUNK_POINTS;
 use super::sampling::Resolution;
 use super::solver::SolverConfig;
@@ -86,6 +86,29 @@ pub struct MemoryEstimate {
     /// Memory available at the check (MemAvailable or the [`MEMORY_LIMIT_ENV`] limit), bytes;
     /// 0 when unknown (no check was made).
     pub available_bytes: u64,
+    /// The estimate is for H_w and M stored as upper triangles (`matrix_storage = "upper"`,
+    /// or `"auto"` switched to it by [`MemoryEstimate::check`]).
+    #[serde(default)]
+    pub upper_triangle: bool,
+    /// `matrix_storage = "auto"` may switch to the upper triangle (native LOBPCG solver, no
+    /// boundary regions).
+    #[serde(skip)]
+    upper_allowed: bool,
+}
+
+/// Bytes of H_w and M at rest, and while they are built from the accumulated rows (the rows,
+/// 20 bytes an upper entry, and the arrays they become): `nnz` entries of each matrix with
+/// both triangles, `k` kernels.
+fn matrices_bytes(nnz: f64, k: f64, upper: bool) -> (f64, f64) {
+    if upper {
+        // Half the entries; the transpose into CSC holds the rows and the new arrays.
+        (10.0 * nnz + 8.0 * k, 10.0 * nnz + 10.0 * nnz)
+    } else {
+        // Two CSC matrices sharing one pattern of u32 row indices (8 + 8 + 4 bytes per
+        // entry); while mirroring, the upper triangle (u32 + 2 f64 per entry, half the
+        // entries) and the mirrored arrays.
+        (20.0 * nnz + 4.0 * k, 10.0 * nnz + 20.0 * nnz)
+    }
 }
 
 impl MemoryEstimate {
@@ -102,11 +125,8 @@ impl MemoryEstimate {
         let points_bytes = BYTES_PER_POINT * n;
         let chunk = n.min(CHUNK_POINTS as f64);
         let stream_bytes = chunk * cover * BYTES_PER_PAIR + 16.0 * k;
-        // Two CSC matrices sharing one pattern of u32 row indices (8 + 8 + 4 bytes per entry);
-        // while mirroring, the upper triangle (u32 + 2 f64 per entry, half the entries) and
-        // the mirrored arrays.
-        let matrices = 20.0 * nnz + 4.0 * k;
-        let mirroring = 10.0 * nnz + 20.0 * nnz;
+        let upper = opts.matrix_storage == MatrixStorage::Upper;
+        let (matrices, building) = matrices_bytes(nnz, k, upper);
         let nev = opts.modes as f64 + 1.0;
         let eigensolver = match opts.solver {
             SolverConfig::Dense => 5.0 * 8.0 * k * k,
@@ -118,7 +138,10 @@ impl MemoryEstimate {
             // native path had before it stopped forming H + sigma M.
             SolverConfig::Slepc(_) => 16.0 * nnz + 6.0 * nnz + 5.0 * 8.0 * k * 3.0 * nev,
         };
-        let total = points_bytes + (stream_bytes + mirroring).max(matrices + eigensolver);
+        let total = points_bytes + (stream_bytes + building).max(matrices + eigensolver);
+        let upper_allowed = opts.matrix_storage == MatrixStorage::Auto
+            && matches!(opts.solver, SolverConfig::Lobpcg(_))
+            && opts.boundary_regions.is_empty();
         // `as u64` saturates.
         Self {
             points,
@@ -130,6 +153,8 @@ impl MemoryEstimate {
             eigensolver_bytes: eigensolver as u64,
             total_bytes: total as u64,
             available_bytes: 0,
+            upper_triangle: upper,
+            upper_allowed,
         }
     }
 
@@ -162,6 +187,22 @@ impl MemoryEstimate {
             eigensolver_bytes: eigensolver as u64,
             total_bytes: total as u64,
             available_bytes: 0,
+            upper_triangle: false,
+            upper_allowed: false,
+        }
+    }
+
+    /// The same estimate with H_w and M stored as upper triangles.
+    fn with_upper_triangle(&self) -> Self {
+        let (nnz, k) = (self.nnz as f64, self.kernels as f64);
+        let (matrices, building) = matrices_bytes(nnz, k, true);
+        let total = self.points_bytes as f64
+            + (self.stream_bytes as f64 + building).max(matrices + self.eigensolver_bytes as f64);
+        Self {
+            matrices_bytes: matrices as u64,
+            total_bytes: total as u64,
+            upper_triangle: true,
+            ..*self
         }
     }
 
@@ -202,13 +243,25 @@ impl MemoryEstimate {
         if self.total_bytes <= available {
             return Ok(());
         }
+        if self.upper_allowed && !self.upper_triangle {
+            let upper = self.with_upper_triangle();
+            if upper.total_bytes <= available {
+                *self = upper;
+                return Ok(());
+            }
+        }
         let advice = format!(
             "use fewer integration points ({}; {} now), fewer kernels ({}; {} now), fewer \
-             modes, or a smaller support factor (H_w's non-zeros grow as its cube)",
+             modes, or a smaller support factor (H_w's non-zeros grow as its cube){}",
             crate::options::POINTS,
             self.points,
             crate::options::KERNELS,
-            self.kernels
+            self.kernels,
+            if self.upper_triangle {
+                " (H_w and M are already stored as upper triangles)"
+            } else {
+                ""
+            }
         );
         Err(Error::OutOfMemory {
             estimate_bytes: self.total_bytes,

@@ -41,7 +41,7 @@ pub use compare::{compare_solvers, ProblemComparison, SolverComparison, SolverRe
 pub use density::{DensityBands, DensityRegion, KernelDensity};
 pub use image_material::{GapPolicy, ImageMaterial};
 pub use memory::MemoryEstimate;
-pub use options::{default_points, BasisOptions, MAX_KERNELS, MAX_POINTS};
+pub use options::{default_points, BasisOptions, MatrixStorage, MAX_KERNELS, MAX_POINTS};
 pub use problem::{build_basis, place_kernels, BasisRun, Problem};
 pub use quality::{
     basis_monitors, check_quality, CoverageReport, ModesReport, SolveFacts, ORTHONORMALITY_WARNING,

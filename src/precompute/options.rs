@@ -61,6 +61,56 @@ pub struct BasisOptions {
         skip_serializing_if = "KernelDensity::is_off"
     )]
     pub density: KernelDensity,
+    /// How H_w and M are stored ([`MatrixStorage`]). Default `Auto`: both triangles, the upper
+    /// triangle only when both would not fit in the memory available. Left out of the
+    /// serialized options when `Auto`, so cache keys are unchanged.
+    #[serde(default, skip_serializing_if = "MatrixStorage::is_auto")]
+    pub matrix_storage: MatrixStorage,
+}
+
+/// How the assembled H_w and M are stored.
+///
+/// Both triangles (20 bytes a stored entry: two f64 values and a shared u32 index) give the
+/// fastest products; the upper triangle alone (`crate::triangle`) takes half the memory and
+/// products ~1.3x slower (docs/performance.md, "The upper triangle alone"), and only the native
+/// LOBPCG solves it directly (other solvers and the boundary-aware restriction get a mirrored
+/// copy made on demand).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MatrixStorage {
+    /// Both triangles, unless the precomputation's memory estimate with them exceeds the
+    /// memory available and the upper triangle fits (native LOBPCG solver, no boundary
+    /// regions): then the upper triangle, with a warning.
+    #[default]
+    Auto,
+    /// Both triangles.
+    Full,
+    /// The upper triangle only (native LOBPCG solver and no boundary regions).
+    Upper,
+}
+
+impl MatrixStorage {
+    /// The default (`Auto`), for `skip_serializing_if`.
+    pub fn is_auto(&self) -> bool {
+        *self == MatrixStorage::Auto
+    }
+}
+
+impl std::str::FromStr for MatrixStorage {
+    type Err = Error;
+
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "auto" => Ok(MatrixStorage::Auto),
+            "full" => Ok(MatrixStorage::Full),
+            "upper" => Ok(MatrixStorage::Upper),
+            other => Err(Error::param(
+                "matrix_storage",
+                other,
+                "expected auto, full or upper",
+            )),
+        }
+    }
 }
 
 impl Default for BasisOptions {
@@ -82,6 +132,7 @@ impl Default for BasisOptions {
             coverage_repair_rounds: 3,
             boundary_regions: Vec::new(),
             density: KernelDensity::bands(DensityBands::default()),
+            matrix_storage: MatrixStorage::Auto,
         }
     }
 }
@@ -133,6 +184,27 @@ impl BasisOptions {
 
     /// Check every parameter's range (before any work is done).
     pub fn validate(&self) -> Result<()> {
+        if self.matrix_storage == MatrixStorage::Upper {
+            if !matches!(self.solver, SolverConfig::Lobpcg(_)) {
+                return Err(Error::param(
+                    "matrix_storage",
+                    "upper",
+                    format!(
+                        "only the native LOBPCG solver works on the upper triangle alone (solver \
+                         is {}): use matrix_storage = \"full\" or solver = \"lobpcg\"",
+                        self.solver.name()
+                    ),
+                ));
+            }
+            if !self.boundary_regions.is_empty() {
+                return Err(Error::param(
+                    "matrix_storage",
+                    "upper",
+                    "a boundary-aware basis restricts both triangles of H_w and M: use \
+                     matrix_storage = \"full\" (or \"auto\")",
+                ));
+            }
+        }
         if self.kernels < 10 {
             return Err(Error::param(
                 "kernels",

@@ -8,14 +8,14 @@ use super::centers::{farthest_point_sampling_scaled, morton_order};
 use super::coverage::{cover_shape_surface, enlarge_near};
 use super::density::{kernel_scale, WholeObject};
 use super::memory::{expected_points, MemoryEstimate};
-use super::options::BasisOptions;
+use super::options::{BasisOptions, MatrixStorage};
 use super::quality::{CoverageReport, ModesReport, SolveFacts};
 use super::rkpm::{self, support_radii, Kernels, ReproducingError};
 use super::sampling::MAX_GRID_CELLS;
 use super::sampling::{sample_with_material, IntegrationPoints};
 use super::skinning::Basis;
-use super::stream::{assemble_streamed, Streamed, StreamedAssembly};
-use crate::eigen::{EigenError, EigenRequest, Eigensolver};
+use super::stream::{assemble_streamed, assemble_streamed_upper, Streamed, StreamedAssembly};
+use crate::eigen::{EigenError, EigenRequest, Eigensolver, OperatorProblem};
 use crate::error::check_cancelled;
 use crate::geometry::Shape;
 use crate::material::MaterialField;
@@ -240,12 +240,22 @@ impl Problem {
         let volumes: Vec<f64> = order.iter().map(|&i| points.volumes[i]).collect();
         let weights: Vec<f64> = order.iter().map(|&i| all_weights[i]).collect();
         drop(all_weights);
+        if memory.upper_triangle && opts.matrix_storage != MatrixStorage::Upper {
+            warnings.push(format!(
+                "H_w and M are stored as upper triangles (matrix_storage = \"auto\"): with both \
+                 triangles the run would need ~{:.2} GB, more than the {:.2} GB available; \
+                 products are ~1.3x slower this way",
+                MemoryEstimate::new(opts, n).total_bytes as f64 / 1e9,
+                memory.available_bytes as f64 / 1e9
+            ));
+        }
         let (streamed, enlarged) = stream_with_repair(
             &mut kernels,
             &sorted,
             &volumes,
             &weights,
             opts,
+            memory.upper_triangle,
             progress,
             std::mem::take(&mut surface.enlarged),
         )
@@ -419,17 +429,6 @@ impl Problem {
                 boundary_modes::grounded_problem(assembled.hessian(), assembled.mass(), &part);
             Some((part, h, m, free_modes))
         };
-        let (h, m, request) = match &aware {
-            None => (assembled.hessian(), assembled.mass(), request),
-            Some((_, h, m, free_modes)) => (
-                h.as_ref(),
-                m.as_ref(),
-                EigenRequest {
-                    nev: free_modes + 1,
-                    ..request
-                },
-            ),
-        };
         // Points the shape gives again bit for bit are not held through the solve (0.56 GB
         // of points and materials at K = 1,000,000).
         let points = match &resample {
@@ -439,14 +438,28 @@ impl Problem {
             }
             _ => Points::Held(points, material),
         };
-        let mut solution = solver
-            .solve(h, m, &request, progress)
-            .map_err(|e| match e {
-                EigenError::Cancelled { iterations } => Error::Cancelled {
-                    stage: format!("eigensolve ({iterations} iterations)"),
-                },
-                other => other.into(),
-            })?;
+        // Upper-triangle storage goes to a solver that takes it as is; any other gets both
+        // triangles (mirrored on first use by `assembled.hessian()`).
+        let solved = match (assembled.upper(), &aware) {
+            (Some(upper), None) if solver.solves_upper_triangles() => {
+                let (hu, mu) = (upper.first(), upper.second());
+                solver.solve_operators(&OperatorProblem::new(&hu, &mu), &request, progress)
+            }
+            (_, None) => solver.solve(assembled.hessian(), assembled.mass(), &request, progress),
+            (_, Some((_, h, m, free_modes))) => {
+                let request = EigenRequest {
+                    nev: free_modes + 1,
+                    ..request
+                };
+                solver.solve(h.as_ref(), m.as_ref(), &request, progress)
+            }
+        };
+        let mut solution = solved.map_err(|e| match e {
+            EigenError::Cancelled { iterations } => Error::Cancelled {
+                stage: format!("eigensolve ({iterations} iterations)"),
+            },
+            other => other.into(),
+        })?;
         if require_converged {
             solution = solution.into_converged()?;
         }
@@ -519,25 +532,32 @@ impl Problem {
 /// Points per chunk of the streamed assembly in the pipeline.
 const CHUNK: usize = rkpm::CHUNK_POINTS;
 
-/// The streamed shape functions and assembly ([`assemble_streamed`]) on the points (Morton
-/// order), enlarging the supports of kernels near badly covered points for up to
+/// The streamed shape functions and assembly ([`assemble_streamed`], or
+/// [`assemble_streamed_upper`] with `upper_triangle`) on the points (Morton order), enlarging the supports of kernels near badly covered points for up to
 /// `opts.coverage_repair_rounds` rounds (each round streams again). Returns the assembly and
 /// the number of enlarged kernels (with those already in `enlarged`); the stage times of
 /// failed rounds are counted in.
+#[allow(clippy::too_many_arguments)]
 fn stream_with_repair(
     kernels: &mut Kernels,
     points: &[Point3],
     volumes: &[f64],
     weights: &[f64],
     opts: &BasisOptions,
+    upper_triangle: bool,
     progress: &dyn Progress,
     mut enlarged: BTreeSet<usize>,
 ) -> Result<(Box<StreamedAssembly>, usize)> {
     let mut round = 0;
     let mut lost = 0.0;
+    let assemble = if upper_triangle {
+        assemble_streamed_upper
+    } else {
+        assemble_streamed
+    };
     loop {
         let clock = Stopwatch::start();
-        let chunked = match assemble_streamed(
+        let chunked = match assemble(
             kernels,
             points,
             volumes,

@@ -77,6 +77,34 @@ pub fn assemble_streamed(
     )
 }
 
+/// [`assemble_streamed`] with H_w and M stored as upper triangles
+/// ([`Accumulator::finish_upper`]).
+///
+/// # Errors
+/// As [`assemble_streamed`].
+pub fn assemble_streamed_upper(
+    kernels: &Kernels,
+    points: &[Point3],
+    volumes: &[f64],
+    weights: &[f64],
+    opts: &ShapeFunctionOptions,
+    chunk: usize,
+    progress: &dyn Progress,
+) -> Result<Streamed> {
+    let acc = Accumulator::new(kernels.len())?;
+    stream(
+        acc,
+        kernels,
+        points,
+        volumes,
+        weights,
+        opts,
+        chunk,
+        progress,
+        Accumulator::finish_upper,
+    )
+}
+
 /// [`assemble_streamed`] for rows `own` of H_w and M only ([`Accumulator::for_rows`]): one
 /// MPI rank's block, complete when `points` are all points of those kernels' supports.
 ///

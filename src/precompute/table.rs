@@ -11,7 +11,7 @@
 //! (docs/architecture.md, "An option").
 
 use super::density::DensityRegion;
-use super::options::BasisOptions;
+use super::options::{BasisOptions, MatrixStorage};
 use super::resolution::Resolution;
 use super::rkpm::KernelType;
 use super::solver::SolverConfig;
@@ -234,7 +234,7 @@ impl OptionTable {
 
 /// The built-in basis options, in the command line's order: registering an option is one
 /// entry here.
-pub static BASIS_OPTIONS: [&BasisOption; 22] = [
+pub static BASIS_OPTIONS: [&BasisOption; 23] = [
     &KERNELS,
     &MODES,
     &POINTS,
@@ -244,6 +244,7 @@ pub static BASIS_OPTIONS: [&BasisOption; 22] = [
     &SUPPORT_NEIGHBOR,
     &TOL,
     &MAX_ITER,
+    &MATRIX_STORAGE,
     &YOUNGS,
     &POISSON,
     &DENSITY,
@@ -377,6 +378,26 @@ pub static MAX_ITER: BasisOption = row(
     |d| Some(Value::Count(d.options.max_iter)),
     |row, c, v| {
         c.options.max_iter = row.count(v)?;
+        Ok(())
+    },
+);
+
+/// How H_w and M are stored.
+pub static MATRIX_STORAGE: BasisOption = row(
+    &options::MATRIX_STORAGE,
+    ValueKind::Choice(|| vec!["auto", "full", "upper"]),
+    |d| {
+        Some(Value::Text(
+            match d.options.matrix_storage {
+                MatrixStorage::Auto => "auto",
+                MatrixStorage::Full => "full",
+                MatrixStorage::Upper => "upper",
+            }
+            .to_string(),
+        ))
+    },
+    |row, c, v| {
+        c.options.matrix_storage = row.choice(v, |s| s.parse().ok())?;
         Ok(())
     },
 );

@@ -312,3 +312,130 @@ fn memory_estimate_refuses_with_the_figures_and_scales_with_the_run() {
     assert_eq!(default_points(1_000_000), 10_000_000);
     assert_eq!(default_points(usize::MAX), freeform::precompute::MAX_POINTS);
 }
+
+#[test]
+fn upper_triangle_storage_holds_the_same_sums_and_gives_the_same_basis() {
+    use freeform::precompute::stream::assemble_streamed_upper;
+    use freeform::precompute::{MatrixStorage, SolverConfig};
+    // The same sums as both-triangle storage, bit for bit: each entry is the same running
+    // sum, only moved into another layout.
+    let (kernels, points, vol, w) = fixture();
+    let run = |upper: bool| {
+        let assemble = if upper {
+            assemble_streamed_upper
+        } else {
+            assemble_streamed
+        };
+        let opts = ShapeFunctionOptions::default();
+        let Streamed::Assembled(done) =
+            assemble(&kernels, &points, &vol, &w, &opts, 97, &Silent).unwrap()
+        else {
+            panic!("every point of the box is covered");
+        };
+        done.assembled
+    };
+    let (full, upper) = (run(false), run(true));
+    assert!(full.upper().is_none());
+    let pencil = upper.upper().expect("stored as upper triangles");
+    assert_eq!(2 * pencil.pattern().nnz() - kernels.len(), full.nnz());
+    assert_eq!(upper.nnz(), full.nnz());
+    // Mirrored on first use: the both-triangle matrices exactly.
+    for (a, b) in [
+        (upper.hessian(), full.hessian()),
+        (upper.mass(), full.mass()),
+    ] {
+        assert_eq!(a.col_ptr(), b.col_ptr());
+        assert_eq!(a.row_idx(), b.row_idx());
+        assert_eq!(a.val(), b.val());
+    }
+
+    // The whole precomputation: the same eigenvalues to 1e-10 relative (the products sum
+    // each row in another order, so the iterates differ by rounding; a Ritz value's error is
+    // the squared residual, 1e-16 relative at tol 1e-8) and the same modes up to sign.
+    let ip = box_points([2.0, 1.0, 1.0], 0.08);
+    let mat = MaterialField::homogeneous(ip.len(), &Material::default()).unwrap();
+    let basis = |storage: MatrixStorage| {
+        let opts = BasisOptions {
+            kernels: 120,
+            modes: 6,
+            matrix_storage: storage,
+            ..BasisOptions::default()
+        };
+        Problem::from_points(ip.clone(), mat.clone(), &opts, &Silent)
+            .unwrap()
+            .solve(&Silent)
+            .unwrap()
+    };
+    let (a, b) = (basis(MatrixStorage::Full), basis(MatrixStorage::Upper));
+    assert!(!a.report.memory_estimate.upper_triangle);
+    assert!(b.report.memory_estimate.upper_triangle);
+    for (x, y) in a.basis.eigenvalues.iter().zip(&b.basis.eigenvalues) {
+        assert!((x - y).abs() <= 1e-10 * x.abs(), "{x} vs {y}");
+    }
+    let (ca, cb) = (&a.basis.coefficients, &b.basis.coefficients);
+    for j in 0..ca.ncols() {
+        let dot: f64 = (0..ca.nrows()).map(|i| ca[(i, j)] * cb[(i, j)]).sum();
+        let sign = dot.signum();
+        let diff = (0..ca.nrows())
+            .map(|i| (ca[(i, j)] - sign * cb[(i, j)]).abs())
+            .fold(0.0, f64::max);
+        let size = (0..ca.nrows())
+            .map(|i| ca[(i, j)].abs())
+            .fold(0.0, f64::max);
+        // Eigenvectors to ~ the residual over the gap: 1e-8 x a spectral gap ratio of a few.
+        assert!(diff <= 1e-6 * size, "mode {j}: {diff:e} of {size:e}");
+    }
+
+    // Only the native solver takes the triangle, and not with boundary regions.
+    let dense = BasisOptions {
+        matrix_storage: MatrixStorage::Upper,
+        solver: SolverConfig::Dense,
+        ..BasisOptions::default()
+    };
+    let err = dense.validate().unwrap_err().to_string();
+    assert!(
+        err.contains("matrix_storage") && err.contains("LOBPCG"),
+        "{err}"
+    );
+}
+
+#[test]
+fn auto_storage_takes_the_upper_triangle_when_only_it_fits() {
+    use freeform::precompute::{MatrixStorage, MemoryEstimate};
+    let opts = |storage| BasisOptions {
+        kernels: 100_000,
+        modes: 32,
+        matrix_storage: storage,
+        ..BasisOptions::default()
+    };
+    let full = MemoryEstimate::new(&opts(MatrixStorage::Full), 2_000_000);
+    let upper = MemoryEstimate::new(&opts(MatrixStorage::Upper), 2_000_000);
+    assert!(upper.upper_triangle && !full.upper_triangle);
+    // Half the matrices (10 of 20 bytes a both-triangle entry).
+    assert!(upper.matrices_bytes < full.matrices_bytes * 11 / 20);
+    assert!(upper.total_bytes < full.total_bytes);
+    let between = (upper.total_bytes + full.total_bytes) / 2;
+    // Auto with room for both triangles keeps them.
+    let mut auto = MemoryEstimate::new(&opts(MatrixStorage::Auto), 2_000_000);
+    assert_eq!(auto.total_bytes, full.total_bytes);
+    auto.check_against(u64::MAX, "test").unwrap();
+    assert!(!auto.upper_triangle);
+    // Room for the upper triangle only: auto switches, full is refused.
+    auto.check_against(between, "test").unwrap();
+    assert!(auto.upper_triangle);
+    assert_eq!(auto.total_bytes, upper.total_bytes);
+    let mut strict = full;
+    assert!(strict.check_against(between, "test").is_err());
+    // A boundary-aware basis cannot switch.
+    let mut aware = MemoryEstimate::new(
+        &BasisOptions {
+            boundary_regions: vec![Region::Box {
+                min: [0.0; 3],
+                max: [0.1; 3],
+            }],
+            ..opts(MatrixStorage::Auto)
+        },
+        2_000_000,
+    );
+    assert!(aware.check_against(between, "test").is_err());
+}

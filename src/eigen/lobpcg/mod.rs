@@ -79,6 +79,10 @@ impl Eigensolver for Lobpcg {
         "lobpcg"
     }
 
+    fn solves_upper_triangles(&self) -> bool {
+        true
+    }
+
     fn solve(
         &self,
         h: SparseMatrixRef<'_>,
