@@ -13,7 +13,7 @@ use faer::{MatMut, MatRef};
 use freeform::eigen::lobpcg::{AssembledPreconditioner, Lobpcg, LobpcgOptions, PreconditionerKind};
 use freeform::eigen::{EigenRequest, Eigensolver, FnOperator, OperatorProblem};
 use freeform::io::read_shape;
-use freeform::precompute::{BasisOptions, Problem};
+use freeform::precompute::{BasisOptions, MatrixStorage, Problem};
 use freeform::progress::Silent;
 use freeform::report::Stopwatch;
 use freeform::sparse;
@@ -30,6 +30,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let opts = BasisOptions {
         kernels,
         modes,
+        matrix_storage: MatrixStorage::Full,
         ..BasisOptions::default()
     };
     let sw = Stopwatch::start();

@@ -5,7 +5,7 @@
 //!     cargo run --release --example upper_products -- [kernels] [repeat]
 
 use freeform::io::read_shape;
-use freeform::precompute::{BasisOptions, Problem};
+use freeform::precompute::{BasisOptions, MatrixStorage, Problem};
 use freeform::progress::Silent;
 use freeform::report::Stopwatch;
 use freeform::sparse;
@@ -21,6 +21,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let shape = read_shape("box:5,1,1", &Default::default())?;
     let opts = BasisOptions {
         kernels,
+        matrix_storage: MatrixStorage::Full,
         ..BasisOptions::default()
     };
     let problem = Problem::from_shape(&shape, &opts, &Silent)?;

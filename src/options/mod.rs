@@ -126,9 +126,9 @@ pub static MATRIX_STORAGE: OptionName = OptionName {
     python: Some("matrix_storage"),
     c: None,
     value_prefix: "",
-    help: "How H_w and M are stored: full (both triangles, fastest products), upper (the \
-           upper triangle alone: half their memory, products ~1.3x slower; native LOBPCG \
-           only) or auto (full unless only upper fits in the memory available)",
+    help: "How H_w and M are stored: upper (the upper triangle alone: half their memory, \
+           the same basis; native LOBPCG only, no boundary regions), full (both triangles) or \
+           auto (upper where the solver takes it, else full)",
 };
 
 /// Young's modulus E, Pa.

@@ -86,14 +86,22 @@ pub struct MemoryEstimate {
     /// Memory available at the check (MemAvailable or the [`MEMORY_LIMIT_ENV`] limit), bytes;
     /// 0 when unknown (no check was made).
     pub available_bytes: u64,
-    /// The estimate is for H_w and M stored as upper triangles (`matrix_storage = "upper"`,
-    /// or `"auto"` switched to it by [`MemoryEstimate::check`]).
+    /// The estimate is for H_w and M stored as upper triangles ([`upper_triangle_storage`]).
     #[serde(default)]
     pub upper_triangle: bool,
-    /// `matrix_storage = "auto"` may switch to the upper triangle (native LOBPCG solver, no
-    /// boundary regions).
-    #[serde(skip)]
-    upper_allowed: bool,
+}
+
+/// Whether `opts` store H_w and M as upper triangles: `matrix_storage = "upper"`, or `"auto"`
+/// with the native LOBPCG solver and no boundary regions (the solver takes the triangle as
+/// is, with the same bits; every other consumer reads both triangles).
+pub fn upper_triangle_storage(opts: &BasisOptions) -> bool {
+    match opts.matrix_storage {
+        MatrixStorage::Upper => true,
+        MatrixStorage::Full => false,
+        MatrixStorage::Auto => {
+            matches!(opts.solver, SolverConfig::Lobpcg(_)) && opts.boundary_regions.is_empty()
+        }
+    }
 }
 
 /// Bytes of H_w and M at rest, and while they are built from the accumulated rows (the rows,
@@ -125,7 +133,7 @@ impl MemoryEstimate {
         let points_bytes = BYTES_PER_POINT * n;
         let chunk = n.min(CHUNK_POINTS as f64);
         let stream_bytes = chunk * cover * BYTES_PER_PAIR + 16.0 * k;
-        let upper = opts.matrix_storage == MatrixStorage::Upper;
+        let upper = upper_triangle_storage(opts);
         let (matrices, building) = matrices_bytes(nnz, k, upper);
         let nev = opts.modes as f64 + 1.0;
         let eigensolver = match opts.solver {
@@ -139,9 +147,6 @@ impl MemoryEstimate {
             SolverConfig::Slepc(_) => 16.0 * nnz + 6.0 * nnz + 5.0 * 8.0 * k * 3.0 * nev,
         };
         let total = points_bytes + (stream_bytes + building).max(matrices + eigensolver);
-        let upper_allowed = opts.matrix_storage == MatrixStorage::Auto
-            && matches!(opts.solver, SolverConfig::Lobpcg(_))
-            && opts.boundary_regions.is_empty();
         // `as u64` saturates.
         Self {
             points,
@@ -154,7 +159,6 @@ impl MemoryEstimate {
             total_bytes: total as u64,
             available_bytes: 0,
             upper_triangle: upper,
-            upper_allowed,
         }
     }
 
@@ -188,21 +192,6 @@ impl MemoryEstimate {
             total_bytes: total as u64,
             available_bytes: 0,
             upper_triangle: false,
-            upper_allowed: false,
-        }
-    }
-
-    /// The same estimate with H_w and M stored as upper triangles.
-    fn with_upper_triangle(&self) -> Self {
-        let (nnz, k) = (self.nnz as f64, self.kernels as f64);
-        let (matrices, building) = matrices_bytes(nnz, k, true);
-        let total = self.points_bytes as f64
-            + (self.stream_bytes as f64 + building).max(matrices + self.eigensolver_bytes as f64);
-        Self {
-            matrices_bytes: matrices as u64,
-            total_bytes: total as u64,
-            upper_triangle: true,
-            ..*self
         }
     }
 
@@ -242,13 +231,6 @@ impl MemoryEstimate {
         self.available_bytes = available;
         if self.total_bytes <= available {
             return Ok(());
-        }
-        if self.upper_allowed && !self.upper_triangle {
-            let upper = self.with_upper_triangle();
-            if upper.total_bytes <= available {
-                *self = upper;
-                return Ok(());
-            }
         }
         let advice = format!(
             "use fewer integration points ({}; {} now), fewer kernels ({}; {} now), fewer \

@@ -61,26 +61,26 @@ pub struct BasisOptions {
         skip_serializing_if = "KernelDensity::is_off"
     )]
     pub density: KernelDensity,
-    /// How H_w and M are stored ([`MatrixStorage`]). Default `Auto`: both triangles, the upper
-    /// triangle only when both would not fit in the memory available. Left out of the
-    /// serialized options when `Auto`, so cache keys are unchanged.
+    /// How H_w and M are stored ([`MatrixStorage`]). Default `Auto`: the upper triangle for the
+    /// native LOBPCG solver without boundary regions, both triangles otherwise. Left out of
+    /// the serialized options when `Auto`, so cache keys are unchanged.
     #[serde(default, skip_serializing_if = "MatrixStorage::is_auto")]
     pub matrix_storage: MatrixStorage,
 }
 
 /// How the assembled H_w and M are stored.
 ///
-/// Both triangles (20 bytes a stored entry: two f64 values and a shared u32 index) give the
-/// fastest products; the upper triangle alone (`crate::triangle`) takes half the memory and
-/// products ~1.3x slower (docs/performance.md, "The upper triangle alone"), and only the native
-/// LOBPCG solves it directly (other solvers and the boundary-aware restriction get a mirrored
-/// copy made on demand).
+/// Both triangles take 20 bytes a stored entry (two f64 values and a shared u32 index); the
+/// upper triangle alone (`crate::triangle`) half that. The native LOBPCG solves the triangle
+/// with the same bits as both triangles: its products are 1.1-1.3x slower, which the assembly
+/// (no mirror) and the preconditioner's solves win back (docs/performance.md, "The upper
+/// triangle as storage"). Other solvers and the boundary-aware restriction read both
+/// triangles (mirrored on demand from the upper triangle, the memory of both on top).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum MatrixStorage {
-    /// Both triangles, unless the precomputation's memory estimate with them exceeds the
-    /// memory available and the upper triangle fits (native LOBPCG solver, no boundary
-    /// regions): then the upper triangle, with a warning.
+    /// The upper triangle for the native LOBPCG solver without boundary regions, both
+    /// triangles otherwise.
     #[default]
     Auto,
     /// Both triangles.

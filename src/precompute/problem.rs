@@ -7,8 +7,8 @@ use super::boundary_modes;
 use super::centers::{farthest_point_sampling_scaled, morton_order};
 use super::coverage::{cover_shape_surface, enlarge_near};
 use super::density::{kernel_scale, WholeObject};
-use super::memory::{expected_points, MemoryEstimate};
-use super::options::{BasisOptions, MatrixStorage};
+use super::memory::{expected_points, upper_triangle_storage, MemoryEstimate};
+use super::options::BasisOptions;
 use super::quality::{CoverageReport, ModesReport, SolveFacts};
 use super::rkpm::{self, support_radii, Kernels, ReproducingError};
 use super::sampling::MAX_GRID_CELLS;
@@ -240,22 +240,13 @@ impl Problem {
         let volumes: Vec<f64> = order.iter().map(|&i| points.volumes[i]).collect();
         let weights: Vec<f64> = order.iter().map(|&i| all_weights[i]).collect();
         drop(all_weights);
-        if memory.upper_triangle && opts.matrix_storage != MatrixStorage::Upper {
-            warnings.push(format!(
-                "H_w and M are stored as upper triangles (matrix_storage = \"auto\"): with both \
-                 triangles the run would need ~{:.2} GB, more than the {:.2} GB available; \
-                 products are ~1.3x slower this way",
-                MemoryEstimate::new(opts, n).total_bytes as f64 / 1e9,
-                memory.available_bytes as f64 / 1e9
-            ));
-        }
         let (streamed, enlarged) = stream_with_repair(
             &mut kernels,
             &sorted,
             &volumes,
             &weights,
             opts,
-            memory.upper_triangle,
+            upper_triangle_storage(opts),
             progress,
             std::mem::take(&mut surface.enlarged),
         )

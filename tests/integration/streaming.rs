@@ -393,8 +393,9 @@ fn upper_triangle_storage_holds_the_same_sums_and_gives_the_same_basis() {
 }
 
 #[test]
-fn auto_storage_takes_the_upper_triangle_when_only_it_fits() {
-    use freeform::precompute::{MatrixStorage, MemoryEstimate};
+fn auto_storage_is_the_upper_triangle_where_the_solver_takes_it() {
+    use freeform::precompute::memory::upper_triangle_storage;
+    use freeform::precompute::{MatrixStorage, MemoryEstimate, SolverConfig};
     let opts = |storage| BasisOptions {
         kernels: 100_000,
         modes: 32,
@@ -407,28 +408,23 @@ fn auto_storage_takes_the_upper_triangle_when_only_it_fits() {
     // Half the matrices (10 of 20 bytes a both-triangle entry).
     assert!(upper.matrices_bytes < full.matrices_bytes * 11 / 20);
     assert!(upper.total_bytes < full.total_bytes);
-    let between = (upper.total_bytes + full.total_bytes) / 2;
-    // Auto with room for both triangles keeps them.
-    let mut auto = MemoryEstimate::new(&opts(MatrixStorage::Auto), 2_000_000);
-    assert_eq!(auto.total_bytes, full.total_bytes);
-    auto.check_against(u64::MAX, "test").unwrap();
-    assert!(!auto.upper_triangle);
-    // Room for the upper triangle only: auto switches, full is refused.
-    auto.check_against(between, "test").unwrap();
-    assert!(auto.upper_triangle);
-    assert_eq!(auto.total_bytes, upper.total_bytes);
-    let mut strict = full;
-    assert!(strict.check_against(between, "test").is_err());
-    // A boundary-aware basis cannot switch.
-    let mut aware = MemoryEstimate::new(
-        &BasisOptions {
-            boundary_regions: vec![Region::Box {
-                min: [0.0; 3],
-                max: [0.1; 3],
-            }],
-            ..opts(MatrixStorage::Auto)
-        },
-        2_000_000,
-    );
-    assert!(aware.check_against(between, "test").is_err());
+    // Auto: the upper triangle for the native solver, both triangles for any other and for a
+    // boundary-aware basis (which restricts both).
+    let auto = MemoryEstimate::new(&opts(MatrixStorage::Auto), 2_000_000);
+    assert_eq!(auto, upper);
+    assert!(upper_triangle_storage(&opts(MatrixStorage::Auto)));
+    let dense = BasisOptions {
+        solver: SolverConfig::Dense,
+        ..opts(MatrixStorage::Auto)
+    };
+    assert!(!upper_triangle_storage(&dense));
+    let aware = BasisOptions {
+        boundary_regions: vec![Region::Box {
+            min: [0.0; 3],
+            max: [0.1; 3],
+        }],
+        ..opts(MatrixStorage::Auto)
+    };
+    assert!(!upper_triangle_storage(&aware));
+    assert!(!MemoryEstimate::new(&aware, 2_000_000).upper_triangle);
 }

@@ -5,7 +5,7 @@
 use crate::problem::ShapeArgs;
 use crate::{emit, set_threads, CliResult};
 use clap::Args;
-use freeform::precompute::{Problem, ProblemComparison, SolverConfig};
+use freeform::precompute::{MatrixStorage, Problem, ProblemComparison, SolverConfig};
 use freeform::progress::Silent;
 use serde::Serialize;
 
@@ -77,8 +77,12 @@ fn solvers(args: &CompareArgs) -> Result<Vec<SolverConfig>, Box<dyn std::error::
 
 pub fn run(args: CompareArgs) -> CliResult {
     set_threads(args.threads)?;
-    let (shape, opts) = args.shape.build()?;
+    let (shape, mut opts) = args.shape.build()?;
     let solvers = solvers(&args)?;
+    // Every solver compared reads both triangles: assemble them so.
+    if opts.matrix_storage == MatrixStorage::Auto {
+        opts.matrix_storage = MatrixStorage::Full;
+    }
     let problem = Problem::from_shape(&shape, &opts, &Silent)?;
     // A failed solver's message is formatted in the command's front (`--slepc ...`).
     let comparison = problem.compare(&solvers, args.cluster_gap, &Silent)?;

@@ -4,7 +4,7 @@ use crate::problem::ShapeArgs;
 use crate::{emit, set_threads, CliResult};
 use clap::Args;
 use freeform::io::matrix_market::write_matrices;
-use freeform::precompute::Problem;
+use freeform::precompute::{MatrixStorage, Problem};
 use std::path::PathBuf;
 
 #[derive(Args)]
@@ -26,7 +26,12 @@ pub struct ExportArgs {
 
 pub fn run(args: ExportArgs) -> CliResult {
     set_threads(args.threads)?;
-    let (shape, opts) = args.shape.build()?;
+    let (shape, mut opts) = args.shape.build()?;
+    // Both triangles are written: assemble them so (auto would take the upper triangle and
+    // mirror it, holding both).
+    if opts.matrix_storage == MatrixStorage::Auto {
+        opts.matrix_storage = MatrixStorage::Full;
+    }
     let problem = Problem::from_shape(&shape, &opts, &freeform::progress::Silent)?;
     let a = problem.matrices();
     let files = write_matrices(&args.out, a.hessian(), a.mass(), true)?;

@@ -8,7 +8,7 @@
 use super::iterate::{State, Stop};
 use super::operators::Operators;
 use super::options::{LobpcgOptions, PreconditionerKind};
-use super::precondition::{self, Preconditioner, SetupReport};
+use super::precondition::{self, Pencil, Preconditioner, SetupReport};
 use crate::eigen::operator_problem::{
     check_solution_operators, constant_mode_of, estimate_norm_1, OperatorProblem,
 };
@@ -121,7 +121,9 @@ pub(super) fn solve(
             },
         )),
         (None, Some((ha, ma)), _) => precondition::build(ha, ma, opts, nx, par),
-        (None, None, Some((hu, mu))) => precondition::build_upper(hu, mu, opts),
+        (None, None, Some((hu, mu))) => {
+            precondition::build_pencil(Pencil::Upper(hu, mu), opts, nx, par)
+        }
         (None, None, None) => precondition::build_matrix_free(h, m, opts),
     };
     let (mut pre, mut report) = match built {
@@ -152,8 +154,13 @@ pub(super) fn solve(
     };
     // Auto with IC(0) may switch to the exact factor after `escalate_after` iterations if
     // that factor fits in `max_factor_entries` (IC(0) degrades when M is ill-conditioned).
+    let pencil = match (assembled, upper) {
+        (Some((ha, ma)), _) => Some(Pencil::Full(ha, ma)),
+        (None, Some((hu, mu))) => Some(Pencil::Upper(hu, mu)),
+        (None, None) => None,
+    };
     let can_escalate = opts.preconditioner == PreconditionerKind::Auto
-        && assembled.is_some()
+        && pencil.is_some()
         && matches!(pre, Preconditioner::Incomplete(_))
         && report
             .exact_entries
@@ -166,10 +173,9 @@ pub(super) fn solve(
         Ok(()) => state.run(request.tol, first_cap, opts, &mut pre, progress),
         Err(stop) => stop,
     };
-    if let (Stop::MaxIter, true, Some((ha, ma))) = (&stop, first_cap < request.max_iter, assembled)
-    {
+    if let (Stop::MaxIter, true, Some(pencil)) = (&stop, first_cap < request.max_iter, pencil) {
         let notes_before = report.notes.len();
-        if let Some(exact) = precondition::escalate(ha, ma, opts, nx, par, &mut report) {
+        if let Some(exact) = precondition::escalate(pencil, opts, nx, par, &mut report) {
             pre = exact;
             info.notes.push(format!(
                 "preconditioner: IC(0) not converged after {first_cap} iterations; switched to the exact Cholesky"

@@ -86,10 +86,63 @@ pub(super) struct SetupReport {
     pub notes: Vec<String>,
 }
 
+/// Assembled H and M as the preconditioner reads them: both triangles, or upper triangles of
+/// one pattern (`crate::triangle`).
+#[derive(Clone, Copy)]
+pub(super) enum Pencil<'a> {
+    Full(SparseMatrixRef<'a>, SparseMatrixRef<'a>),
+    Upper(UpperRef<'a>, UpperRef<'a>),
+}
+
+impl<'a> Pencil<'a> {
+    /// The diagonals of H and M.
+    fn diagonals(&self) -> (Vec<f64>, Vec<f64>) {
+        match self {
+            Pencil::Full(h, m) => (sparse::diagonal(*h), sparse::diagonal(*m)),
+            Pencil::Upper(h, m) => (h.diagonal(), m.diagonal()),
+        }
+    }
+
+    /// K.
+    fn dim(&self) -> usize {
+        match self {
+            Pencil::Full(h, _) => h.nrows(),
+            Pencil::Upper(h, _) => h.dim(),
+        }
+    }
+
+    /// Entries of the lower triangle of A = H + sigma M at least (the larger of H's and M's).
+    fn lower_entries(&self) -> usize {
+        match self {
+            Pencil::Full(h, m) => (h.val().len().max(m.val().len()) + h.nrows()) / 2,
+            Pencil::Upper(h, _) => h.val().len(),
+        }
+    }
+
+    /// IC(0) of H + sigma M with Manteuffel's shift alpha.
+    fn factor_incomplete(
+        &self,
+        sigma: f64,
+        alpha: f64,
+    ) -> Result<IncompleteCholesky<'a>, Breakdown> {
+        match *self {
+            Pencil::Full(h, m) => IncompleteCholesky::factor(h, m, sigma, alpha),
+            Pencil::Upper(h, m) => IncompleteCholesky::factor_upper(h, m, sigma, alpha),
+        }
+    }
+}
+
 /// The shift sigma of H + sigma M from the options: `shift_factor * tr(H) / tr(M)`.
+#[cfg(test)]
 pub(super) fn shift(h: SparseMatrixRef<'_>, m: SparseMatrixRef<'_>, opts: &LobpcgOptions) -> f64 {
-    let ratio = sparse::trace(h) / sparse::trace(m);
-    opts.shift_factor * ratio
+    shift_of(&Pencil::Full(h, m), opts)
+}
+
+/// [`shift`] for either storage (the traces are the same sums).
+fn shift_of(pencil: &Pencil<'_>, opts: &LobpcgOptions) -> f64 {
+    let (dh, dm) = pencil.diagonals();
+    let trace = |d: &[f64]| -> f64 { d.iter().sum() };
+    opts.shift_factor * (trace(&dh) / trace(&dm))
 }
 
 /// Build the preconditioner for block products of up to `max_cols` columns.
@@ -100,8 +153,18 @@ pub(super) fn build<'a>(
     max_cols: usize,
     par: Par,
 ) -> Result<(Preconditioner<'a>, SetupReport), EigenError> {
+    build_pencil(Pencil::Full(h, m), opts, max_cols, par)
+}
+
+/// [`build`] for either storage of H and M.
+pub(super) fn build_pencil<'a>(
+    pencil: Pencil<'a>,
+    opts: &LobpcgOptions,
+    max_cols: usize,
+    par: Par,
+) -> Result<(Preconditioner<'a>, SetupReport), EigenError> {
     let mut report = SetupReport {
-        sigma: shift(h, m, opts),
+        sigma: shift_of(&pencil, opts),
         ..SetupReport::default()
     };
     if !(report.sigma.is_finite() && report.sigma > 0.0) {
@@ -142,19 +205,19 @@ pub(super) fn build<'a>(
                 // while the exact factor is analysed, ready for when the analysis rejects it.
                 let sigma = report.sigma;
                 let (exact, ic) = rayon::join(
-                    || cholesky(h, m, sigma, budget, max_cols, par, &mut report),
+                    || cholesky(pencil, sigma, budget, max_cols, par, &mut report),
                     || {
                         let mut ic_report = SetupReport {
                             sigma,
                             ..SetupReport::default()
                         };
-                        (incomplete(h, m, sigma, &mut ic_report), ic_report)
+                        (incomplete(pencil, sigma, &mut ic_report), ic_report)
                     },
                 );
                 early_incomplete = Some(ic);
                 exact
             } else {
-                cholesky(h, m, report.sigma, budget, max_cols, par, &mut report)
+                cholesky(pencil, report.sigma, budget, max_cols, par, &mut report)
             };
             match outcome {
                 Ok(pre) => return Ok((pre, report)),
@@ -213,13 +276,14 @@ pub(super) fn build<'a>(
                 report.notes.extend(ic_report.notes);
                 ic
             }
-            _ => incomplete(h, m, report.sigma, &mut report),
+            _ => incomplete(pencil, report.sigma, &mut report),
         };
         if let Some(ic) = ic {
             return Ok((Preconditioner::Incomplete(Box::new(ic)), report));
         }
     }
-    let inv_diag = jacobi(h, m, report.sigma)?;
+    let (dh, dm) = pencil.diagonals();
+    let inv_diag = jacobi_from_diagonals(&dh, &dm, report.sigma)?;
     report.notes.push(format!(
         "preconditioner: Jacobi, diag(H + sigma M)^-1, sigma = {:.3e}",
         report.sigma
@@ -298,8 +362,7 @@ pub(super) fn build_matrix_free(
 /// that chose IC(0) and then converged too slowly; `None` (with a note) if the factor does
 /// not fit in `max_factor_entries` or fails.
 pub(super) fn escalate(
-    h: SparseMatrixRef<'_>,
-    m: SparseMatrixRef<'_>,
+    pencil: Pencil<'_>,
     opts: &LobpcgOptions,
     max_cols: usize,
     par: Par,
@@ -309,7 +372,7 @@ pub(super) fn escalate(
         entries: opts.max_factor_entries,
         fill_ratio: f64::INFINITY,
     };
-    match cholesky(h, m, report.sigma, budget, max_cols, par, report) {
+    match cholesky(pencil, report.sigma, budget, max_cols, par, report) {
         Ok(pre) => Some(pre),
         Err(CholeskyFailure::OverBudget { entries, .. }) => {
             report.notes.push(format!(
@@ -329,13 +392,12 @@ pub(super) fn escalate(
 /// IC(0) of H + sigma M, with Manteuffel's diagonal shift alpha = 0, 1e-3, 1e-2, 1e-1, 1 on
 /// breakdown; `None` (with a note) if every attempt breaks down.
 fn incomplete<'a>(
-    h: SparseMatrixRef<'a>,
-    m: SparseMatrixRef<'a>,
+    pencil: Pencil<'a>,
     sigma: f64,
     report: &mut SetupReport,
 ) -> Option<IncompleteCholesky<'a>> {
     incomplete_with(sigma, report, |alpha| {
-        IncompleteCholesky::factor(h, m, sigma, alpha)
+        pencil.factor_incomplete(sigma, alpha)
     })
 }
 
@@ -372,70 +434,6 @@ fn incomplete_with<'a>(
     None
 }
 
-/// The preconditioner for H and M stored as upper triangles of one pattern: IC(0) for `Auto`
-/// and `IncompleteCholesky` (the exact factor would need both triangles: `Auto` does not
-/// consider it), Jacobi and Identity as for matrices. The shift is `shift_factor * tr(H) /
-/// tr(M)`, the same bits as [`build`]'s.
-///
-/// # Errors
-/// [`EigenError::InvalidRequest`] for `Cholesky`; [`EigenError::NotPositiveDefinite`] for a
-/// non-positive shift or diagonal of H + sigma M.
-pub(super) fn build_upper<'a>(
-    h: UpperRef<'a>,
-    m: UpperRef<'a>,
-    opts: &LobpcgOptions,
-) -> Result<(Preconditioner<'a>, SetupReport), EigenError> {
-    let kind = opts.preconditioner;
-    if kind == PreconditionerKind::Cholesky {
-        return Err(EigenError::InvalidRequest(
-            "preconditioner cholesky factors H + sigma M with fill, which needs both triangles, \
-             but H and M are stored as upper triangles (matrix_storage = \"upper\"): choose \
-             auto, incomplete_cholesky, jacobi or identity, or matrix_storage = \"full\""
-                .into(),
-        ));
-    }
-    let (dh, dm) = (h.diagonal(), m.diagonal());
-    let trace = |d: &[f64]| d.iter().sum::<f64>();
-    let mut report = SetupReport {
-        sigma: opts.shift_factor * (trace(&dh) / trace(&dm)),
-        ..SetupReport::default()
-    };
-    if !(report.sigma.is_finite() && report.sigma > 0.0) {
-        return Err(EigenError::NotPositiveDefinite {
-            what: "H + sigma M",
-            detail: format!(
-                "shift sigma = {:e} from tr(H)/tr(M) is not positive",
-                report.sigma
-            ),
-        });
-    }
-    if kind == PreconditionerKind::Identity {
-        report.sigma = 0.0;
-        report.notes.push("preconditioner: none (identity)".into());
-        return Ok((Preconditioner::Identity, report));
-    }
-    if kind != PreconditionerKind::Jacobi {
-        report.notes.push(
-            "preconditioner: H and M stored as upper triangles: IC(0) (the exact Cholesky \
-             factor is not considered)"
-                .into(),
-        );
-        let sigma = report.sigma;
-        let ic = incomplete_with(sigma, &mut report, |alpha| {
-            IncompleteCholesky::factor_upper(h, m, sigma, alpha)
-        });
-        if let Some(ic) = ic {
-            return Ok((Preconditioner::Incomplete(Box::new(ic)), report));
-        }
-    }
-    let inv_diag = jacobi_from_diagonals(&dh, &dm, report.sigma)?;
-    report.notes.push(format!(
-        "preconditioner: Jacobi, diag(H + sigma M)^-1, sigma = {:.3e}",
-        report.sigma
-    ));
-    Ok((Preconditioner::Jacobi { inv_diag }, report))
-}
-
 /// Limits on the exact factor for `Auto`.
 #[derive(Debug, Clone, Copy)]
 struct Budget {
@@ -461,8 +459,7 @@ enum CholeskyFailure {
 const MIN_FILL: f64 = 2.0;
 
 fn cholesky(
-    h: SparseMatrixRef<'_>,
-    m: SparseMatrixRef<'_>,
+    pencil: Pencil<'_>,
     sigma: f64,
     budget: Budget,
     max_cols: usize,
@@ -471,8 +468,7 @@ fn cholesky(
 ) -> Result<Preconditioner<'static>, CholeskyFailure> {
     // A = H + sigma M has the union of the two patterns, so at least as many entries as
     // either: a bound known before A is formed (4 GB at K = 1,000,000).
-    let lower = (h.val().len().max(m.val().len()) + h.nrows()) / 2;
-    let least = (lower as f64 * MIN_FILL) as usize;
+    let least = (pencil.lower_entries() as f64 * MIN_FILL) as usize;
     if least > budget.entries {
         return Err(CholeskyFailure::OverBudget {
             entries: least,
@@ -481,24 +477,38 @@ fn cholesky(
         });
     }
     // With one pattern for H and M (the assembled pencil) the analysis reads H's, and A is
-    // formed only for a factor within budget; otherwise A's pattern is the union.
-    let same = sparse::same_pattern(h, m);
-    if !same && h.val().len() + m.val().len() > sparse::MAX_ENTRIES {
-        return Err(CholeskyFailure::Failed(
-            "the union of the patterns of H and M may exceed a SparseMatrix's u32 range".into(),
-        ));
-    }
-    let union = (!same).then(|| sparse::add_scaled(1.0, h, sigma, m));
-    let pattern = union.as_ref().map_or(h, |u| u.as_ref()).symbolic();
-    let lower = (pattern.row_idx().len() + h.nrows()) / 2;
+    // formed only for a factor within budget; otherwise A's pattern is the union. An upper
+    // triangle is analysed and factored as faer's `Side::Upper`.
+    let (union, side) = match pencil {
+        Pencil::Full(h, m) => {
+            let same = sparse::same_pattern(h, m);
+            if !same && h.val().len() + m.val().len() > sparse::MAX_ENTRIES {
+                return Err(CholeskyFailure::Failed(
+                    "the union of the patterns of H and M may exceed a SparseMatrix's u32 range"
+                        .into(),
+                ));
+            }
+            (
+                (!same).then(|| sparse::add_scaled(1.0, h, sigma, m)),
+                Side::Lower,
+            )
+        }
+        Pencil::Upper(..) => (None, Side::Upper),
+    };
+    let pattern = match (&union, pencil) {
+        (Some(u), _) => u.as_ref().symbolic(),
+        (None, Pencil::Full(h, _)) => h.symbolic(),
+        (None, Pencil::Upper(h, _)) => h.pattern().symbolic(),
+    };
+    let k = pencil.dim();
+    let lower = match side {
+        Side::Lower => (pattern.row_idx().len() + k) / 2,
+        Side::Upper => pattern.row_idx().len(),
+    };
     let t0 = Instant::now();
-    let symbolic = factorize_symbolic_cholesky(
-        pattern,
-        Side::Lower,
-        SymmetricOrdering::Amd,
-        Default::default(),
-    )
-    .map_err(|e| CholeskyFailure::Failed(format!("symbolic analysis: {e:?}")))?;
+    let symbolic =
+        factorize_symbolic_cholesky(pattern, side, SymmetricOrdering::Amd, Default::default())
+            .map_err(|e| CholeskyFailure::Failed(format!("symbolic analysis: {e:?}")))?;
     report.symbolic_seconds = t0.elapsed().as_secs_f64();
     let entries = symbolic.len_val();
     report.factor_entries = entries;
@@ -511,9 +521,27 @@ fn cholesky(
             analysed: true,
         });
     }
-    let a = match union {
-        Some(a) => a,
-        None => sparse::add_scaled(1.0, h, sigma, m),
+    // A's values on the pattern analysed.
+    let upper_values: Vec<f64>;
+    let formed;
+    let a = match (union, pencil) {
+        (Some(a), _) => {
+            formed = a;
+            formed.as_ref()
+        }
+        (None, Pencil::Full(h, m)) => {
+            formed = sparse::add_scaled(1.0, h, sigma, m);
+            formed.as_ref()
+        }
+        (None, Pencil::Upper(h, m)) => {
+            upper_values = h
+                .val()
+                .iter()
+                .zip(m.val())
+                .map(|(&a, &b)| 1.0 * a + sigma * b)
+                .collect();
+            SparseMatrixRef::new(h.pattern().symbolic(), &upper_values)
+        }
     };
     let mut values = Vec::new();
     values
@@ -528,8 +556,8 @@ fn cholesky(
         symbolic
             .factorize_numeric_llt(
                 &mut values,
-                a.as_ref(),
-                Side::Lower,
+                a,
+                side,
                 Default::default(),
                 par,
                 MemStack::new(&mut mem),
@@ -561,14 +589,6 @@ fn cholesky(
         values,
         mem,
     })))
-}
-
-fn jacobi(
-    h: SparseMatrixRef<'_>,
-    m: SparseMatrixRef<'_>,
-    sigma: f64,
-) -> Result<Vec<f64>, EigenError> {
-    jacobi_from_diagonals(&sparse::diagonal(h), &sparse::diagonal(m), sigma)
 }
 
 /// diag(H + sigma M)^-1 from the two diagonals (both length K).
