@@ -526,6 +526,22 @@ pub fn first_non_finite(a: SparseMatrixRef<'_>) -> Option<(usize, usize)> {
     })
 }
 
+/// Neumaier's compensated sum (error ~ eps |sum| + n eps^2 sum |x|, independent of the length
+/// to first order), in iteration order: deterministic.
+pub fn compensated_sum(values: impl Iterator<Item = f64>) -> f64 {
+    let (mut sum, mut comp) = (0.0f64, 0.0f64);
+    for v in values {
+        let t = sum + v;
+        comp += if sum.abs() >= v.abs() {
+            (sum - t) + v
+        } else {
+            (v - t) + sum
+        };
+        sum = t;
+    }
+    sum + comp
+}
+
 /// Sorted (row index, value) pairs of column j, duplicates summed (handles unsorted input).
 pub(crate) fn sorted_column(a: SparseMatrixRef<'_>, j: usize, out: &mut Vec<(usize, f64)>) {
     let sym = a.symbolic();

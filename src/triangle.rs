@@ -285,24 +285,15 @@ impl<'a> UpperRef<'a> {
     pub fn sum_all(&self) -> f64 {
         let rows = self.pattern.row_idx();
         let ptr = self.pattern.col_ptr();
-        let (mut sum, mut comp) = (0.0f64, 0.0f64);
-        for j in 0..self.dim() {
-            for p in ptr[j] as usize..ptr[j + 1] as usize {
-                let v = if rows[p] as usize == j {
+        sparse::compensated_sum((0..self.dim()).flat_map(|j| {
+            (ptr[j] as usize..ptr[j + 1] as usize).map(move |p| {
+                if rows[p] as usize == j {
                     self.val[p]
                 } else {
                     2.0 * self.val[p]
-                };
-                let t = sum + v;
-                comp += if sum.abs() >= v.abs() {
-                    (sum - t) + v
-                } else {
-                    (v - t) + sum
-                };
-                sum = t;
-            }
-        }
-        sum + comp
+                }
+            })
+        }))
     }
 
     /// Both triangles as a [`SparseMatrix`] (rows ascending in each column): for consumers

@@ -774,21 +774,8 @@ pub fn constant_mode_from_sum(k: usize, total: f64) -> Result<Vec<f64>, EigenErr
     Ok(vec![1.0 / total.sqrt(); k])
 }
 
-/// Neumaier's compensated sum (error ~ eps |sum| + n eps^2 sum |x|, independent of the length
-/// to first order), in iteration order: deterministic.
-pub fn compensated_sum(values: impl Iterator<Item = f64>) -> f64 {
-    let (mut sum, mut comp) = (0.0f64, 0.0f64);
-    for v in values {
-        let t = sum + v;
-        comp += if sum.abs() >= v.abs() {
-            (sum - t) + v
-        } else {
-            (v - t) + sum
-        };
-        sum = t;
-    }
-    sum + comp
-}
+/// Neumaier's compensated sum ([`crate::sparse::compensated_sum`]).
+pub use crate::sparse::compensated_sum;
 
 /// The library's pseudo-random generator ([`crate::random`]), for start vectors and synthetic
 /// test data.

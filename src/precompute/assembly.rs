@@ -138,6 +138,17 @@ impl Assembled {
     }
 }
 
+/// An error for the first non-finite sum of H_w's values then M's.
+fn check_finite(hval: &[f64], mval: &[f64]) -> Result<()> {
+    match hval.iter().chain(mval).position(|v| !v.is_finite()) {
+        Some(bad) => Err(Error::NonFinite {
+            what: "assembled matrices (check volumes and material values)",
+            index: bad,
+        }),
+        None => Ok(()),
+    }
+}
+
 /// One upper-triangle row: columns ascending, with the H and M sums.
 #[derive(Debug, Clone, Default)]
 struct Row {
@@ -310,6 +321,17 @@ impl Accumulator {
     /// [`Error::InvalidParameter`] for an accumulator of some rows only
     /// ([`Accumulator::for_rows`]); [`Error::NonFinite`] when a sum is not finite (bad volumes or material values).
     pub fn finish(self) -> Result<Assembled> {
+        let k = self.whole()?;
+        let mut rows = self.rows;
+        let (ptr, idx, hval, mval) = mirror(&mut rows, k)?;
+        drop(rows);
+        crate::report::release_freed_memory();
+        check_finite(&hval, &mval)?;
+        Ok(Assembled::from_compressed(k, ptr, idx, hval, mval))
+    }
+
+    /// K, or an error for an accumulator of some rows only (no whole matrices).
+    fn whole(&self) -> Result<usize> {
         let k = self.rows.len();
         if self.own != (0..k) {
             return Err(Error::param(
@@ -318,17 +340,7 @@ impl Accumulator {
                 "an accumulator of some rows only has no full matrices: use finish_rows",
             ));
         }
-        let mut rows = self.rows;
-        let (ptr, idx, hval, mval) = mirror(&mut rows, k)?;
-        drop(rows);
-        crate::report::release_freed_memory();
-        if let Some(bad) = hval.iter().chain(&mval).position(|v| !v.is_finite()) {
-            return Err(Error::NonFinite {
-                what: "assembled matrices (check volumes and material values)",
-                index: bad,
-            });
-        }
-        Ok(Assembled::from_compressed(k, ptr, idx, hval, mval))
+        Ok(k)
     }
 }
 
@@ -340,14 +352,7 @@ impl Accumulator {
     /// # Errors
     /// As [`Accumulator::finish`].
     pub fn finish_upper(self) -> Result<Assembled> {
-        let k = self.rows.len();
-        if self.own != (0..k) {
-            return Err(Error::param(
-                "rows",
-                format!("{:?}", self.own),
-                "an accumulator of some rows only has no full matrices: use finish_rows",
-            ));
-        }
+        let k = self.whole()?;
         let mut rows = self.rows;
         // Row i of the upper triangle holds columns j >= i; column j of the CSC gets them in
         // ascending i, so its rows are sorted and its diagonal (from row j) comes last.
@@ -377,12 +382,7 @@ impl Accumulator {
         }
         drop((rows, next));
         crate::report::release_freed_memory();
-        if let Some(bad) = hval.iter().chain(&mval).position(|v| !v.is_finite()) {
-            return Err(Error::NonFinite {
-                what: "assembled matrices (check volumes and material values)",
-                index: bad,
-            });
-        }
+        check_finite(&hval, &mval)?;
         let pattern = UpperPattern::new(k, ptr, idx)
             .map_err(|e| Error::param("assembly", "upper triangle", format!("internal: {e}")))?;
         Ok(Assembled::from_upper(UpperPencil::new(pattern, hval, mval)))

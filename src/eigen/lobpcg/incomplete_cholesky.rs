@@ -90,17 +90,22 @@ impl<'a> IncompleteCholesky<'a> {
             Some(ic) => ic?,
             None => lower_pencil(h, m, sigma)?,
         };
-        // Manteuffel's shift on the diagonal (last in each row).
-        for &end in &ic.ptr[1..] {
-            ic.val[end - 1] *= 1.0 + alpha;
+        ic.shift_and_factor(alpha)?;
+        Ok(ic)
+    }
+
+    /// Manteuffel's shift `alpha` on the diagonal (last in each row), then the factorization
+    /// in place.
+    fn shift_and_factor(&mut self, alpha: f64) -> Result<(), Breakdown> {
+        for &end in &self.ptr[1..] {
+            self.val[end - 1] *= 1.0 + alpha;
         }
         let rows = Rows {
-            ptr: &ic.ptr,
-            idx_start: &ic.idx_start,
-            idx: &ic.idx,
+            ptr: &self.ptr,
+            idx_start: &self.idx_start,
+            idx: &self.idx,
         };
-        factor_rows(rows, &mut ic.val)?;
-        Ok(ic)
+        factor_rows(rows, &mut self.val)
     }
 
     /// [`IncompleteCholesky::factor`] for H and M stored as upper triangles of one pattern
@@ -119,28 +124,19 @@ impl<'a> IncompleteCholesky<'a> {
         assert!(h.same_pattern(&m), "factor_upper: two patterns");
         let pattern = h.pattern();
         let ptr: Vec<usize> = pattern.col_ptr().iter().map(|&p| p as usize).collect();
-        let mut val: Vec<f64> = h
+        let val: Vec<f64> = h
             .val()
             .iter()
             .zip(m.val())
             .map(|(&a, &b)| 1.0 * a + sigma * b)
             .collect();
-        // Manteuffel's shift on the diagonal (last in each column of the pattern).
-        for &end in &ptr[1..] {
-            val[end - 1] *= 1.0 + alpha;
-        }
         let mut ic = IncompleteCholesky {
             idx_start: ptr[..ptr.len() - 1].to_vec(),
             ptr,
             idx: Cow::Borrowed(pattern.row_idx()),
             val,
         };
-        let rows = Rows {
-            ptr: &ic.ptr,
-            idx_start: &ic.idx_start,
-            idx: &ic.idx,
-        };
-        factor_rows(rows, &mut ic.val)?;
+        ic.shift_and_factor(alpha)?;
         Ok(ic)
     }
 
