@@ -8,8 +8,10 @@
 //! - the stream: one chunk's shape functions and their transpose;
 //! - H_w and M: nnz ~ 8 x the kernels covering a point (the pairs of kernels whose supports
 //!   overlap), ~280 per row at the default support, scaling with the support volume; one
-//!   pattern of u32 indices shared by both matrices, 20 bytes per non-zero, plus the upper
-//!   triangle they are mirrored from;
+//!   pattern of u32 indices shared by both matrices, 20 bytes per non-zero with both
+//!   triangles (plus the upper triangle they are mirrored from while they are built), 10 with
+//!   the upper triangle alone ([`upper_triangle_storage`]; plus the accumulated rows while
+//!   they are transposed);
 //! - the eigensolve (while H_w and M are held): LOBPCG's IC(0) factor and its dense
 //!   K x 3 (m + 1) blocks; SLEPc's copies; the dense solver's K x K matrices.
 
