@@ -109,6 +109,16 @@ impl Assembled {
         SparseMatrixRef::new(full.pattern.as_ref(), &full.mass)
     }
 
+    /// Both triangles only: upper-triangle storage is mirrored and then dropped (the peak is
+    /// both storages at once, as while the assembly mirrors); full storage as it is.
+    pub fn into_full(self) -> Assembled {
+        self.full();
+        Assembled {
+            full: self.full,
+            upper: None,
+        }
+    }
+
     /// H_w and M as upper triangles, when that is how they are stored.
     pub fn upper(&self) -> Option<&UpperPencil> {
         self.upper.as_ref()

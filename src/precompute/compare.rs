@@ -218,7 +218,9 @@ fn run_one(
 impl Problem {
     /// Compare `solvers` on this problem's H_w and M at its request ([`Problem::request`]):
     /// [`compare_solvers`] with the problem's sizes. `matrices_s` is the problem's build time
-    /// (`timings().total`).
+    /// (`timings().total`). Every solver gets both triangles: a problem stored as the upper
+    /// triangle mirrors it beside itself (build it with `MatrixStorage::Full` to hold one
+    /// storage).
     ///
     /// # Errors
     /// As [`compare_solvers`].

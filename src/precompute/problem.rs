@@ -409,6 +409,14 @@ impl Problem {
         let clock = Stopwatch::start();
         check_cancelled(progress, "eigensolve")?;
         let regions = &opts.boundary_regions;
+        // A solver that reads both triangles gets them in place of the upper triangle (not
+        // beside it).
+        let assembled = match assembled.upper() {
+            Some(_) if !regions.is_empty() || !solver.solves_upper_triangles() => {
+                assembled.into_full()
+            }
+            _ => assembled,
+        };
         // A boundary-aware basis solves the grounded restricted problem (boundary_modes.rs)
         // for the free modes; the lifts come after the solve.
         let aware = if regions.is_empty() {

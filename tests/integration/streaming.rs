@@ -379,6 +379,23 @@ fn upper_triangle_storage_holds_the_same_sums_and_gives_the_same_basis() {
     assert_eq!(a.basis.eigenvalues, b.basis.eigenvalues);
     assert_eq!(a.basis.coefficients, b.basis.coefficients);
 
+    // A problem stored as the upper triangle (the default for the native solver), solved by
+    // a solver that reads both triangles: they are mirrored for it, and it finds the same
+    // pairs (to the dense solver's agreement with LOBPCG: the tolerance, 1e-8, relative).
+    let auto = BasisOptions {
+        kernels: 120,
+        modes: 6,
+        ..BasisOptions::default()
+    };
+    let problem = Problem::from_points(ip.clone(), mat.clone(), &auto, &Silent).unwrap();
+    assert!(problem.matrices().upper().is_some());
+    let dense = problem
+        .solve_with(&freeform::eigen::dense::DenseSolver, &Silent)
+        .unwrap();
+    for (x, y) in dense.basis.eigenvalues.iter().zip(&a.basis.eigenvalues) {
+        assert!((x - y).abs() <= 1e-8 * y.abs(), "{x} vs {y}");
+    }
+
     // Only the native solver takes the triangle, and not with boundary regions.
     let dense = BasisOptions {
         matrix_storage: MatrixStorage::Upper,
