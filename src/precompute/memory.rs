@@ -10,12 +10,12 @@
 //!   overlap), ~280 per row at the default support, scaling with the support volume; one
 //!   pattern of u32 indices shared by both matrices, 20 bytes per non-zero with both
 //!   triangles (plus the upper triangle they are mirrored from while they are built), 10 with
-//!   the upper triangle alone ([`upper_triangle_storage`]; plus the accumulated rows while
+//!   the upper triangle alone ([`BasisOptions::upper_triangle_storage`]; plus the accumulated rows while
 //!   they are transposed);
 //! - the eigensolve (while H_w and M are held): LOBPCG's IC(0) factor and its dense
 //!   K x 3 (m + 1) blocks; SLEPc's copies; the dense solver's K x K matrices.
 
-use super::options::{default_points, BasisOptions, MatrixStorage};
+use super::options::{default_points, BasisOptions};
 use super::rkpm::CHUNK_POINTS;
 use super::sampling::Resolution;
 use super::solver::SolverConfig;
@@ -88,22 +88,10 @@ pub struct MemoryEstimate {
     /// Memory available at the check (MemAvailable or the [`MEMORY_LIMIT_ENV`] limit), bytes;
     /// 0 when unknown (no check was made).
     pub available_bytes: u64,
-    /// The estimate is for H_w and M stored as upper triangles ([`upper_triangle_storage`]).
+    /// The estimate is for H_w and M stored as upper triangles
+    /// ([`BasisOptions::upper_triangle_storage`]).
     #[serde(default)]
     pub upper_triangle: bool,
-}
-
-/// Whether `opts` store H_w and M as upper triangles: `matrix_storage = "upper"`, or `"auto"`
-/// with the native LOBPCG solver and no boundary regions (the solver takes the triangle as
-/// is, with the same bits; every other consumer reads both triangles).
-pub fn upper_triangle_storage(opts: &BasisOptions) -> bool {
-    match opts.matrix_storage {
-        MatrixStorage::Upper => true,
-        MatrixStorage::Full => false,
-        MatrixStorage::Auto => {
-            matches!(opts.solver, SolverConfig::Lobpcg(_)) && opts.boundary_regions.is_empty()
-        }
-    }
 }
 
 /// Bytes of H_w and M at rest, and while they are built from the accumulated rows (the rows,
@@ -135,7 +123,7 @@ impl MemoryEstimate {
         let points_bytes = BYTES_PER_POINT * n;
         let chunk = n.min(CHUNK_POINTS as f64);
         let stream_bytes = chunk * cover * BYTES_PER_PAIR + 16.0 * k;
-        let upper = upper_triangle_storage(opts);
+        let upper = opts.upper_triangle_storage();
         let (matrices, building) = matrices_bytes(nnz, k, upper);
         let nev = opts.modes as f64 + 1.0;
         let eigensolver = match opts.solver {

@@ -90,26 +90,26 @@ pub enum MatrixStorage {
 }
 
 impl MatrixStorage {
+    /// Every storage, in the command line's order of choices.
+    pub const ALL: [MatrixStorage; 3] = [
+        MatrixStorage::Auto,
+        MatrixStorage::Full,
+        MatrixStorage::Upper,
+    ];
+
     /// The default (`Auto`), for `skip_serializing_if`.
     pub fn is_auto(&self) -> bool {
         *self == MatrixStorage::Auto
     }
-}
 
-impl std::str::FromStr for MatrixStorage {
-    type Err = Error;
+    /// Lower-case name as used on the command line and in files.
+    pub fn name(self) -> &'static str {
+        crate::names::variant_name(&self)
+    }
 
-    fn from_str(s: &str) -> Result<Self> {
-        match s {
-            "auto" => Ok(MatrixStorage::Auto),
-            "full" => Ok(MatrixStorage::Full),
-            "upper" => Ok(MatrixStorage::Upper),
-            other => Err(Error::param(
-                "matrix_storage",
-                other,
-                "expected auto, full or upper",
-            )),
-        }
+    /// Parse a lower-case name.
+    pub fn from_name(name: &str) -> Option<Self> {
+        crate::names::from_name(name)
     }
 }
 
@@ -180,6 +180,19 @@ impl BasisOptions {
         };
         field.apply_overrides(points, &self.overrides)?;
         Ok(field)
+    }
+
+    /// Whether H_w and M are stored as upper triangles: `matrix_storage = "upper"`, or
+    /// `"auto"` with the native LOBPCG solver and no boundary regions (the solver takes the
+    /// triangle as is, with the same bits; every other consumer reads both triangles).
+    pub fn upper_triangle_storage(&self) -> bool {
+        match self.matrix_storage {
+            MatrixStorage::Upper => true,
+            MatrixStorage::Full => false,
+            MatrixStorage::Auto => {
+                matches!(self.solver, SolverConfig::Lobpcg(_)) && self.boundary_regions.is_empty()
+            }
+        }
     }
 
     /// Check every parameter's range (before any work is done).

@@ -7,7 +7,7 @@ use super::boundary_modes;
 use super::centers::{farthest_point_sampling_scaled, morton_order};
 use super::coverage::{cover_shape_surface, enlarge_near};
 use super::density::{kernel_scale, WholeObject};
-use super::memory::{expected_points, upper_triangle_storage, MemoryEstimate};
+use super::memory::{expected_points, MemoryEstimate};
 use super::options::BasisOptions;
 use super::quality::{CoverageReport, ModesReport, SolveFacts};
 use super::rkpm::{self, support_radii, Kernels, ReproducingError};
@@ -246,7 +246,7 @@ impl Problem {
             &volumes,
             &weights,
             opts,
-            upper_triangle_storage(opts),
+            opts.upper_triangle_storage(),
             progress,
             std::mem::take(&mut surface.enlarged),
         )

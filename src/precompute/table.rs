@@ -385,19 +385,10 @@ pub static MAX_ITER: BasisOption = row(
 /// How H_w and M are stored.
 pub static MATRIX_STORAGE: BasisOption = row(
     &options::MATRIX_STORAGE,
-    ValueKind::Choice(|| vec!["auto", "full", "upper"]),
-    |d| {
-        Some(Value::Text(
-            match d.options.matrix_storage {
-                MatrixStorage::Auto => "auto",
-                MatrixStorage::Full => "full",
-                MatrixStorage::Upper => "upper",
-            }
-            .to_string(),
-        ))
-    },
+    ValueKind::Choice(|| MatrixStorage::ALL.iter().map(|s| s.name()).collect()),
+    |d| Some(Value::Text(d.options.matrix_storage.name().to_string())),
     |row, c, v| {
-        c.options.matrix_storage = row.choice(v, |s| s.parse().ok())?;
+        c.options.matrix_storage = row.choice(v, MatrixStorage::from_name)?;
         Ok(())
     },
 );

@@ -411,7 +411,6 @@ fn upper_triangle_storage_holds_the_same_sums_and_gives_the_same_basis() {
 
 #[test]
 fn auto_storage_is_the_upper_triangle_where_the_solver_takes_it() {
-    use freeform::precompute::memory::upper_triangle_storage;
     use freeform::precompute::{MatrixStorage, MemoryEstimate, SolverConfig};
     let opts = |storage| BasisOptions {
         kernels: 100_000,
@@ -429,12 +428,12 @@ fn auto_storage_is_the_upper_triangle_where_the_solver_takes_it() {
     // boundary-aware basis (which restricts both).
     let auto = MemoryEstimate::new(&opts(MatrixStorage::Auto), 2_000_000);
     assert_eq!(auto, upper);
-    assert!(upper_triangle_storage(&opts(MatrixStorage::Auto)));
+    assert!(opts(MatrixStorage::Auto).upper_triangle_storage());
     let dense = BasisOptions {
         solver: SolverConfig::Dense,
         ..opts(MatrixStorage::Auto)
     };
-    assert!(!upper_triangle_storage(&dense));
+    assert!(!dense.upper_triangle_storage());
     let aware = BasisOptions {
         boundary_regions: vec![Region::Box {
             min: [0.0; 3],
@@ -442,6 +441,6 @@ fn auto_storage_is_the_upper_triangle_where_the_solver_takes_it() {
         }],
         ..opts(MatrixStorage::Auto)
     };
-    assert!(!upper_triangle_storage(&aware));
+    assert!(!aware.upper_triangle_storage());
     assert!(!MemoryEstimate::new(&aware, 2_000_000).upper_triangle);
 }

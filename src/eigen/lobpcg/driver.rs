@@ -6,7 +6,7 @@
 //! `SparseMatrix` problem gives the same bits as before operators existed.
 
 use super::iterate::{State, Stop};
-use super::operators::Operators;
+use super::operators::{upper_pair, Operators};
 use super::options::{LobpcgOptions, PreconditionerKind};
 use super::precondition::{self, Pencil, Preconditioner, SetupReport};
 use crate::eigen::operator_problem::{
@@ -32,11 +32,13 @@ pub(super) fn solve(
     let clock = Instant::now();
     let (h, m) = (problem.h, problem.m);
     let assembled = h.assembled().zip(m.assembled());
-    // Upper triangles of one pattern (another pair of upper triangles goes matrix-free).
-    let upper = h
-        .upper_triangle()
-        .zip(m.upper_triangle())
-        .filter(|(a, b)| a.same_pattern(b));
+    let upper = upper_pair(h, m);
+    // What a factorization preconditioner is built from, if anything.
+    let pencil = match (assembled, upper) {
+        (Some((ha, ma)), _) => Some(Pencil::Full(ha, ma)),
+        (None, Some((hu, mu))) => Some(Pencil::Upper(hu, mu)),
+        (None, None) => None,
+    };
     if let Some((hu, mu)) = upper {
         for (name, a) in [("H", hu), ("M", mu)] {
             if let Some((i, j)) = a.first_non_finite() {
@@ -112,19 +114,16 @@ pub(super) fn solve(
     let par = Par::rayon(0);
     progress.begin("eigen (lobpcg)", Some(request.max_iter as u64));
     let clock = Instant::now();
-    let built = match (problem.preconditioner, assembled, upper) {
-        (Some(user), ..) => Ok((
+    let built = match (problem.preconditioner, pencil) {
+        (Some(user), _) => Ok((
             Preconditioner::User(user),
             SetupReport {
                 notes: vec!["preconditioner: the caller's".into()],
                 ..SetupReport::default()
             },
         )),
-        (None, Some((ha, ma)), _) => precondition::build(ha, ma, opts, nx, par),
-        (None, None, Some((hu, mu))) => {
-            precondition::build_pencil(Pencil::Upper(hu, mu), opts, nx, par)
-        }
-        (None, None, None) => precondition::build_matrix_free(h, m, opts),
+        (None, Some(pencil)) => precondition::build_pencil(pencil, opts, nx, par),
+        (None, None) => precondition::build_matrix_free(h, m, opts),
     };
     let (mut pre, mut report) = match built {
         Ok(built) => built,
@@ -154,11 +153,6 @@ pub(super) fn solve(
     };
     // Auto with IC(0) may switch to the exact factor after `escalate_after` iterations if
     // that factor fits in `max_factor_entries` (IC(0) degrades when M is ill-conditioned).
-    let pencil = match (assembled, upper) {
-        (Some((ha, ma)), _) => Some(Pencil::Full(ha, ma)),
-        (None, Some((hu, mu))) => Some(Pencil::Upper(hu, mu)),
-        (None, None) => None,
-    };
     let can_escalate = opts.preconditioner == PreconditionerKind::Auto
         && pencil.is_some()
         && matches!(pre, Preconditioner::Incomplete(_))

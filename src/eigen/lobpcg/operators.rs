@@ -30,6 +30,17 @@ pub(super) struct Operators<'a> {
     pub norm_m: f64,
 }
 
+/// H and M as upper triangles of one pattern, when both are held so (a pair of triangles
+/// with two patterns is applied as operators).
+pub(super) fn upper_pair<'a>(
+    h: &'a dyn LinearOperator,
+    m: &'a dyn LinearOperator,
+) -> Option<(UpperRef<'a>, UpperRef<'a>)> {
+    h.upper_triangle()
+        .zip(m.upper_triangle())
+        .filter(|(a, b)| a.same_pattern(b))
+}
+
 impl<'a> Operators<'a> {
     pub fn new(
         h: &'a dyn LinearOperator,
@@ -41,10 +52,7 @@ impl<'a> Operators<'a> {
             (Some(a), Some(b)) => sparse::SharedPattern::new(a, b),
             _ => None,
         };
-        let upper = h
-            .upper_triangle()
-            .zip(m.upper_triangle())
-            .filter(|(a, b)| a.same_pattern(b));
+        let upper = upper_pair(h, m);
         Self {
             h,
             m,
