@@ -3,15 +3,15 @@
 //! 1. [`ContactWorld::sweep`]: every object's sample box at z_n and at its initial guess,
 //!    grown by the largest sample displacement between them and its contact thickness;
 //! 2. [`ContactWorld::group`]: two objects whose grown boxes meet, and which have a pair of
-//!    samples within their contact distance plus twice their displacements now, join one
-//!    island ([`Forest`]); an object with self-contact whose own samples may touch is an
-//!    island of one;
+//!    samples in contact now, join one island ([`Forest`]); an object with self-contact
+//!    whose own samples may touch is an island of one;
 //! 3. [`ContactWorld::solve_groups`]: the islands in parallel ([`super::island`]), each
 //!    stiffened and solved again while it ends deeper than the tolerance; the others step
 //!    alone, exactly as without contact;
-//! 4. [`ContactWorld::regroup`]: objects of different islands whose samples ended within
-//!    contact distance (the bound was too tight: a collider or a pile pushed harder than the
-//!    guess) are undone and solved again as one island, until none are left;
+//! 4. [`ContactWorld::regroup`]: objects of different groups with a pair of samples that
+//!    came within contact distance anywhere on their paths through the step (objects that
+//!    met, or passed through each other) are undone and solved again as one island, until
+//!    none are left;
 //! 5. [`ContactWorld::stiffen`]: raised pair stiffnesses kept for later steps;
 //! 6. [`ContactWorld::report`]: every object's step report and the step's contact figures.
 
@@ -127,6 +127,11 @@ fn bounds(x: &[Point3], grow: f64) -> (Point3, Point3) {
     (lo, hi)
 }
 
+/// |p - q|, metres.
+fn dist(p: &Point3, q: &Point3) -> f64 {
+    ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
+}
+
 fn meet(a: &(Point3, Point3), b: &(Point3, Point3)) -> bool {
     (0..3).all(|d| a.0[d] <= b.1[d] && b.0[d] <= a.1[d])
 }
@@ -210,10 +215,7 @@ impl ContactWorld {
                 let moved = x0
                     .iter()
                     .zip(&guess)
-                    .map(|(a, b)| {
-                        ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2))
-                            .sqrt()
-                    })
+                    .map(|(a, b)| dist(a, b))
                     .fold(0.0, f64::max);
                 let grow = moved + s.thickness;
                 let (lo0, hi0) = bounds(x0, grow);
@@ -239,8 +241,14 @@ impl ContactWorld {
                 if meet(&(sa.lo, sa.hi), &(sb.lo, sb.hi)) {
                     near += 1;
                     // Boxes are loose for rotated and round objects: join the two only if
-                    // some pair of their samples now is within reach (the same margin).
-                    if self.within(a, b, 2.0 * (sa.moved + sb.moved)) {
+                    // some pair of their samples is in contact now. Objects that will meet
+                    // within the step are not predicted here: each steps with its own
+                    // group, and stage 4 follows every sample's path through the step and
+                    // solves the groups whose paths met again as one island. An island of
+                    // objects that never touch costs them its Newton iterations, which
+                    // grow with its size, so predicting contact costs more than the re-solves
+                    // it saves (docs/performance.md).
+                    if self.within(a, b, 0.0) {
                         forest.union(a, b);
                     }
                 }
@@ -361,6 +369,9 @@ impl ContactWorld {
         let mut regrouped = 0;
         // Wall time of the solves undone by a regrouping, per object: counted in its report.
         let mut undone_s = vec![0.0; n];
+        // The sample positions at z_n: each sample's path in the step is the segment from
+        // there to where it ended (positions are linear in z).
+        let start = std::mem::take(&mut self.positions);
         loop {
             self.positions = sims
                 .par_iter()
@@ -379,7 +390,7 @@ impl ContactWorld {
                     if forest.joined(a, b) || group_of[a] == group_of[b] {
                         continue;
                     }
-                    if self.within(a, b, 0.0) {
+                    if self.met_on_the_way(a, b, &start) {
                         forest.union(a, b);
                         merged = true;
                     }
@@ -554,6 +565,42 @@ impl ContactWorld {
             ex,
         )
         .is_empty()
+    }
+
+    /// Whether a sample of object `a` and one of object `b` came within contact distance of
+    /// each other anywhere on their paths from `start` (positions at z_n, per object) to
+    /// their positions now, both moving along straight segments over the same step fraction
+    /// (sample positions are linear in z, and a solve of each group moves its objects from
+    /// z_n to z_{n+1}; the segment is the straight path between them). Objects that ended
+    /// apart but passed through each other on the way are caught too.
+    fn met_on_the_way(&self, a: usize, b: usize, start: &[Vec<Point3>]) -> bool {
+        let d = self.samples[a].thickness + self.samples[b].thickness;
+        let moved = |o: usize| {
+            start[o]
+                .iter()
+                .zip(&self.positions[o])
+                .map(|(p, q)| dist(p, q))
+                .fold(0.0, f64::max)
+        };
+        let reach = d + moved(a) + moved(b);
+        let pair = [start[a].as_slice(), start[b].as_slice()];
+        let (cands, _) = candidates(&pair, &|_, _| reach);
+        cands.iter().any(|c| {
+            let (p0, q0) = (start[a][c.i], start[b][c.j]);
+            let (p1, q1) = (self.positions[a][c.i], self.positions[b][c.j]);
+            // Relative position p0 - q0 + s w, s in [0, 1]: its closest approach.
+            let r: [f64; 3] = std::array::from_fn(|k| p0[k] - q0[k]);
+            let w: [f64; 3] = std::array::from_fn(|k| (p1[k] - p0[k]) - (q1[k] - q0[k]));
+            let ww = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
+            let s = if ww > 0.0 {
+                (-(r[0] * w[0] + r[1] * w[1] + r[2] * w[2]) / ww).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let closest: [f64; 3] = std::array::from_fn(|k| r[k] + s * w[k]);
+            (closest[0] * closest[0] + closest[1] * closest[1] + closest[2] * closest[2]).sqrt()
+                <= d
+        })
     }
 
     /// Whether objects `a` and `b` have samples within contact distance plus `margin`
