@@ -40,6 +40,19 @@ fn object(name: &str, shape: &str, at: [f64; 3], velocity: [f64; 3]) -> ObjectSp
     o
 }
 
+/// The scene of `builder` with the objects `a` and `b` in frictionless contact.
+fn frictionless(builder: SceneBuilder, a: ObjectSpec, b: ObjectSpec) -> Scene {
+    builder
+        .object(a)
+        .object(b)
+        .contact(ContactSettings {
+            friction: 0.0,
+            ..ContactSettings::default()
+        })
+        .build()
+        .unwrap()
+}
+
 fn world(scene: &Scene) -> World {
     World::new(scene, &RunSettings::default(), &Silent).unwrap()
 }
@@ -324,17 +337,11 @@ fn self_pair_energy_gradient_and_hessian_match_finite_differences() {
 #[test]
 fn a_head_on_collision_conserves_linear_momentum() {
     let tol = 1e-9;
-    let scene = SceneBuilder::new(0.01, 30)
-        .cache(no_cache())
-        .tol(tol)
-        .object(block("a", 0.2, [-0.25, 0.0, 0.0], [1.0, 0.0, 0.0]))
-        .object(block("b", 0.2, [0.1, 0.02, 0.0], [-0.6, 0.0, 0.0]))
-        .contact(ContactSettings {
-            friction: 0.0,
-            ..ContactSettings::default()
-        })
-        .build()
-        .unwrap();
+    let scene = frictionless(
+        SceneBuilder::new(0.01, 30).cache(no_cache()).tol(tol),
+        block("a", 0.2, [-0.25, 0.0, 0.0], [1.0, 0.0, 0.0]),
+        block("b", 0.2, [0.1, 0.02, 0.0], [-0.6, 0.0, 0.0]),
+    );
     let mut w = world(&scene);
     let before = assert_momentum_conserved(&mut w, tol, 30);
     // They did bounce: the first block now moves left or slower than before.
@@ -360,16 +367,11 @@ fn a_head_on_collision_conserves_linear_momentum() {
 fn objects_that_would_pass_through_each_other_within_a_step_are_solved_together() {
     let plate =
         |name: &str, y: f64, v: f64| object(name, "box:0.1,0.02,0.1", [0.0, y, 0.0], [0.0, v, 0.0]);
-    let scene = SceneBuilder::new(0.02, 3)
-        .cache(no_cache())
-        .object(plate("a", 0.0, 2.0))
-        .object(plate("b", 0.04, -2.0))
-        .contact(ContactSettings {
-            friction: 0.0,
-            ..ContactSettings::default()
-        })
-        .build()
-        .unwrap();
+    let scene = frictionless(
+        SceneBuilder::new(0.02, 3).cache(no_cache()),
+        plate("a", 0.0, 2.0),
+        plate("b", 0.04, -2.0),
+    );
     let mut w = world(&scene);
     let centre = |w: &World, i: usize| {
         let x = w.object(i).integration_positions().unwrap();

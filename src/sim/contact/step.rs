@@ -353,9 +353,9 @@ impl ContactWorld {
         }
     }
 
-    /// Stage 4: while objects of different groups ended touching (or an object that stepped
-    /// alone ended touching itself), undo the groups that merge and solve them again; the
-    /// final solves and the number of objects undone.
+    /// Stage 4: while objects of different groups met on their paths through the step (or an
+    /// object that stepped alone ended touching itself), undo the groups that merge and solve
+    /// them again; the final solves and the number of objects undone.
     fn regroup(
         &mut self,
         forest: &mut Forest,
