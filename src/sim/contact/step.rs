@@ -22,6 +22,7 @@ use super::island::step_island;
 use super::pairs::{candidates, self_candidates};
 use super::samples::ContactSamples;
 use super::IslandSolver;
+use crate::linalg3::{dot, norm, sub};
 use crate::sim::object::SimSnapshot;
 use crate::sim::{ReducedSim, StepReport};
 use crate::Point3;
@@ -128,11 +129,6 @@ fn bounds(x: &[Point3], grow: f64) -> (Point3, Point3) {
     (lo, hi)
 }
 
-/// |p - q|, metres.
-fn dist(p: &Point3, q: &Point3) -> f64 {
-    ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
-}
-
 fn meet(a: &(Point3, Point3), b: &(Point3, Point3)) -> bool {
     (0..3).all(|d| a.0[d] <= b.1[d] && b.0[d] <= a.1[d])
 }
@@ -216,7 +212,7 @@ impl ContactWorld {
                 let moved = x0
                     .iter()
                     .zip(&guess)
-                    .map(|(a, b)| dist(a, b))
+                    .map(|(a, b)| norm(&sub(a, b)))
                     .fold(0.0, f64::max);
                 let grow = moved + s.thickness;
                 let (lo0, hi0) = bounds(x0, grow);
@@ -577,7 +573,7 @@ impl ContactWorld {
             start[o]
                 .iter()
                 .zip(&self.positions[o])
-                .map(|(p, q)| dist(p, q))
+                .map(|(p, q)| norm(&sub(p, q)))
                 .fold(0.0, f64::max)
         };
         let reach = d + moved(a) + moved(b);
@@ -587,17 +583,15 @@ impl ContactWorld {
             let (p0, q0) = (start[a][c.i], start[b][c.j]);
             let (p1, q1) = (self.positions[a][c.i], self.positions[b][c.j]);
             // Relative position p0 - q0 + s w, s in [0, 1]: its closest approach.
-            let r: [f64; 3] = std::array::from_fn(|k| p0[k] - q0[k]);
-            let w: [f64; 3] = std::array::from_fn(|k| (p1[k] - p0[k]) - (q1[k] - q0[k]));
-            let ww = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
+            let r = sub(&p0, &q0);
+            let w = sub(&sub(&p1, &p0), &sub(&q1, &q0));
+            let ww = dot(&w, &w);
             let s = if ww > 0.0 {
-                (-(r[0] * w[0] + r[1] * w[1] + r[2] * w[2]) / ww).clamp(0.0, 1.0)
+                (-dot(&r, &w) / ww).clamp(0.0, 1.0)
             } else {
                 0.0
             };
-            let closest: [f64; 3] = std::array::from_fn(|k| r[k] + s * w[k]);
-            (closest[0] * closest[0] + closest[1] * closest[1] + closest[2] * closest[2]).sqrt()
-                <= d
+            norm(&std::array::from_fn(|k| r[k] + s * w[k])) <= d
         })
     }
 
