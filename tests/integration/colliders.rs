@@ -262,6 +262,77 @@ fn mesh_signed_distance_matches_brute_force() {
     }
 }
 
+/// An open-top container (the unit box without its top face, normals inward) as a
+/// one-sided surface: its rim (y = 1) is an open boundary.
+fn open_container() -> MeshObstacle {
+    // [0, 1]^3 moved to x, z in [-0.5, 0.5].
+    let (v, t) = freeform::geometry::generate::box_mesh([1.0, 1.0, 1.0]);
+    let v: Vec<Point3> = v.iter().map(|p| [p[0] - 0.5, p[1], p[2] - 0.5]).collect();
+    // The box's triangles face outwards: flip them so the inside of the container is free,
+    // and drop the two of the top face.
+    let t: Vec<[u32; 3]> = t
+        .iter()
+        .filter(|f| !f.iter().all(|&i| v[i as usize][1] == 1.0))
+        .map(|&[a, b, c]| [a, c, b])
+        .collect();
+    assert_eq!(t.len(), 10);
+    MeshObstacle::from_triangles(Path::new("container.obj"), v, t, Sided::Outside).unwrap()
+}
+
+#[test]
+fn a_one_sided_surface_penetrates_continuously_beyond_its_open_boundary() {
+    let m = open_container();
+    let depth = |y: &Point3| m.penetration_local(y).map_or(0.0, |p| p.depth);
+    let slow = |y: &Point3| m.penetration_brute_force(y).map_or(0.0, |p| p.depth);
+    // The wall x = 0.5 (free side x < 0.5). 0.2 m above the rim, 1 mm outside the wall's
+    // plane: behind the plane the rim's triangles continue by 1 mm, not by the point's 0.2 m
+    // to the rim edge (which made the penalty jump across the plane).
+    let out = [0.501, 1.2, 0.1];
+    assert!((depth(&out) - 0.001).abs() < 1e-12, "{}", depth(&out));
+    assert!(m.penetration_local(&[0.499, 1.2, 0.1]).is_none());
+    let p = m.penetration_local(&out).unwrap();
+    assert!((p.normal[0] + 1.0).abs() < 1e-12, "{:?}", p.normal);
+    // Behind both walls with the rim corner (x = z = 0.5) nearest: the distance to the
+    // walls' corner line continued upwards, as below the rim.
+    let corner = [0.503, 1.2, 0.502];
+    assert!((depth(&corner) - 0.003f64.hypot(0.002)).abs() < 1e-12);
+    assert!((depth(&[0.503, 0.9, 0.502]) - depth(&corner)).abs() < 1e-12);
+    // Along lines through the rim, its corners and the walls' planes, above and below the
+    // rim: the depth is 1-Lipschitz (a distance to a surface or to a plane; a jump would
+    // break it), by the BVH and by brute force alike.
+    let lines: [(Point3, Point3); 5] = [
+        ([0.3, 1.2, 0.1], [0.7, 1.2, 0.1]),
+        ([0.6, 0.7, 0.1], [0.6, 1.4, 0.1]),
+        ([0.3, 1.1, 0.3], [0.7, 1.1, 0.7]),
+        ([0.6, 0.8, 0.6], [0.6, 1.3, 0.6]),
+        ([0.7, 0.9, -0.7], [0.3, 1.3, 0.7]),
+    ];
+    let n = 4000;
+    for (a, b) in lines {
+        let at = |i: usize| -> Point3 {
+            let s = i as f64 / n as f64;
+            std::array::from_fn(|d| a[d] + s * (b[d] - a[d]))
+        };
+        let step = (0..3).map(|d| (b[d] - a[d]).powi(2)).sum::<f64>().sqrt() / n as f64;
+        let mut touched = 0;
+        for i in 0..n {
+            let (y0, y1) = (at(i), at(i + 1));
+            assert!((depth(&y0) - slow(&y0)).abs() < 1e-12, "{y0:?}");
+            // 1-Lipschitz, with round-off's room.
+            assert!(
+                (depth(&y1) - depth(&y0)).abs() <= step * (1.0 + 1e-9),
+                "{a:?} -> {b:?} at {y0:?}: {} then {}",
+                depth(&y0),
+                depth(&y1)
+            );
+            touched += usize::from(depth(&y0) > 0.0);
+        }
+        // Every line runs behind a wall for part of its length (the second and fourth all of
+        // it: they cross the rim's height behind the wall and behind the corner).
+        assert!(touched > 100, "{a:?} -> {b:?}: {touched}");
+    }
+}
+
 /// A 0.2 m cube (4 kg) on a frictionless slope: gravity pulls it back along -x at
 /// `slope_g` m/s^2, so whatever pushes it keeps touching it.
 fn block_scene(pusher: Collider, steps: usize, slope_g: f64) -> Scene {

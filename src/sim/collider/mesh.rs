@@ -14,14 +14,18 @@
 //! `outside`: a one-sided surface that may be open (terrain, an open container): the side its
 //! triangle normals ((b - a) x (c - a), counter-clockwise seen from that side) point to is
 //! free; a point behind the surface's nearest feature penetrates, however far. Beyond an open
-//! boundary the surface acts like the half-space of its boundary triangles, so keep objects
-//! from reaching round behind it.
+//! boundary the surface continues as the planes of its boundary triangles
+//! ([`super::open_boundary`]): a point whose nearest feature is on the boundary penetrates by
+//! its distance to the free side of those planes, so the depth is continuous across them (an
+//! object reaching over a container's rim is pushed back in, smoothly); keep objects from
+//! reaching round behind.
 //!
 //! **Bad input** is refused with the file and what is wrong: no triangles (a point-cloud PLY),
 //! a zero-area triangle (its index in the file's triangle order; fan-triangulated faces count
 //! one triangle each), a solid mesh that is open, non-manifold or inconsistently oriented, a
 //! surface with non-manifold or inconsistently oriented edges.
 
+use super::open_boundary::{behind_planes, OpenBoundary, Plane};
 use super::penetration::Penetration;
 use crate::error::GeometryError;
 use crate::geometry::{
@@ -63,6 +67,8 @@ pub struct MeshObstacle {
     triangles: Vec<[u32; 3]>,
     aabb: Aabb,
     bvh: ParryMesh,
+    /// The open boundary (none for solids).
+    boundary: OpenBoundary,
 }
 
 impl std::fmt::Debug for MeshObstacle {
@@ -73,6 +79,7 @@ impl std::fmt::Debug for MeshObstacle {
             .field("vertices", &self.vertices.len())
             .field("triangles", &self.triangles.len())
             .field("aabb", &self.aabb)
+            .field("boundary_edges", &self.boundary.edges())
             .finish_non_exhaustive()
     }
 }
@@ -233,6 +240,7 @@ impl MeshObstacle {
             TriMeshFlags::ORIENTED,
         )
         .map_err(|e| parse(format!("parry could not build the mesh: {e:?}")))?;
+        let boundary = OpenBoundary::of(&triangles);
         Ok(MeshObstacle {
             path: path.to_path_buf(),
             sided,
@@ -240,6 +248,7 @@ impl MeshObstacle {
             triangles,
             aabb,
             bvh,
+            boundary,
         })
     }
 
@@ -285,27 +294,72 @@ impl MeshObstacle {
         let (proj, (tri, location)) = self
             .bvh
             .project_local_point_and_get_location(to_vec(y), false);
+        let feature = self.feature(tri, location);
+        if let Some(beyond) = self.beyond_boundary(y, feature) {
+            return beyond;
+        }
         if !proj.is_inside {
             return None;
         }
-        let c = from_vec(proj.point);
-        let feature = match location {
-            TrianglePointLocation::OnVertex(_) => Feature::Vertex,
-            TrianglePointLocation::OnEdge(i, _) => {
-                // Parry numbers the edges AB, BC, AC.
-                let t = self.triangles[tri as usize];
-                let (a, b) = match i {
-                    0 => (t[0], t[1]),
-                    1 => (t[1], t[2]),
-                    _ => (t[0], t[2]),
-                };
-                Feature::Edge(a, b)
-            }
+        self.penetration_at(y, &from_vec(proj.point), feature)
+    }
+
+    /// The feature of triangle `tri` that parry located a closest point on.
+    fn feature(&self, tri: u32, location: TrianglePointLocation) -> Feature {
+        let t = self.triangles[tri as usize];
+        match location {
+            TrianglePointLocation::OnVertex(i) => Feature::Vertex(t[i as usize]),
+            // Parry numbers the edges AB, BC, AC.
+            TrianglePointLocation::OnEdge(i, _) => match i {
+                0 => Feature::Edge(t[0], t[1]),
+                1 => Feature::Edge(t[1], t[2]),
+                _ => Feature::Edge(t[0], t[2]),
+            },
             TrianglePointLocation::OnFace(..) | TrianglePointLocation::OnSolid => {
                 Feature::Face(tri)
             }
+        }
+    }
+
+    /// For a closest point on the open boundary (`feature` a boundary edge or vertex): the
+    /// penetration of `y` behind the planes of the boundary triangles there (`Some(None)`: in
+    /// front of them). None for any other feature, whose pseudo-normal decides.
+    fn beyond_boundary(&self, y: &Point3, feature: Feature) -> Option<Option<Penetration>> {
+        // Every plane passes through `at` (a vertex of its triangle): at a vertex, the point
+        // where they meet.
+        let (planes, at) = match feature {
+            Feature::Edge(a, b) => (self.boundary.edge_planes(a, b)?, a),
+            Feature::Vertex(v) => (self.boundary.vertex_planes(v)?, v),
+            Feature::Face(_) => return None,
         };
-        self.penetration_at(y, &c, feature)
+        let plane = |t: u32| {
+            let [a, b, c] = self.triangles[t as usize].map(|i| self.vertices[i as usize]);
+            Plane {
+                on: self.vertices[at as usize],
+                normal: self.face_normal(t as usize),
+                centroid: std::array::from_fn(|k| (a[k] + b[k] + c[k]) / 3.0),
+            }
+        };
+        // One or two planes almost always (this runs for every point nearest the boundary):
+        // no allocation for those.
+        Some(match *planes {
+            [t] => behind_planes(y, &[plane(t)]),
+            [t1, t2] => behind_planes(y, &[plane(t1), plane(t2)]),
+            _ => behind_planes(y, &planes.iter().map(|&t| plane(t)).collect::<Vec<_>>()),
+        })
+    }
+
+    /// The signed distance of `y` given its closest point `c` on `feature` and whether the
+    /// pseudo-normal test put it behind: beyond the open boundary, minus the depth behind
+    /// the boundary planes.
+    fn signed(&self, y: &Point3, c: &Point3, feature: Feature, behind: bool) -> f64 {
+        let d = norm(&sub(c, y));
+        match self.beyond_boundary(y, feature) {
+            Some(Some(p)) => -p.depth,
+            Some(None) => d,
+            None if behind => -d,
+            None => d,
+        }
     }
 
     /// The penetration of `y` from its closest surface point `c` on `feature`.
@@ -327,7 +381,7 @@ impl MeshObstacle {
                 let l = norm(&e);
                 identity_minus(&e.map(|x| x / l))
             }
-            Feature::Vertex => identity_minus(&[0.0; 3]),
+            Feature::Vertex(_) => identity_minus(&[0.0; 3]),
         };
         Some(Penetration {
             depth,
@@ -345,18 +399,14 @@ impl MeshObstacle {
     }
 
     /// Signed distance of `y` (rest frame, metres) through the BVH: positive on the free
-    /// side, negative inside (solid) or behind (surface).
+    /// side, negative inside (solid) or behind (surface; beyond its open boundary, minus the
+    /// depth behind the boundary planes, as [`MeshObstacle::penetration_local`] has it).
     pub fn signed_distance(&self, y: &Point3) -> f64 {
-        let proj = self
+        let (proj, (tri, location)) = self
             .bvh
-            .project_local_point_and_get_location(to_vec(y), false)
-            .0;
-        let d = norm(&sub(&from_vec(proj.point), y));
-        if proj.is_inside {
-            -d
-        } else {
-            d
-        }
+            .project_local_point_and_get_location(to_vec(y), false);
+        let feature = self.feature(tri, location);
+        self.signed(y, &from_vec(proj.point), feature, proj.is_inside)
     }
 
     /// [`MeshObstacle::signed_distance`] by brute force, O(F): the closest point over every
@@ -365,18 +415,16 @@ impl MeshObstacle {
     /// computed here independently of parry.
     pub fn signed_distance_brute_force(&self, y: &Point3) -> f64 {
         let (c, feature) = self.closest_brute_force(y);
-        let d = norm(&sub(&c, y));
-        if self.inside_brute_force(y, &c, feature) {
-            -d
-        } else {
-            d
-        }
+        self.signed(y, &c, feature, self.inside_brute_force(y, &c, feature))
     }
 
     /// [`MeshObstacle::penetration_local`] by brute force (see
     /// [`MeshObstacle::signed_distance_brute_force`]).
     pub fn penetration_brute_force(&self, y: &Point3) -> Option<Penetration> {
         let (c, feature) = self.closest_brute_force(y);
+        if let Some(beyond) = self.beyond_boundary(y, feature) {
+            return beyond;
+        }
         if !self.inside_brute_force(y, &c, feature) {
             return None;
         }
@@ -411,7 +459,7 @@ impl MeshObstacle {
                 }
                 n
             }
-            Feature::Vertex => {
+            Feature::Vertex(_) => {
                 let mut n = [0.0; 3];
                 for (t, tri) in self.triangles.iter().enumerate() {
                     for k in 0..3 {
@@ -433,7 +481,7 @@ impl MeshObstacle {
 
     /// The closest surface point to `y` over every triangle, and its feature.
     fn closest_brute_force(&self, y: &Point3) -> (Point3, Feature) {
-        let mut best = (f64::INFINITY, [0.0; 3], Feature::Vertex);
+        let mut best = (f64::INFINITY, [0.0; 3], Feature::Face(0));
         for (t, tri) in self.triangles.iter().enumerate() {
             let [a, b, c] = tri.map(|i| self.vertices[i as usize]);
             let (p, region) = closest_on_triangle(y, &a, &b, &c);
@@ -442,7 +490,7 @@ impl MeshObstacle {
                 let feature = match region {
                     Region::Face => Feature::Face(t as u32),
                     Region::Edge(i, j) => Feature::Edge(tri[i], tri[j]),
-                    Region::Vertex(_) => Feature::Vertex,
+                    Region::Vertex(k) => Feature::Vertex(tri[k]),
                 };
                 best = (d2, p, feature);
             }
@@ -458,8 +506,8 @@ enum Feature {
     Face(u32),
     /// On the edge between two vertices.
     Edge(u32, u32),
-    /// On a vertex (located by the closest point itself).
-    Vertex,
+    /// On a vertex.
+    Vertex(u32),
 }
 
 /// Where the closest point of a triangle lies: its face, an edge (corner indices), a corner.

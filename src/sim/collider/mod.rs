@@ -25,6 +25,7 @@
 mod kinematics;
 pub mod mesh;
 mod obstacle;
+mod open_boundary;
 mod penetration;
 mod shape;
 
