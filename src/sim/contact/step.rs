@@ -2,10 +2,10 @@
 //!
 //! 1. [`ContactWorld::sweep`]: every object's sample box at z_n and at its initial guess,
 //!    grown by the largest sample displacement between them and its contact thickness;
-//! 2. [`ContactWorld::group`]: two objects whose grown boxes meet, and which have a pair of
-//!    samples within their contact distance plus twice their displacements now, join one
-//!    island ([`Forest`]); an object with self-contact whose own samples may touch is an
-//!    island of one;
+//! 2. [`ContactWorld::group`]: two objects whose grown boxes meet, and which are in contact
+//!    now (a pair of samples within their contact distance), join one island ([`Forest`]);
+//!    objects that only come into contact within the step are left to stage 4; an object
+//!    with self-contact whose own samples may touch is an island of one;
 //! 3. [`ContactWorld::solve_groups`]: the islands in parallel ([`super::island`]), each
 //!    stiffened and solved again while it ends deeper than the tolerance; the others step
 //!    alone, exactly as without contact;
@@ -237,12 +237,11 @@ impl ContactWorld {
                 let (sa, sb) = (&swept[a], &swept[b]);
                 if meet(&(sa.lo, sa.hi), &(sb.lo, sb.hi)) {
                     near += 1;
-                    // Boxes are loose for rotated and round objects: join the two only if
-                    // some pair of their samples now is within reach (the same margin).
-                    // Joining only objects in contact now is faster on every example scene,
-                    // but a 64-object pour then failed to converge an 8-object island
-                    // (docs/performance.md): not kept until that is understood.
-                    if self.within(a, b, 2.0 * (sa.moved + sb.moved)) {
+                    // Only objects in contact now: joining those that could meet within
+                    // the step (a margin of their moves) made islands of objects that never
+                    // touched, which then paid the island's iterations; the ones that do
+                    // meet are caught along their paths in stage 4 (docs/performance.md).
+                    if self.in_contact(a, b) {
                         forest.union(a, b);
                     }
                 }
@@ -595,10 +594,10 @@ impl ContactWorld {
         })
     }
 
-    /// Whether objects `a` and `b` have samples within contact distance plus `margin`
-    /// (metres) now.
-    fn within(&self, a: usize, b: usize, margin: f64) -> bool {
-        let d = self.samples[a].thickness + self.samples[b].thickness + margin;
+    /// Whether objects `a` and `b` are in contact now: a pair of their samples within
+    /// contact distance.
+    fn in_contact(&self, a: usize, b: usize) -> bool {
+        let d = self.samples[a].thickness + self.samples[b].thickness;
         if !meet(
             &bounds(&self.positions[a], d),
             &bounds(&self.positions[b], 0.0),
