@@ -151,6 +151,12 @@ pub fn outer(u: &[f64; 3]) -> Mat3 {
     std::array::from_fn(|r| std::array::from_fn(|s| u[r] * u[s]))
 }
 
+/// I - u u^T: for a unit u, the projector across it.
+#[inline]
+pub fn identity_minus_outer(u: &[f64; 3]) -> Mat3 {
+    std::array::from_fn(|r| std::array::from_fn(|s| if r == s { 1.0 } else { 0.0 } - u[r] * u[s]))
+}
+
 /// A v (for a rotation R: v rotated into the outer frame).
 #[inline]
 pub fn mat_vec(a: &Mat3, v: &[f64; 3]) -> [f64; 3] {

@@ -30,7 +30,7 @@ pub use occupied::{OccupancyGrid, ISO_LEVEL};
 pub use pointcloud::PointCloud;
 pub use shape::Shape;
 pub use spec::{ShapeFileFormat, ShapeSpec};
-pub use topology::{weld_exact, EdgeReport};
+pub use topology::{boundary_edges, weld_exact, EdgeReport};
 pub use voxels::{VoxelImage, VoxelValues, MAX_VOXELS};
 pub use winding::{WindingParams, WindingTree};
 

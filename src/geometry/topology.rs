@@ -24,34 +24,17 @@ impl EdgeReport {
     /// Count edge uses of `triangles` (F x 3 vertex indices). Triangles must not repeat a
     /// vertex (a repeated index is counted as a zero-length edge like any other).
     pub fn of(triangles: &[[u32; 3]]) -> EdgeReport {
-        // One entry per half-edge: key = (min << 32 | max), direction = +1 if min -> max.
-        let mut half: Vec<(u64, i8)> = Vec::with_capacity(3 * triangles.len());
-        for t in triangles {
-            for k in 0..3 {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                let (lo, hi, dir) = if a < b { (a, b, 1) } else { (b, a, -1) };
-                half.push(((u64::from(lo) << 32) | u64::from(hi), dir));
-            }
-        }
-        half.sort_unstable_by_key(|h| h.0);
+        let half = half_edges(triangles);
         let mut report = EdgeReport::default();
-        let mut i = 0;
-        while i < half.len() {
-            let key = half[i].0;
-            let mut j = i;
-            let mut dir_sum = 0i64;
-            while j < half.len() && half[j].0 == key {
-                dir_sum += i64::from(half[j].1);
-                j += 1;
-            }
+        for uses in half.chunk_by(|a, b| a.key == b.key) {
+            let dir_sum: i64 = uses.iter().map(|h| i64::from(h.dir)).sum();
             report.edges += 1;
-            match j - i {
+            match uses.len() {
                 1 => report.boundary_edges += 1,
                 2 if dir_sum != 0 => report.misoriented_edges += 1,
                 2 => {}
                 _ => report.nonmanifold_edges += 1,
             }
-            i = j;
         }
         report
     }
@@ -60,6 +43,46 @@ impl EdgeReport {
     pub fn is_closed(&self) -> bool {
         self.boundary_edges == 0 && self.nonmanifold_edges == 0
     }
+}
+
+/// One use of an undirected edge by a triangle.
+struct HalfEdge {
+    /// (min << 32) | max of the edge's vertex indices.
+    key: u64,
+    /// +1 if the triangle traverses it from min to max, -1 otherwise.
+    dir: i8,
+    /// The triangle's index.
+    triangle: u32,
+}
+
+/// Every half-edge of `triangles`, sorted by undirected edge (the uses of one edge adjacent).
+fn half_edges(triangles: &[[u32; 3]]) -> Vec<HalfEdge> {
+    let mut half = Vec::with_capacity(3 * triangles.len());
+    for (f, t) in triangles.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            let (lo, hi, dir) = if a < b { (a, b, 1) } else { (b, a, -1) };
+            half.push(HalfEdge {
+                key: (u64::from(lo) << 32) | u64::from(hi),
+                dir,
+                triangle: f as u32,
+            });
+        }
+    }
+    half.sort_unstable_by_key(|h| h.key);
+    half
+}
+
+/// The boundary edges of `triangles` (F x 3 vertex indices): edges used by one triangle, as
+/// (smaller vertex index, larger, the triangle's index), in edge order.
+pub fn boundary_edges(triangles: &[[u32; 3]]) -> Vec<(u32, u32, u32)> {
+    half_edges(triangles)
+        .chunk_by(|a, b| a.key == b.key)
+        .filter_map(|uses| match uses {
+            [h] => Some(((h.key >> 32) as u32, h.key as u32, h.triangle)),
+            _ => None,
+        })
+        .collect()
 }
 
 /// Merge vertices with bit-identical coordinates (after mapping `-0.0` to `0.0`) and drop
@@ -94,6 +117,16 @@ pub fn weld_exact(vertices: &[Point3], triangles: &[[u32; 3]]) -> (Vec<Point3>, 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_open_tetrahedron_has_the_missing_face_edges_as_boundary() {
+        let t = [[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]];
+        assert!(boundary_edges(&t).is_empty());
+        // Without face [1, 2, 3]: its three edges, each now used by one remaining triangle.
+        let open = [t[0], t[1], t[3]];
+        assert_eq!(boundary_edges(&open), [(1, 2, 0), (1, 3, 1), (2, 3, 2)]);
+        assert_eq!(EdgeReport::of(&open).boundary_edges, 3);
+    }
 
     #[test]
     fn tetrahedron_is_closed_and_consistent() {

@@ -58,7 +58,7 @@ pub enum Curvature {
 
 /// The projector I - n n^T of a unit normal.
 pub fn tangent_projector(n: &[f64; 3]) -> Mat3 {
-    std::array::from_fn(|r| std::array::from_fn(|c| if r == c { 1.0 } else { 0.0 } - n[r] * n[c]))
+    crate::linalg3::identity_minus_outer(n)
 }
 
 /// P d.

@@ -360,9 +360,9 @@ fn a_head_on_collision_conserves_linear_momentum() {
 
 /// Two plates 2 cm thick and 2 cm apart fly at each other at 2 m/s each, in steps of 0.02 s:
 /// stepped alone, each would move 4 cm in the first step and they would end it past each
-/// other, apart, no sample in contact. The world solves them as one island (grouped ahead
-/// for their approach, or regrouped because their samples' paths through the step met),
-/// whose line searches never carry a sample through another: they stay in order.
+/// other, apart, no sample in contact. Their samples' paths through the step meet, so the
+/// world solves them again as one island, whose line searches never carry a sample through
+/// another: they stay in order.
 #[test]
 fn objects_that_would_pass_through_each_other_within_a_step_are_solved_together() {
     let plate =

@@ -31,7 +31,7 @@ use crate::error::GeometryError;
 use crate::geometry::{
     weld_exact, Aabb, EdgeReport, ShapeFileFormat, ShapeOptions, ShapeSpec, UpAxis,
 };
-use crate::linalg3::{cross, dot, norm, outer, sub};
+use crate::linalg3::{cross, dot, identity_minus_outer, norm, outer, sub};
 use crate::sim::motion::Rigid;
 use crate::{Error, Point3, Result};
 use parry3d_f64::math::Vector;
@@ -96,10 +96,6 @@ fn to_vec(p: &Point3) -> Vector {
 
 fn from_vec(v: Vector) -> Point3 {
     [v.x, v.y, v.z]
-}
-
-fn identity_minus(e: &[f64; 3]) -> crate::linalg3::Mat3 {
-    std::array::from_fn(|i| std::array::from_fn(|j| if i == j { 1.0 } else { 0.0 } - e[i] * e[j]))
 }
 
 impl MeshObstacle {
@@ -379,9 +375,9 @@ impl MeshObstacle {
             Feature::Edge(a, b) => {
                 let e = sub(&self.vertices[b as usize], &self.vertices[a as usize]);
                 let l = norm(&e);
-                identity_minus(&e.map(|x| x / l))
+                identity_minus_outer(&e.map(|x| x / l))
             }
-            Feature::Vertex(_) => identity_minus(&[0.0; 3]),
+            Feature::Vertex(_) => identity_minus_outer(&[0.0; 3]),
         };
         Some(Penetration {
             depth,

@@ -10,12 +10,13 @@
 //! zero on that plane and equals the face's own depth where the face's region begins.
 
 use super::penetration::Penetration;
-use crate::linalg3::{cross, dot, norm, sub, Mat3};
+use crate::geometry::boundary_edges;
+use crate::linalg3::{cross, dot, identity_minus_outer, norm, sub};
 use crate::Point3;
 use std::collections::HashMap;
 
 /// The boundary edges (edges of one triangle) of a triangle mesh and their triangles.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub(super) struct OpenBoundary {
     /// Each boundary edge (smaller vertex index first) and its triangle.
     edges: HashMap<(u32, u32), u32>,
@@ -30,28 +31,16 @@ fn key(a: u32, b: u32) -> (u32, u32) {
 impl OpenBoundary {
     /// The boundary of the triangles `triangles` (F x 3 vertex indices).
     pub(super) fn of(triangles: &[[u32; 3]]) -> OpenBoundary {
-        let mut count: HashMap<(u32, u32), (usize, u32)> = HashMap::new();
-        for (t, tri) in triangles.iter().enumerate() {
-            for k in 0..3 {
-                let entry = count
-                    .entry(key(tri[k], tri[(k + 1) % 3]))
-                    .or_insert((0, t as u32));
-                entry.0 += 1;
-            }
-        }
-        let edges: HashMap<(u32, u32), u32> = count
-            .into_iter()
-            .filter(|(_, (n, _))| *n == 1)
-            .map(|(e, (_, t))| (e, t))
-            .collect();
+        let open = boundary_edges(triangles);
         let mut vertices: HashMap<u32, Vec<u32>> = HashMap::new();
-        for (&(a, b), &t) in &edges {
+        for &(a, b, t) in &open {
             for v in [a, b] {
                 vertices.entry(v).or_default().push(t);
             }
         }
-        // Map order is arbitrary: keep each list in triangle order so that ties between
-        // planes resolve the same way in every run.
+        let edges = open.into_iter().map(|(a, b, t)| ((a, b), t)).collect();
+        // Keep each list in triangle order so that ties between planes resolve the same way
+        // whatever the mesh's edge order.
         for list in vertices.values_mut() {
             list.sort_unstable();
             list.dedup();
@@ -136,9 +125,7 @@ pub(super) fn behind_planes(y: &Point3, planes: &[Plane]) -> Option<Penetration>
                     let across: [f64; 3] = std::array::from_fn(|k| w[k] - along * u[k]);
                     let depth = norm(&across);
                     // Distance to a line: the Hessian of d^2/2 is the projector across it.
-                    let h: Mat3 = std::array::from_fn(|i| {
-                        std::array::from_fn(|j| f64::from(u8::from(i == j)) - u[i] * u[j])
-                    });
+                    let h = identity_minus_outer(&u);
                     (depth > 0.0).then(|| Penetration {
                         depth,
                         normal: across.map(|v| -v / depth),
