@@ -90,7 +90,7 @@ impl eigen::Preconditioner for AssembledPreconditioner {
             .map_err(|_| OperatorError::new("preconditioner poisoned by an earlier panic"))?;
         let Workspace { pre, block, tmp } = &mut *guard;
         block.cols_mut(0, w).copy_from(r);
-        pre.apply(block, 0, w, tmp, Par::rayon(0))
+        pre.apply(block, 0, w, tmp)
             .map_err(|e| OperatorError::new(e.to_string()))?;
         z.copy_from(block.cols(0, w));
         Ok(())

@@ -22,7 +22,7 @@ use super::rayleigh_ritz::{next_p, solve_projected, Projected, RrScratch};
 use super::workspace::{inner, transform, Block, ROW_CHUNK};
 use crate::eigen::{relative_residual, EigenError, SplitMix64};
 use crate::progress::Progress;
-use faer::{Mat, Par};
+use faer::Mat;
 use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::time::Instant;
@@ -91,7 +91,6 @@ pub(super) struct State<'a> {
     active: Vec<usize>,
     idx: Vec<usize>,
     message: String,
-    par: Par,
     pub counters: Counters,
 }
 
@@ -108,7 +107,6 @@ impl<'a> State<'a> {
     ) -> Result<Self, EigenError> {
         let k = ops.dim();
         let ld = 3 * nx;
-        let par = Par::rayon(0);
         let y0b = Block {
             data: y0.to_vec(),
             rows: k,
@@ -140,7 +138,6 @@ impl<'a> State<'a> {
             active: Vec::with_capacity(nx),
             idx: Vec::with_capacity(ld),
             message: String::with_capacity(128),
-            par,
             counters: Counters::default(),
         })
     }
@@ -376,7 +373,7 @@ impl<'a> State<'a> {
                     });
             }
             let t0 = Instant::now();
-            if let Err(e) = pre.apply(&mut self.s, w0, nw, &mut self.tmp, self.par) {
+            if let Err(e) = pre.apply(&mut self.s, w0, nw, &mut self.tmp) {
                 return Stop::Operator(e);
             }
             self.counters.seconds_precondition += t0.elapsed().as_secs_f64();

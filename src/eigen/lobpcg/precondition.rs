@@ -55,7 +55,8 @@ impl Preconditioner<'_> {
 pub(super) struct Factor {
     symbolic: SymbolicCholesky<u32>,
     values: Vec<f64>,
-    mem: MemBuffer,
+    /// One solve scratch per group of columns ([`Preconditioner::apply`]).
+    mems: Vec<MemBuffer>,
 }
 
 impl std::fmt::Debug for Preconditioner<'_> {
@@ -458,6 +459,13 @@ enum CholeskyFailure {
 /// 117 s only to find 19.4 billion entries.
 const MIN_FILL: f64 = 2.0;
 
+/// Most columns of one sequential Cholesky solve in [`Preconditioner::apply`]: a 40-column
+/// block (32 modes and 8 guards) is two groups, one per core here. Narrower groups were
+/// slower per column (4 columns: 1.4x the preconditioner's time at K = 6,000), and each
+/// column's arithmetic depends on its group's width, so the width is fixed, not the thread
+/// count's.
+const SOLVE_GROUP: usize = 20;
+
 fn cholesky(
     pencil: Pencil<'_>,
     sigma: f64,
@@ -569,8 +577,16 @@ fn cholesky(
     if !values.iter().all(|v| v.is_finite()) {
         return Err(CholeskyFailure::Failed("non-finite factor entries".into()));
     }
-    let mem = MemBuffer::try_new(symbolic.solve_in_place_scratch::<f64>(max_cols.max(1), par))
-        .map_err(|_| CholeskyFailure::Failed("out of memory for solve scratch".into()))?;
+    // The solves run sequentially on groups of at most SOLVE_GROUP columns
+    // ([`Preconditioner::apply`]), each with its own scratch.
+    let groups = max_cols.max(1).div_ceil(SOLVE_GROUP);
+    let group_cols = max_cols.clamp(1, SOLVE_GROUP);
+    let mems = (0..groups)
+        .map(|_| {
+            MemBuffer::try_new(symbolic.solve_in_place_scratch::<f64>(group_cols, Par::Seq))
+                .map_err(|_| CholeskyFailure::Failed("out of memory for solve scratch".into()))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     let kind = match symbolic.raw() {
         SymbolicCholeskyRaw::Simplicial(_) => "simplicial",
         SymbolicCholeskyRaw::Supernodal(_) => "supernodal",
@@ -587,7 +603,7 @@ fn cholesky(
     Ok(Preconditioner::Cholesky(Box::new(Factor {
         symbolic,
         values,
-        mem,
+        mems,
     })))
 }
 
@@ -626,20 +642,37 @@ impl Preconditioner<'_> {
         c0: usize,
         w: usize,
         tmp: &mut Block,
-        par: Par,
     ) -> Result<(), EigenError> {
         if w == 0 {
             return Ok(());
         }
         match self {
             Self::Cholesky(factor) => {
+                // Groups of at most SOLVE_GROUP columns, solved sequentially side by side:
+                // faer's parallel supernodal solve was slower than its sequential one at
+                // every size measured (docs/performance.md). The groups depend on w only,
+                // so the result does not depend on the thread count.
                 let Factor {
                     symbolic,
                     values,
-                    mem,
+                    mems,
                 } = &mut **factor;
                 let llt = LltRef::new(symbolic, values);
-                llt.solve_in_place_with_conj(Conj::No, s.cols_mut(c0, w), par, MemStack::new(mem));
+                let width = w.div_ceil(w.div_ceil(SOLVE_GROUP));
+                let mut rest = s.cols_mut(c0, w);
+                let mut parts = Vec::with_capacity(mems.len());
+                while rest.ncols() > width {
+                    let (head, tail) = rest.split_at_col_mut(width);
+                    parts.push(head);
+                    rest = tail;
+                }
+                parts.push(rest);
+                parts
+                    .into_par_iter()
+                    .zip(mems.par_iter_mut())
+                    .for_each(|(cols, mem)| {
+                        llt.solve_in_place_with_conj(Conj::No, cols, Par::Seq, MemStack::new(mem));
+                    });
             }
             Self::Incomplete(ic) => ic.solve_in_place(s, c0, w, tmp),
             Self::Jacobi { inv_diag } => {

@@ -646,36 +646,43 @@ fn lobpcg_incomplete_cholesky_matches_dense() {
 
 #[test]
 fn lobpcg_same_bits_for_any_thread_count() {
-    // Every kernel splits work by fixed row chunks (or, for the IC(0) solves, by columns,
-    // which does not change any column's arithmetic), so 1, 2 and 3 threads agree bit for bit.
+    // Every kernel splits work by fixed row chunks, the IC(0) solves by columns (which does
+    // not change any column's arithmetic) and the Cholesky solves by groups of columns whose
+    // width depends on the block only (16 modes and 8 guards: two groups), so 1, 2 and 3
+    // threads agree bit for bit.
     let n = [7, 6, 6];
     let h = testing::grid_laplacian(n, 2.0);
     let m = testing::kernel_mass(n, 2.0, 0.05, 0.5, 4);
-    let opts = LobpcgOptions {
-        preconditioner: PreconditionerKind::IncompleteCholesky,
-        ..LobpcgOptions::default()
-    };
-    let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
-            Lobpcg::new(opts.clone())
-                .solve_converged(h.as_ref(), m.as_ref(), &request(9, 1e-9), &Silent)
-                .unwrap()
-        })
-    };
-    let bits = |s: &EigenSolution| -> Vec<u64> {
-        let mut out: Vec<u64> = s.values.iter().map(|v| v.to_bits()).collect();
-        for j in 0..s.vectors.ncols() {
-            out.extend((0..s.vectors.nrows()).map(|i| s.vectors[(i, j)].to_bits()));
-        }
-        out
-    };
-    let one = bits(&run(1));
-    assert_eq!(one, bits(&run(2)));
-    assert_eq!(one, bits(&run(3)));
+    for (preconditioner, modes) in [
+        (PreconditionerKind::IncompleteCholesky, 9),
+        (PreconditionerKind::Cholesky, 16),
+    ] {
+        let opts = LobpcgOptions {
+            preconditioner,
+            ..LobpcgOptions::default()
+        };
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                Lobpcg::new(opts.clone())
+                    .solve_converged(h.as_ref(), m.as_ref(), &request(modes, 1e-9), &Silent)
+                    .unwrap()
+            })
+        };
+        let bits = |s: &EigenSolution| -> Vec<u64> {
+            let mut out: Vec<u64> = s.values.iter().map(|v| v.to_bits()).collect();
+            for j in 0..s.vectors.ncols() {
+                out.extend((0..s.vectors.nrows()).map(|i| s.vectors[(i, j)].to_bits()));
+            }
+            out
+        };
+        let one = bits(&run(1));
+        assert_eq!(one, bits(&run(2)), "{preconditioner:?}");
+        assert_eq!(one, bits(&run(3)), "{preconditioner:?}");
+    }
 }
 
 /// A 7-point grid Laplacian minus 5 (e_i - e_j)(e_i - e_j)^T on an interior edge: still zero
