@@ -193,6 +193,7 @@ impl WorldContact {
                 settings.penetration_tolerance,
                 self_exclusion,
                 settings.solver,
+                settings.hessian_precision,
             ),
             surface,
             tolerance: settings.penetration_tolerance,

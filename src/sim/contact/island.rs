@@ -13,6 +13,7 @@ use super::energy::{PairContact, PairHessian, PairLag};
 use super::system::BlockHessian;
 use super::{ContactStats, IslandSolver};
 use crate::report::Stopwatch;
+use crate::sim::elastic::Precision;
 use crate::sim::friction::Curvature;
 use crate::sim::newton::{
     self, BlockRest, EvalInfo, HessianStrategy, NewtonSystem, Potential, QuasiNewtonState,
@@ -31,6 +32,8 @@ struct IslandPotential<'a> {
     /// Lagged object-object friction and its smoothing displacement, metres.
     friction: (Vec<PairLag>, f64),
     solver: IslandSolver,
+    /// The arithmetic of the members' elastic Hessian products.
+    precision: Precision,
     /// The members' affine motions, the coarse space of the block solve.
     coarse: Arc<CoarseBasis>,
 }
@@ -46,15 +49,7 @@ impl IslandPotential<'_> {
             .parts
             .par_iter()
             .zip(&self.offsets)
-            .map(|(p, &o)| {
-                let zp = &z[o..o + p.dofs()];
-                let h = if exact {
-                    p.exact_hessian(zp, friction)
-                } else {
-                    None
-                };
-                h.unwrap_or_else(|| p.hessian(zp, friction))
-            })
+            .map(|(p, &o)| p.hessian_in(&z[o..o + p.dofs()], friction, exact, self.precision))
             .collect();
         let mut h = BlockHessian::new(diag);
         let pairs = if exact {
@@ -160,8 +155,9 @@ impl Potential for IslandPotential<'_> {
 
 /// Step the objects `sims` of one island together; `contact` holds their samples with
 /// offsets into the stacked coordinates in the same order, `mu` the friction coefficient of
-/// each pair of them (row-major), `eps_v` the friction smoothing velocity, m/s, and
-/// `solver` how the Newton systems are solved; `start` (stacked z) where the minimisation
+/// each pair of them (row-major), `eps_v` the friction smoothing velocity, m/s,
+/// `solver` how the Newton systems are solved and `precision` the arithmetic of the members'
+/// elastic Hessian products in them; `start` (stacked z) where the minimisation
 /// starts instead of the pulled-back guess: the end of an earlier solve of the same step
 /// (from the same state), which the step bound keeps on the safe side. Returns
 /// each object's step report (the island's solve report, its wall time shared evenly) and
@@ -172,6 +168,7 @@ pub fn step_island(
     mu: &[f64],
     eps_v: f64,
     solver: IslandSolver,
+    precision: Precision,
     start: Option<&[f64]>,
 ) -> (Vec<StepReport>, ContactStats) {
     let sw = Stopwatch::start();
@@ -199,6 +196,7 @@ pub fn step_island(
             contact,
             friction: (contact.friction_lag(&z0, mu), eps_v * shared[0].dt()),
             solver,
+            precision,
             coarse: Arc::new(CoarseBasis::new(
                 &shared
                     .iter()

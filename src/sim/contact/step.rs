@@ -23,6 +23,7 @@ use super::pairs::{candidates, self_candidates};
 use super::samples::ContactSamples;
 use super::IslandSolver;
 use crate::linalg3::{dot, norm, sub};
+use crate::sim::elastic::Precision;
 use crate::sim::object::SimSnapshot;
 use crate::sim::{ReducedSim, StepReport};
 use crate::Point3;
@@ -51,6 +52,8 @@ pub struct ContactWorld {
     pub(super) given_stiffness: Vec<f64>,
     tolerance: f64,
     pub(super) solver: IslandSolver,
+    /// The arithmetic of the island members' elastic Hessian products.
+    precision: Precision,
     /// Sample positions at the current state, per object.
     positions: Vec<Vec<Point3>>,
     /// Self-contact exclusion per object, metres (None: no self-contact).
@@ -137,7 +140,8 @@ impl ContactWorld {
     /// The contact state of objects `sims` with contact samples `samples`, pair friction `mu`
     /// and stiffness `stiffness` (row-major, Pa/m^2), smoothing velocity `eps_v` (m/s),
     /// penetration tolerance `tolerance` (a fraction of the smaller diagonal), self-contact
-    /// exclusions (metres, None: none) and the island solver.
+    /// exclusions (metres, None: none), the island solver and the arithmetic of the island
+    /// members' elastic Hessian products ([`super::ContactSettings::hessian_precision`]).
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         sims: &[&ReducedSim],
@@ -148,6 +152,7 @@ impl ContactWorld {
         tolerance: f64,
         self_exclusion: Vec<Option<f64>>,
         solver: IslandSolver,
+        precision: Precision,
     ) -> ContactWorld {
         let positions = sims
             .iter()
@@ -163,6 +168,7 @@ impl ContactWorld {
             stiffness,
             tolerance,
             solver,
+            precision,
             positions,
             self_exclusion,
             self_near: vec![false; n],
@@ -308,6 +314,7 @@ impl ContactWorld {
                 &mu,
                 self.eps_v,
                 self.solver,
+                self.precision,
                 start.as_deref(),
             );
             if stats.deepest_fraction > self.tolerance && raises < MAX_STIFFENING {

@@ -68,6 +68,27 @@ impl<'a> StepPotential<'a> {
         }
     }
 
+    /// The Hessian at `z` an island's Newton factorizes: exact, or with the objects' and
+    /// colliders' curvature projected, the elastic part's dense products in `precision`.
+    pub(crate) fn hessian_in(
+        &self,
+        z: &[f64],
+        friction: Curvature,
+        exact: bool,
+        precision: Precision,
+    ) -> Mat<f64> {
+        let at = self.curved(friction);
+        if exact {
+            self.terms.exact_hessian_in(&at, z, precision)
+        } else {
+            let kind = HessianKind::Projected {
+                stride: 1,
+                precision,
+            };
+            self.terms.hessian(&at, z, kind)
+        }
+    }
+
     /// The terms' parameter adjoints at the step's end `z` ([`Terms::parameter_adjoint`]).
     pub(crate) fn parameter_adjoint(&self, z: &[f64], adjoint: &[f64], out: &mut ParameterAdjoint) {
         self.terms.parameter_adjoint(&self.at, z, adjoint, out);

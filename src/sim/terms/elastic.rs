@@ -7,6 +7,17 @@ use crate::sim::environment::Environment;
 use faer::Mat;
 
 /// Add `b` to `a`, entry by entry (both square, the same size).
+/// Add the elastic term's exact Hessian at `z` into `h`, its dense products in `precision`
+/// ([`super::Terms::exact_hessian_in`]).
+pub(super) fn add_exact_hessian(
+    term: &ElasticTerm,
+    z: &[f64],
+    precision: Precision,
+    h: &mut Mat<f64>,
+) {
+    add_matrix(h, &term.hessian_sampled(z, Projection::None, 1, precision));
+}
+
 fn add_matrix(a: &mut Mat<f64>, b: &Mat<f64>) {
     for j in 0..a.ncols() {
         for i in 0..a.nrows() {
@@ -31,7 +42,10 @@ impl Term for ElasticTerm {
 
     fn add_hessian(&self, _at: &StepAt<'_>, z: &[f64], kind: HessianKind, h: &mut Mat<f64>) {
         let part = match kind {
-            HessianKind::Exact => self.hessian_sampled(z, Projection::None, 1, Precision::Double),
+            HessianKind::Exact => {
+                add_exact_hessian(self, z, Precision::Double, h);
+                return;
+            }
             HessianKind::Projected { stride, precision } => {
                 self.hessian_sampled(z, Projection::PerPoint, stride, precision)
             }

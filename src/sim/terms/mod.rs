@@ -27,7 +27,7 @@ pub use inertia::InertiaTerm;
 pub use moments::{add_block_diagonal, add_block_product, add_outer_blocks, Moments};
 pub use term::{EnergySum, HessianKind, StepAt, Term, TermKind};
 
-use crate::sim::elastic::{ElasticHessian, ElasticTerm, Layout};
+use crate::sim::elastic::{ElasticHessian, ElasticTerm, Layout, Precision};
 use crate::sim::environment::Environment;
 use crate::sim::newton::EvalInfo;
 use faer::Mat;
@@ -101,6 +101,20 @@ impl Terms {
         let mut h = Mat::zeros(n, n);
         for term in self.iter() {
             term.add_hessian(at, z, kind, &mut h);
+        }
+        h
+    }
+
+    /// The exact Hessian at `z`, as [`Terms::hessian`] sums it for [`HessianKind::Exact`],
+    /// with the elastic part's dense products in `precision` (an island's Newton model;
+    /// [`Precision::Double`] gives `hessian`'s bits).
+    pub fn exact_hessian_in(&self, at: &StepAt<'_>, z: &[f64], precision: Precision) -> Mat<f64> {
+        let n = at.layout.dofs();
+        let mut h = Mat::zeros(n, n);
+        self.inertia.add_hessian(at, z, HessianKind::Exact, &mut h);
+        elastic::add_exact_hessian(&self.elastic, z, precision, &mut h);
+        for term in self.after_elastic() {
+            term.add_hessian(at, z, HessianKind::Exact, &mut h);
         }
         h
     }
