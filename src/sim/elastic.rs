@@ -505,12 +505,14 @@ fn add_products<T: Scalar>(products: &[(usize, Mat<T>)], n4: usize, out: &mut Ma
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Precision {
-    /// f64 products: the Hessian to rounding (Newton always uses this).
+    /// f64 products: the Hessian to rounding (what an object stepping alone by Newton
+    /// factorizes; an island's Newton follows `contact.hessian_precision`).
     #[default]
     Double,
     /// f32 products, about twice as fast: entries carry relative errors of ~1e-6 of their
     /// size. Enough for a quasi-Newton base matrix, which only needs to be a good SPD
-    /// model (a base that fails to factorize is rebuilt in double).
+    /// model (a base that fails to factorize is rebuilt in double), and for an island's
+    /// Newton model (the same iterations, docs/performance.md).
     Single,
 }
 
