@@ -338,8 +338,14 @@ fn self_pair_energy_gradient_and_hessian_match_finite_differences() {
 #[test]
 fn a_head_on_collision_conserves_linear_momentum() {
     let tol = 1e-9;
+    // Once apart, each block steps alone, and the default L-BFGS can stall a little above
+    // this test's 1e-9 on the bounce's vibration (1.7e-9 at step 19 with the islands'
+    // single-precision Hessians; docs/limits.md). Newton reaches it.
     let scene = frictionless(
-        SceneBuilder::new(0.01, 30).cache(no_cache()).tol(tol),
+        SceneBuilder::new(0.01, 30)
+            .cache(no_cache())
+            .tol(tol)
+            .hessian(freeform::sim::HessianStrategy::Newton),
         block("a", 0.2, [-0.25, 0.0, 0.0], [1.0, 0.0, 0.0]),
         block("b", 0.2, [0.1, 0.02, 0.0], [-0.6, 0.0, 0.0]),
     );

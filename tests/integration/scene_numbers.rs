@@ -58,6 +58,7 @@ penetration_tolerance = 0.01
 friction = 0.5
 friction_velocity = 1e-3
 solver = "blocks"
+hessian_precision = "double"
 self_contact = false
 self_exclusion = 2.0
 
