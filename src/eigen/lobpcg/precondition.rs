@@ -667,6 +667,8 @@ impl Preconditioner<'_> {
                     rest = tail;
                 }
                 parts.push(rest);
+                // w <= max_cols, so the groups are at most the scratches built for them.
+                debug_assert!(parts.len() <= mems.len());
                 parts
                     .into_par_iter()
                     .zip(mems.par_iter_mut())

@@ -86,8 +86,8 @@ pub struct ContactSettings {
     pub solver: IslandSolver,
     /// The arithmetic of the island members' elastic Hessian products in those systems
     /// (default `single`: the islands' Newton iterations are unchanged and the world step
-    /// 10% faster on `plinko.toml`, docs/performance.md; `double` for the Hessian to
-    /// rounding). Objects stepping alone keep their own `hessian` settings.
+    /// of `plinko.toml` 18% faster, docs/performance.md; `double` for the Hessian to
+    /// rounding, the bits of before). Objects stepping alone keep their own `hessian` settings.
     pub hessian_precision: Precision,
     /// Self-contact for every object (default false): an object's own surface samples
     /// push each other apart like two objects' (folds, coils, arms closing). An object's

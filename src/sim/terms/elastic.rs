@@ -41,16 +41,13 @@ impl Term for ElasticTerm {
     }
 
     fn add_hessian(&self, _at: &StepAt<'_>, z: &[f64], kind: HessianKind, h: &mut Mat<f64>) {
-        let part = match kind {
-            HessianKind::Exact => {
-                add_exact_hessian(self, z, Precision::Double, h);
-                return;
-            }
-            HessianKind::Projected { stride, precision } => {
-                self.hessian_sampled(z, Projection::PerPoint, stride, precision)
-            }
-        };
-        add_matrix(h, &part);
+        match kind {
+            HessianKind::Exact => add_exact_hessian(self, z, Precision::Double, h),
+            HessianKind::Projected { stride, precision } => add_matrix(
+                h,
+                &self.hessian_sampled(z, Projection::PerPoint, stride, precision),
+            ),
+        }
     }
 
     fn add_parameter_adjoint(

@@ -97,24 +97,33 @@ impl Terms {
 
     /// The Hessian at `z`, 12 (m + 1) square: exact or PSD ([`HessianKind`]).
     pub fn hessian(&self, at: &StepAt<'_>, z: &[f64], kind: HessianKind) -> Mat<f64> {
-        let n = at.layout.dofs();
-        let mut h = Mat::zeros(n, n);
-        for term in self.iter() {
-            term.add_hessian(at, z, kind, &mut h);
-        }
-        h
+        self.sum_hessian(at, z, kind, |h| self.elastic.add_hessian(at, z, kind, h))
     }
 
     /// The exact Hessian at `z`, as [`Terms::hessian`] sums it for [`HessianKind::Exact`],
     /// with the elastic part's dense products in `precision` (an island's Newton model;
     /// [`Precision::Double`] gives `hessian`'s bits).
     pub fn exact_hessian_in(&self, at: &StepAt<'_>, z: &[f64], precision: Precision) -> Mat<f64> {
+        self.sum_hessian(at, z, HessianKind::Exact, |h| {
+            elastic::add_exact_hessian(&self.elastic, z, precision, h)
+        })
+    }
+
+    /// Every term's Hessian of `kind` at `z` summed in evaluation order, the elastic term's
+    /// added by `elastic`.
+    fn sum_hessian(
+        &self,
+        at: &StepAt<'_>,
+        z: &[f64],
+        kind: HessianKind,
+        elastic: impl FnOnce(&mut Mat<f64>),
+    ) -> Mat<f64> {
         let n = at.layout.dofs();
         let mut h = Mat::zeros(n, n);
-        self.inertia.add_hessian(at, z, HessianKind::Exact, &mut h);
-        elastic::add_exact_hessian(&self.elastic, z, precision, &mut h);
+        self.inertia.add_hessian(at, z, kind, &mut h);
+        elastic(&mut h);
         for term in self.after_elastic() {
-            term.add_hessian(at, z, HessianKind::Exact, &mut h);
+            term.add_hessian(at, z, kind, &mut h);
         }
         h
     }
