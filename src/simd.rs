@@ -44,3 +44,21 @@ macro_rules! multiversion {
     };
 }
 pub(crate) use multiversion;
+
+/// Ask the CPU to bring `data[index]`'s cache line into its caches ahead of use (a hint with
+/// no effect on results; nothing when `index` is out of range or off x86-64). For loops that
+/// jump through memory in an order the hardware prefetcher cannot guess.
+#[inline(always)]
+pub(crate) fn prefetch<T>(data: &[T], index: usize) {
+    if let Some(item) = data.get(index) {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: a prefetch never faults and reads nothing into the program; SSE, which it
+        // needs, is part of baseline x86-64.
+        unsafe {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            _mm_prefetch::<_MM_HINT_T0>((item as *const T).cast::<i8>());
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = item;
+    }
+}

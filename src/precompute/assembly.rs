@@ -17,6 +17,7 @@
 
 use super::rkpm::ShapeFunctions;
 use crate::eigen::RowPencil;
+use crate::simd;
 use crate::sparse::{self, SparseMatrix, SparseMatrixRef};
 use crate::triangle::{UpperPattern, UpperPencil};
 use crate::{Error, Result};
@@ -182,6 +183,9 @@ const NONE: u32 = u32::MAX;
 
 /// Rows per parallel task within a chunk.
 const ROWS_PER_TASK: usize = 64;
+
+/// How many of a row's points ahead the update prefetches a point's entries.
+const PREFETCH_AHEAD: usize = 4;
 
 impl Accumulator {
     /// Empty sums for `k` kernels.
@@ -530,7 +534,11 @@ impl ChunkView<'_> {
         let mut acc_h = vec![0.0f64; kl];
         let mut acc_m = vec![0.0f64; kl];
         let mut seen = vec![false; kl];
-        let mut touched: Vec<usize> = Vec::new();
+        // The columns touched by the current row, `touched[..nt]`: a buffer of fixed length
+        // (a column is listed once), so the inner loop makes no call that could grow it; a
+        // call there would make the compiler keep the loop's floats on the stack.
+        let mut touched = vec![0usize; kl];
+        let mut nt = 0;
         let (own_lo, own_hi) = (self.own_local.0 as usize, self.own_local.1 as usize);
         for (r, row) in rows.iter_mut().enumerate() {
             let li = first + r;
@@ -546,10 +554,19 @@ impl ChunkView<'_> {
                     acc_h[l] = row.h[c];
                     acc_m[l] = row.m[c];
                     seen[l] = true;
-                    touched.push(l);
+                    touched[nt] = l;
+                    nt += 1;
                 }
             }
             for s in self.tptr[li]..self.tptr[li + 1] {
+                // The points of a row lie far apart in the chunk's arrays: fetch the start of
+                // a later point's entries while this one is summed.
+                if let Some(&ahead) = self.tentry.get(s + PREFETCH_AHEAD) {
+                    let ahead = ahead as usize;
+                    simd::prefetch(&sf.grad, ahead);
+                    simd::prefetch(&sf.phi, ahead);
+                    simd::prefetch(self.lpat, ahead);
+                }
                 let p = self.tpoint[s] as usize;
                 let ei = self.tentry[s] as usize;
                 let (gi, fi) = (sf.grad[ei], sf.phi[ei]);
@@ -575,12 +592,14 @@ impl ChunkView<'_> {
                     let j = j as usize;
                     if !seen[j] {
                         seen[j] = true;
-                        touched.push(j);
+                        touched[nt] = j;
+                        nt += 1;
                     }
                     acc_h[j] += wh * (gi[0] * gj[0] + gi[1] * gj[1] + gi[2] * gj[2]);
                     acc_m[j] += wm * (fi * fj);
                 }
             }
+            let touched = &mut touched[..nt];
             touched.sort_unstable();
             // Merge the untouched old columns with the chunk's (both ascending globally).
             let len = row
@@ -595,7 +614,7 @@ impl ChunkView<'_> {
                 Vec::with_capacity(len),
             );
             let mut old = 0;
-            for &l in &touched {
+            for &l in touched.iter() {
                 let j = self.present[l];
                 while old < row.cols.len() && row.cols[old] < j {
                     if self.local[row.cols[old] as usize] == NONE {
@@ -619,7 +638,7 @@ impl ChunkView<'_> {
                     m.push(row.m[c]);
                 }
             }
-            touched.clear();
+            nt = 0;
             *row = Row {
                 cols: cols.into_boxed_slice(),
                 h: h.into_boxed_slice(),
