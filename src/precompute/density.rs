@@ -8,6 +8,7 @@
 //! h0 = (V / K)^(1/3) is the spacing K kernels would have spread evenly over the volume V;
 //! bands are measured in it, so a band means the same at every K.
 
+use super::ball_max::BallMax;
 use crate::material::{MaterialField, Region};
 use crate::{Error, Point3, Result};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
@@ -482,20 +483,10 @@ fn local_thickness(
         .zip(&spacing)
         .map(|(d, h)| d + 0.5 * h)
         .collect();
-    let reach = (1.5 * h0).powi(2);
+    let deepest = BallMax::new(points, &depth, 1.5 * h0);
     let thickness: Vec<f64> = points
         .par_iter()
-        .map(|p| {
-            let deepest = tree
-                .query(p)
-                .within::<SquaredEuclidean<f64>>(reach)
-                .unsorted()
-                .execute()
-                .iter()
-                .map(|n| depth[n.item as usize])
-                .fold(0.0, f64::max);
-            2.0 * deepest
-        })
+        .map(|p| 2.0 * deepest.max_within(p).max(0.0))
         .collect();
     if let Some(i) = thickness.iter().position(|t| !(t.is_finite() && *t > 0.0)) {
         return Err(Error::param(

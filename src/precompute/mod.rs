@@ -17,6 +17,7 @@
 //! same stages across MPI ranks.
 
 pub mod assembly;
+mod ball_max;
 pub mod boundary_modes;
 pub mod centers;
 mod compare;
