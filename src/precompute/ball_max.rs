@@ -29,9 +29,9 @@ pub(crate) struct BallMax<'a> {
 const MARGIN: f64 = 1e-9;
 
 impl<'a> BallMax<'a> {
-    /// Bin `points` (metres) with their `values` (one each) for balls of `radius` metres
-    /// (positive and finite). Cells are half the radius, coarser when that would make more
-    /// than two cells a point.
+    /// Bin `points` (metres) with their `values` (one each) for balls of `radius` metres.
+    /// Cells are half the radius, coarser when that would make more than two cells a point;
+    /// one cell for a radius that is not positive and finite or points that are not finite.
     ///
     /// # Panics
     /// When `values` is not as long as `points` or there are 2^32 points or more (callers
@@ -54,14 +54,17 @@ impl<'a> BallMax<'a> {
             (lo, hi) = ([0.0; 3], [0.0; 3]);
         }
         let extent = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
-        let cells_of = |cell: f64| -> [usize; 3] {
-            std::array::from_fn(|a| (extent[a] / cell).floor() as usize + 1)
-        };
+        let cells_of =
+            |cell: f64| -> f64 { extent.iter().map(|e| (e / cell).floor() + 1.0).product() };
         let mut cell = 0.5 * radius;
-        while cells_of(cell).iter().product::<usize>() > 2 * points.len().max(1) {
+        if !(cell > 0.0 && cell.is_finite() && extent.iter().all(|e| e.is_finite())) {
+            // Degenerate input: one cell, every ball scans every point (still exact).
+            cell = f64::INFINITY;
+        }
+        while cells_of(cell) > 2.0 * points.len().max(1) as f64 {
             cell *= 1.5;
         }
-        let dims = cells_of(cell);
+        let dims: [usize; 3] = std::array::from_fn(|a| (extent[a] / cell).floor() as usize + 1);
         let count = dims.iter().product::<usize>();
         let mut grid = Self {
             points,
@@ -248,5 +251,20 @@ mod tests {
         }
         // Far from every point: nothing within reach.
         assert_eq!(grid.max_within(&[10.0, 10.0, 10.0]), f64::NEG_INFINITY);
+    }
+
+    #[test]
+    fn a_degenerate_radius_falls_back_to_one_cell_and_stays_exact() {
+        let points = scatter(500, 3);
+        let values: Vec<f64> = (0..points.len()).map(|i| i as f64).collect();
+        for radius in [0.0, f64::INFINITY, f64::NAN] {
+            let grid = BallMax::new(&points, &values, radius);
+            assert_eq!(grid.dims, [1, 1, 1], "radius {radius}");
+            for q in &points[..50] {
+                let got = grid.max_within(q);
+                let want = brute(&points, &values, q, radius);
+                assert!(got == want, "radius {radius}: {got} against {want}");
+            }
+        }
     }
 }
