@@ -4,6 +4,7 @@
 //! cells its surface cuts whose largest value could still raise the answer. Exact: the same
 //! answer as testing every point (squared distance summed x, y, z, compared with `<=`).
 
+use crate::geometry::Aabb;
 use crate::Point3;
 
 /// Points with values, binned for [`BallMax::max_within`].
@@ -42,18 +43,11 @@ impl<'a> BallMax<'a> {
             u32::try_from(points.len()).is_ok(),
             "BallMax: u32 point indices"
         );
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for p in points {
-            for a in 0..3 {
-                lo[a] = lo[a].min(p[a]);
-                hi[a] = hi[a].max(p[a]);
-            }
-        }
-        if points.is_empty() {
-            (lo, hi) = ([0.0; 3], [0.0; 3]);
-        }
-        let extent = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
+        let bounds = Aabb::from_points(points).unwrap_or(Aabb {
+            min: [0.0; 3],
+            max: [0.0; 3],
+        });
+        let extent = bounds.size();
         let cells_of =
             |cell: f64| -> f64 { extent.iter().map(|e| (e / cell).floor() + 1.0).product() };
         let mut cell = 0.5 * radius;
@@ -70,7 +64,7 @@ impl<'a> BallMax<'a> {
             points,
             values,
             radius2: radius * radius,
-            origin: lo,
+            origin: bounds.min,
             cell,
             dims,
             start: vec![0; count + 1],

@@ -399,6 +399,7 @@ fn objects_that_would_pass_through_each_other_within_a_step_are_solved_together(
 /// dense Newton solve over the whole island: two blocks collide head on, stepped once with
 /// each solver from the same state (every step before the first island is the same code
 /// path, bit for bit).
+///
 /// The block solve, with the members' elastic Hessian products in double or (the default)
 /// single precision, ends where the dense double-precision solve does.
 #[test]

@@ -6,7 +6,6 @@ use crate::sim::elastic::{ElasticTerm, Layout, Precision, Projection};
 use crate::sim::environment::Environment;
 use faer::Mat;
 
-/// Add `b` to `a`, entry by entry (both square, the same size).
 /// Add the elastic term's exact Hessian at `z` into `h`, its dense products in `precision`
 /// ([`super::Terms::exact_hessian_in`]).
 pub(super) fn add_exact_hessian(
@@ -18,6 +17,7 @@ pub(super) fn add_exact_hessian(
     add_matrix(h, &term.hessian_sampled(z, Projection::None, 1, precision));
 }
 
+/// Add `b` to `a`, entry by entry (both square, the same size).
 fn add_matrix(a: &mut Mat<f64>, b: &Mat<f64>) {
     for j in 0..a.ncols() {
         for i in 0..a.nrows() {
