@@ -71,6 +71,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 &protocol,
                 &shape,
                 test,
+                &[],
                 &fem,
                 Some(Path::new(cache)),
                 &freeform::progress::Silent,

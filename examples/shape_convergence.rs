@@ -69,6 +69,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 &protocol,
                 shape,
                 test,
+                &[],
                 fem,
                 Some(cache),
                 &freeform::progress::Silent,

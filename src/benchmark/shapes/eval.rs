@@ -10,6 +10,7 @@ use crate::fem::beam::{BeamReference, CacheStatus};
 use crate::fem::solver::FemParams;
 use crate::fem::ElementOrder;
 use crate::geometry::{Shape, ShapeOptions, TriMesh};
+use crate::material::MaterialOverride;
 use crate::precompute::sampling::Resolution;
 use crate::precompute::{
     build_basis, BasisOptions, BasisRun, BoundaryModes, DensityBands, KernelDensity,
@@ -48,6 +49,14 @@ pub struct EvalOptions {
     /// The largest kernel spacing factor on thin parts ([`DensityBands::thin`]). Default 1
     /// (uniform placement).
     pub density_thin: f64,
+    /// Material overrides over [`Protocol::material`], applied in order in the normalized
+    /// shape's frame (metres, bounding box side 1): to the FEM tets by their centroids and to
+    /// the reduced model's integration points, the same region rules. Default none
+    /// (homogeneous).
+    pub material_overrides: Vec<MaterialOverride>,
+    /// The kernel spacing factor around material interfaces
+    /// ([`DensityBands::interfaces`]). Default 1 (uniform placement).
+    pub density_interfaces: f64,
 }
 
 impl Default for EvalOptions {
@@ -67,6 +76,8 @@ impl Default for EvalOptions {
             tests: ShapeTest::ALL.to_vec(),
             boundaries: vec![BoundaryModes::Free, BoundaryModes::Aware],
             density_thin: 1.0,
+            material_overrides: Vec::new(),
+            density_interfaces: 1.0,
         }
     }
 }
@@ -176,6 +187,7 @@ pub fn evaluate_shape(
             &opts.protocol,
             &shape,
             test,
+            &opts.material_overrides,
             &opts.fem,
             cache_dir,
             progress,
@@ -238,9 +250,11 @@ fn timed_basis(
         modes: opts.modes,
         resolution: opts.resolution,
         material: opts.protocol.material,
+        overrides: opts.material_overrides.clone(),
         boundary_regions: regions,
         density: KernelDensity::bands(DensityBands {
             thin: opts.density_thin,
+            interfaces: opts.density_interfaces,
             ..DensityBands::off()
         }),
         ..BasisOptions::default()

@@ -8,6 +8,7 @@ use crate::fem::beam::{cached_reference, fnv1a, record_trajectory, BeamReference
 use crate::fem::element::fe_nodes;
 use crate::fem::solver::{FemParams, FemSolver};
 use crate::fem::{FemError, TetMaterials, TetMesh};
+use crate::material::MaterialOverride;
 use crate::progress::Progress;
 use crate::{Error, Point3, Result};
 use std::path::Path;
@@ -19,6 +20,7 @@ pub fn cache_key(
     protocol: &Protocol,
     shape: &NormalizedShape,
     test: ShapeTest,
+    overrides: &[MaterialOverride],
     params: &FemParams,
 ) -> (String, String) {
     let mut bytes: Vec<u8> = mesh
@@ -32,7 +34,7 @@ pub fn cache_key(
             bytes.extend_from_slice(&i.to_le_bytes());
         }
     }
-    let json = serde_json::json!({
+    let mut json = serde_json::json!({
         "format": crate::fem::beam::CACHE_FORMAT_VERSION,
         "kind": "shape",
         "mesh": format!("{:016x}", fnv1a(&bytes)),
@@ -42,8 +44,12 @@ pub fn cache_key(
         "test": test,
         "regions": boundary_regions(protocol, shape, test),
         "solver": params,
-    })
-    .to_string();
+    });
+    // Homogeneous references keep the keys they had before overrides existed.
+    if !overrides.is_empty() {
+        json["overrides"] = serde_json::json!(overrides);
+    }
+    let json = json.to_string();
     (format!("{:016x}", fnv1a(json.as_bytes())), json)
 }
 
@@ -63,7 +69,8 @@ pub fn fem_params(
 }
 
 /// Run (or load from `cache_dir`) the FEM reference of `test` on `mesh` (the TetGen mesh of
-/// `shape`).
+/// `shape`), of [`Protocol::material`] with `overrides` applied in order to the tets whose
+/// centroid lies in their region (normalized frame; empty: homogeneous).
 ///
 /// # Errors
 /// A region that holds no FE node ([`Error::InvalidParameter`]), the solver's errors
@@ -73,27 +80,29 @@ pub fn run_shape_reference(
     protocol: &Protocol,
     shape: &NormalizedShape,
     test: ShapeTest,
+    overrides: &[MaterialOverride],
     base: &FemParams,
     cache_dir: Option<&Path>,
     progress: &dyn Progress,
 ) -> Result<BeamReference> {
     protocol.validate()?;
     let params = fem_params(base, protocol, shape, test);
-    let (hash, key) = cache_key(mesh, protocol, shape, test, &params);
+    let (hash, key) = cache_key(mesh, protocol, shape, test, overrides, &params);
     cached_reference(cache_dir, &hash, &key, progress, || {
-        compute(mesh, protocol, shape, test, params, progress)
+        let materials = TetMaterials::from_regions(mesh, &protocol.material, overrides)?;
+        compute(mesh, &materials, protocol, shape, test, params, progress)
     })
 }
 
 fn compute(
     mesh: &TetMesh,
+    materials: &TetMaterials,
     protocol: &Protocol,
     shape: &NormalizedShape,
     test: ShapeTest,
     params: FemParams,
     progress: &dyn Progress,
 ) -> Result<BeamReference> {
-    let materials = TetMaterials::homogeneous(mesh, &protocol.material)?;
     let (fe, _) = fe_nodes(mesh, params.order);
     let regions = boundary_regions(protocol, shape, test);
     // Each FE node follows the first region that contains it.
@@ -122,7 +131,7 @@ fn compute(
     }
     let fixed: Vec<usize> = (0..fe.len()).filter(|&i| owner[i].is_some()).collect();
     let steps = protocol.steps;
-    let mut solver = FemSolver::new(mesh, &materials, &fixed, params)?;
+    let mut solver = FemSolver::new(mesh, materials, &fixed, params)?;
     let moving = regions
         .iter()
         .any(|(_, m)| *m != crate::sim::motion::Motion::Fixed);
