@@ -72,9 +72,13 @@ pub fn fem_params(
 /// `shape`), of [`Protocol::material`] with `overrides` applied in order to the tets whose
 /// centroid lies in their region (normalized frame; empty: homogeneous).
 ///
+/// The arguments are the case (mesh, protocol, shape, test, materials), the solver and where
+/// the run is cached and reported: grouping them would only name the call's own parts.
+///
 /// # Errors
 /// A region that holds no FE node ([`Error::InvalidParameter`]), the solver's errors
 /// ([`FemError::NotConverged`] with the step), cache write failures.
+#[allow(clippy::too_many_arguments)]
 pub fn run_shape_reference(
     mesh: &TetMesh,
     protocol: &Protocol,
