@@ -57,6 +57,13 @@ pub struct EvalOptions {
     /// The kernel spacing factor around material interfaces
     /// ([`DensityBands::interfaces`]). Default 1 (uniform placement).
     pub density_interfaces: f64,
+    /// Closed surfaces inside the shape that the FEM mesh conforms to (vertices V x 3 in the
+    /// normalized frame, metres; triangles F x 3, zero-based), e.g. the material interfaces of
+    /// `material_overrides`, so that no tet straddles one. Passed to TetGen as further facets
+    /// (kept unsplit by `-Y`); the reduced model does not see them. Default none. Not in the
+    /// report (the FEM cache key holds the mesh they make).
+    #[serde(skip)]
+    pub fem_interfaces: Vec<(Vec<Point3>, Vec<[u32; 3]>)>,
 }
 
 impl Default for EvalOptions {
@@ -78,6 +85,7 @@ impl Default for EvalOptions {
             density_thin: 1.0,
             material_overrides: Vec::new(),
             density_interfaces: 1.0,
+            fem_interfaces: Vec::new(),
         }
     }
 }
@@ -164,13 +172,8 @@ pub fn evaluate_shape(
         &ShapeOptions::default(),
     )?);
     progress.begin(&format!("{name}: TetGen"), None);
-    let tets = tetrahedralize(
-        &shape.vertices,
-        &shape.triangles,
-        &opts.tetgen,
-        work_dir,
-        &name,
-    )?;
+    let (fem_vertices, fem_triangles) = fem_surface(&shape, &opts.fem_interfaces)?;
+    let tets = tetrahedralize(&fem_vertices, &fem_triangles, &opts.tetgen, work_dir, &name)?;
     progress.finish();
     let mut out = ShapeEval {
         name: name.clone(),
@@ -236,6 +239,34 @@ pub fn evaluate_shape(
         return Err(Error::param("shape", name, out.failures.join("; ")));
     }
     Ok(out)
+}
+
+/// The surface TetGen meshes: the shape's, then each of `interfaces` (closed surfaces inside
+/// it, [`EvalOptions::fem_interfaces`]) with its indices moved past the vertices before it.
+///
+/// # Errors
+/// [`Error::InvalidParameter`] for an interface triangle that refers past its vertices.
+pub fn fem_surface(
+    shape: &super::protocol::NormalizedShape,
+    interfaces: &[(Vec<Point3>, Vec<[u32; 3]>)],
+) -> Result<(Vec<Point3>, Vec<[u32; 3]>)> {
+    let (mut vertices, mut triangles) = (shape.vertices.clone(), shape.triangles.clone());
+    for (v, t) in interfaces {
+        if let Some(f) = t
+            .iter()
+            .position(|f| f.iter().any(|&i| i as usize >= v.len()))
+        {
+            return Err(Error::param(
+                "fem_interfaces",
+                format!("triangle {f} = {:?}", t[f]),
+                format!("refers past the surface's {} vertices", v.len()),
+            ));
+        }
+        let offset = vertices.len() as u32;
+        vertices.extend_from_slice(v);
+        triangles.extend(t.iter().map(|f| f.map(|i| i + offset)));
+    }
+    Ok((vertices, triangles))
 }
 
 fn timed_basis(
