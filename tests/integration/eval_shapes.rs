@@ -9,6 +9,7 @@ use freeform::benchmark::shapes::protocol::{
 use freeform::benchmark::shapes::reference::{run_shape_reference, shared_node_difference};
 use freeform::benchmark::shapes::report::{evaluate_dir, shape_files};
 use freeform::benchmark::shapes::tetgen::{tetrahedralize, TetgenOptions};
+use freeform::benchmark::shapes::eval::fem_surface;
 use freeform::benchmark::shapes::EvalOptions;
 use freeform::fem::solver::FemParams;
 use freeform::fem::{ElementOrder, FemError};
@@ -296,6 +297,64 @@ fn fem_reference_takes_material_overrides() {
         "{} of {end}",
         middle_shift(&stiff)
     );
+}
+
+/// The FEM mesh conforms to an inner surface: with a box's faces inside the bar as facets, no
+/// tet has nodes strictly inside the box and strictly outside it; a triangle that refers past
+/// its surface's vertices is refused with its index.
+#[test]
+fn fem_mesh_conforms_to_inner_surfaces() {
+    if !tetgen_installed() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (v, t) = box_mesh([1.0, 0.4, 0.4]);
+    let (v, t) = split_in_four(&v, &t);
+    let s = normalize(&v, &t).unwrap();
+    let (lo, hi) = ([0.3, 0.1, 0.1], [0.7, 0.3, 0.3]);
+    let (iv, it) = box_mesh([hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]]);
+    // box_mesh starts at the origin: move it to [lo, hi].
+    let iv: Vec<Point3> = iv
+        .iter()
+        .map(|p| [p[0] + lo[0], p[1] + lo[1], p[2] + lo[2]])
+        .collect();
+    let surface = fem_surface(&s, &[(iv.clone(), it.clone())]).unwrap();
+    assert_eq!(surface.0.len(), s.vertices.len() + iv.len());
+    let tg = TetgenOptions {
+        max_volume: 1e-3,
+        ..TetgenOptions::default()
+    };
+    let mesh = tetrahedralize(&surface.0, &surface.1, &tg, dir.path(), "inner").unwrap();
+    // Which side of the inner box a node is on: -1 inside, 1 outside, 0 on it (1e-9 of the
+    // unit box: TetGen's coordinates round-trip through its text files).
+    let side = |p: &Point3| {
+        let d = (0..3)
+            .map(|k| (lo[k] - p[k]).max(p[k] - hi[k]))
+            .fold(f64::NEG_INFINITY, f64::max);
+        if d < -1e-9 {
+            -1
+        } else if d > 1e-9 {
+            1
+        } else {
+            0
+        }
+    };
+    let (mut inside, mut outside) = (0, 0);
+    for tet in mesh.tets() {
+        let sides: Vec<i32> = tet.iter().map(|&i| side(&mesh.nodes()[i as usize])).collect();
+        assert!(
+            !(sides.contains(&-1) && sides.contains(&1)),
+            "a tet straddles the inner surface: {sides:?}"
+        );
+        if sides.iter().all(|&x| x <= 0) {
+            inside += 1;
+        } else {
+            outside += 1;
+        }
+    }
+    assert!(inside > 0 && outside > 0, "{inside} inside, {outside} outside");
+    let e = fem_surface(&s, &[(iv, vec![[0, 1, 99]])]).unwrap_err();
+    assert!(e.to_string().contains("[0, 1, 99]"), "{e}");
 }
 
 /// Every triangle split in four at its edge midpoints (shared midpoints made once).
