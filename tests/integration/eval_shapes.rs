@@ -3,13 +3,13 @@
 //! values, and one tiny shape end to end. Tests that need the `tetgen` program skip with a
 //! printed reason when it is not installed (.ci/run installs it before the tests).
 
+use freeform::benchmark::shapes::eval::fem_surface;
 use freeform::benchmark::shapes::protocol::{
     boundary_regions, farthest_vertices, normalize, Protocol, ShapeTest,
 };
 use freeform::benchmark::shapes::reference::{run_shape_reference, shared_node_difference};
 use freeform::benchmark::shapes::report::{evaluate_dir, shape_files};
 use freeform::benchmark::shapes::tetgen::{tetrahedralize, TetgenOptions};
-use freeform::benchmark::shapes::eval::fem_surface;
 use freeform::benchmark::shapes::EvalOptions;
 use freeform::fem::solver::FemParams;
 use freeform::fem::{ElementOrder, FemError};
@@ -341,7 +341,10 @@ fn fem_mesh_conforms_to_inner_surfaces() {
     };
     let (mut inside, mut outside) = (0, 0);
     for tet in mesh.tets() {
-        let sides: Vec<i32> = tet.iter().map(|&i| side(&mesh.nodes()[i as usize])).collect();
+        let sides: Vec<i32> = tet
+            .iter()
+            .map(|&i| side(&mesh.nodes()[i as usize]))
+            .collect();
         assert!(
             !(sides.contains(&-1) && sides.contains(&1)),
             "a tet straddles the inner surface: {sides:?}"
@@ -352,7 +355,10 @@ fn fem_mesh_conforms_to_inner_surfaces() {
             outside += 1;
         }
     }
-    assert!(inside > 0 && outside > 0, "{inside} inside, {outside} outside");
+    assert!(
+        inside > 0 && outside > 0,
+        "{inside} inside, {outside} outside"
+    );
     let e = fem_surface(&s, &[(iv, vec![[0, 1, 99]])]).unwrap_err();
     assert!(e.to_string().contains("[0, 1, 99]"), "{e}");
 }
