@@ -1,24 +1,27 @@
 //! The layered sphere (paper supplementary Fig. 7) against a FEM reference of it
-//! (docs/evaluation.md, "The layered sphere", "Against a FEM reference"): an icosphere of four concentric
-//! shells, stiff-soft-stiff-soft from the centre out (E = 1e7 / 1e5 Pa, the paper's values
-//! and the protocol's soft material; nu = 0.4, rho = 1000 kg/m^3), through the real-shape
-//! protocol's three tests (TetGen, quadratic FEM with the same shells, the aware basis). Each kernel density factor around the material interfaces
-//! (`--density-interfaces`) is one basis per test against the same cached references.
+//! (docs/evaluation.md, "The layered sphere", "Against a FEM reference"): an icosphere of four
+//! concentric shells, stiff-soft-stiff-soft from the centre out (E = 1e7 / 1e5 Pa, the paper's
+//! values and the protocol's soft material; nu = 0.4, rho = 1000 kg/m^3), through the
+//! real-shape protocol's three tests (TetGen, quadratic FEM with the same shells, the aware
+//! basis). Each kernel density factor around the material interfaces
+//! (`EvalOptions::density_interfaces`) is one basis per test against the same cached
+//! references.
 //!
 //! ```sh
 //! cargo run --release --example layered_sphere_fem -- [K] [M] [DENSITIES] [MAX_VOLUME] \
-//!     [CUBATURE] [check-fem|no-check] [conforming|centroids] [TESTS]
-//! cargo run --release --example layered_sphere_fem -- 600 16 1,2,3 1e-4 5000 check-fem centroids
+//!     [CUBATURE] [check-fem|no-check] [centroids|conforming] [TESTS]
+//! cargo run --release --example layered_sphere_fem -- 600 16 1,3 1e-4 5000 check-fem centroids
 //! ```
 //!
-//! `conforming` meshes the FEM with the shells' surfaces as facets (no tet straddles one);
-//! `centroids` gives each tet the material at its centroid. TESTS: comma-separated names
-//! (fix_side, pull_farthest, pull_ends; default all).
+//! Defaults: 600 16 1,2,3 1e-4 5000 check-fem centroids, all tests. `centroids` gives each
+//! tet the material at its centroid; `conforming` meshes the FEM with the shells' surfaces as
+//! facets (no tet straddles one; a much larger mesh). TESTS: comma-separated names
+//! (fix_side, pull_farthest, pull_ends).
 //!
 //! Prints one row per (test, density): the benchmark's normalized MSE and max error, the
-//! basis fitting residual, the precompute time; then the FEM reference's own discretization
-//! error, as the difference from a reference on a mesh 8x coarser in volume (the nodes they
-//! share), so the reduced errors can be read against it.
+//! basis fitting residual, the precompute time; then, with `check-fem`, the FEM reference's
+//! own discretization error, as the difference from a reference on a mesh 8x coarser in
+//! volume (the nodes they share), so the reduced errors can be read against it.
 
 use freeform::benchmark::shapes::eval::fem_surface;
 use freeform::benchmark::shapes::protocol::{normalize, Protocol, ShapeTest};
@@ -42,13 +45,25 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .collect::<Result<_, _>>()?;
     let max_volume: f64 = arg(4, "1e-4").parse()?;
     let cubature: usize = arg(5, &EvalOptions::default().cubature.to_string()).parse()?;
-    let check_fem = arg(6, "check-fem") == "check-fem";
-    let conforming = arg(7, "conforming") == "conforming";
+    let choice = |i: usize, yes: &str, no: &str| -> Result<bool, Box<dyn std::error::Error>> {
+        match arg(i, yes) {
+            w if w == yes => Ok(true),
+            w if w == no => Ok(false),
+            w => Err(format!("argument {i}: `{w}`, expected `{yes}` or `{no}`").into()),
+        }
+    };
+    let check_fem = choice(6, "check-fem", "no-check")?;
+    let conforming = !choice(7, "centroids", "conforming")?;
     let tests: Vec<ShapeTest> = match args.get(8) {
-        Some(only) => ShapeTest::ALL
-            .into_iter()
-            .filter(|t| only.split(',').any(|o| o == t.name()))
-            .collect(),
+        Some(only) => only
+            .split(',')
+            .map(|o| {
+                ShapeTest::ALL
+                    .into_iter()
+                    .find(|t| t.name() == o)
+                    .ok_or_else(|| format!("unknown test `{o}`"))
+            })
+            .collect::<Result<_, _>>()?,
         None => ShapeTest::ALL.to_vec(),
     };
 

@@ -359,8 +359,12 @@ fn fem_mesh_conforms_to_inner_surfaces() {
         inside > 0 && outside > 0,
         "{inside} inside, {outside} outside"
     );
-    let e = fem_surface(&s, &[(iv, vec![[0, 1, 99]])]).unwrap_err();
+    let e = fem_surface(&s, &[(iv.clone(), vec![[0, 1, 99]])]).unwrap_err();
     assert!(e.to_string().contains("[0, 1, 99]"), "{e}");
+    let mut nan = iv;
+    nan[3][1] = f64::NAN;
+    let e = fem_surface(&s, &[(nan, it)]).unwrap_err();
+    assert!(e.to_string().contains("fem_interfaces"), "{e}");
 }
 
 /// Every triangle split in four at its edge midpoints (shared midpoints made once).

@@ -245,13 +245,15 @@ pub fn evaluate_shape(
 /// it, [`EvalOptions::fem_interfaces`]) with its indices moved past the vertices before it.
 ///
 /// # Errors
-/// [`Error::InvalidParameter`] for an interface triangle that refers past its vertices.
+/// [`Error::NonFinite`] for a non-finite interface vertex; [`Error::InvalidParameter`] for an
+/// interface triangle that refers past its vertices.
 pub fn fem_surface(
     shape: &super::protocol::NormalizedShape,
     interfaces: &[(Vec<Point3>, Vec<[u32; 3]>)],
 ) -> Result<(Vec<Point3>, Vec<[u32; 3]>)> {
     let (mut vertices, mut triangles) = (shape.vertices.clone(), shape.triangles.clone());
     for (v, t) in interfaces {
+        crate::error::check_finite_points("fem_interfaces vertices", v)?;
         if let Some(f) = t
             .iter()
             .position(|f| f.iter().any(|&i| i as usize >= v.len()))
