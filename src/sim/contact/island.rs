@@ -10,6 +10,7 @@
 
 use super::coarse::CoarseBasis;
 use super::energy::{PairContact, PairHessian, PairLag};
+use super::gauss_seidel;
 use super::system::BlockHessian;
 use super::{ContactStats, IslandSolver};
 use crate::report::Stopwatch;
@@ -77,7 +78,7 @@ impl IslandPotential<'_> {
                 let d = f.solve(grad);
                 (Box::new(f), d)
             }
-            IslandSolver::Blocks => {
+            IslandSolver::Blocks | IslandSolver::GaussSeidel => {
                 let s = h.into_solver(Some(&self.coarse))?;
                 let (d, info) = s.solve_with_info(grad);
                 if info.negative_curvature {
@@ -229,15 +230,41 @@ pub fn step_island(
             measure: &measure,
             options: &options,
         };
-        let solve = newton::minimize(&pot, &mut z, &ctx, &mut QuasiNewtonState::default());
+        let solves = if solver == IslandSolver::GaussSeidel {
+            let mu_members = mu;
+            let gs = gauss_seidel::sweep(
+                &pot.parts,
+                &offsets,
+                &shared,
+                contact,
+                mu_members,
+                pot.friction.1,
+                &z0,
+                &mut z,
+            );
+            let mut reports = gs.reports;
+            if !gs.converged {
+                // What the sweeps left, the island's Newton finishes; each member's report
+                // counts its iterations.
+                let rest = newton::minimize(&pot, &mut z, &ctx, &mut QuasiNewtonState::default());
+                for r in &mut reports {
+                    gauss_seidel::add(r, &rest);
+                }
+            }
+            reports
+        } else {
+            let solve = newton::minimize(&pot, &mut z, &ctx, &mut QuasiNewtonState::default());
+            vec![solve; sims.len()]
+        };
         let stats = contact.stats(&z);
-        (solve, z, stats)
+        (solves, z, stats)
     };
     let wall = sw.elapsed() / sims.len() as f64;
     let reports = sims
         .iter_mut()
         .zip(starts.iter().zip(&offsets))
-        .map(|(s, (st, &o))| {
+        .zip(solve)
+        .map(|((s, (st, &o)), solve)| {
             let n = s.layout().dofs();
             s.finish_step(st, z[o..o + n].to_vec(), solve, wall)
         })
