@@ -378,25 +378,6 @@ pub struct QuasiNewtonState {
     structured: Option<Box<dyn RestSolve + Send>>,
 }
 
-impl QuasiNewtonState {
-    /// The convergence measure's solve of `grad` under `strategy`: with the best Hessian
-    /// model at hand (the latest factorized Newton system, else a refreshed base), else the
-    /// rest system `rest`.
-    pub fn model_solve(
-        &self,
-        strategy: HessianStrategy,
-        rest: &dyn RestSolve,
-        grad: &[f64],
-    ) -> Vec<f64> {
-        match (strategy, self.base.as_ref(), self.structured.as_ref()) {
-            (HessianStrategy::Fixed, _, _) => rest.solve(grad),
-            (HessianStrategy::Newton, _, Some(s)) => s.solve(grad),
-            (_, Some(base), _) => solve_with(base, grad),
-            (_, None, _) => rest.solve(grad),
-        }
-    }
-}
-
 /// Build the quasi-Newton base Hessian at `z` and factorize it (None: not positive
 /// definite), with the time and the factorization counted in `rep`.
 fn refreshed_base(
@@ -521,7 +502,12 @@ pub fn minimize(
         // The convergence measure uses the best Hessian model at hand: the latest factorized
         // Hessian (Newton; L-BFGS after a refresh), else the rest matrix S.
         let sw = Stopwatch::start();
-        let delta = state.model_solve(opts.hessian, ctx.rest, &grad);
+        let delta = match (opts.hessian, state.base.as_ref(), state.structured.as_ref()) {
+            (HessianStrategy::Fixed, _, _) => ctx.rest.solve(&grad),
+            (HessianStrategy::Newton, _, Some(s)) => s.solve(&grad),
+            (_, Some(base), _) => solve_with(base, &grad),
+            (_, None, _) => ctx.rest.solve(&grad),
+        };
         rep.solve_s += sw.elapsed();
         rep.residual = (ctx.measure)(&delta);
         if !rep.residual.is_finite() {

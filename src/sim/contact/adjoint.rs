@@ -89,8 +89,7 @@ impl ContactWorld {
         contact.add_friction_hessian_blocks(&lag, eps, z, Curvature::Exact, &mut blocks);
         let lambda = match self.solver {
             IslandSolver::Dense => dense_solve(&blocks, rhs, step)?,
-            // However the island was minimised, its Hessian is solved in blocks.
-            IslandSolver::Blocks | IslandSolver::GaussSeidel => {
+            IslandSolver::Blocks => {
                 let motions: Vec<Mat<f64>> = sims.iter().map(|s| s.affine_motions()).collect();
                 let coarse = Arc::new(CoarseBasis::new(&motions));
                 // None: a member's block or the coarse system is not positive definite, so

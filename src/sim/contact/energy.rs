@@ -136,29 +136,6 @@ impl<'a> PairContact<'a> {
         &self.bodies
     }
 
-    /// The contact among the bodies `order` (indices into [`PairContact::bodies`]), stacked
-    /// in that order from offset 0, with their pair stiffnesses.
-    pub fn subset(&self, order: &[usize]) -> PairContact<'a> {
-        let n = self.bodies.len();
-        let mut offset = 0;
-        let bodies = order
-            .iter()
-            .map(|&a| {
-                let b = Body {
-                    offset,
-                    ..self.bodies[a]
-                };
-                offset += b.layout.dofs();
-                b
-            })
-            .collect();
-        let stiffness = order
-            .iter()
-            .flat_map(|&a| order.iter().map(move |&b| self.stiffness[a * n + b]))
-            .collect();
-        PairContact { bodies, stiffness }
-    }
-
     /// The largest contact distance of a sample of body `a` and one of body `b`, metres.
     fn distance(&self, a: usize, b: usize) -> f64 {
         self.bodies[a].samples.thickness + self.bodies[b].samples.thickness

@@ -10,7 +10,6 @@
 
 use super::coarse::CoarseBasis;
 use super::energy::{PairContact, PairHessian, PairLag};
-use super::gauss_seidel;
 use super::system::BlockHessian;
 use super::{ContactStats, IslandSolver};
 use crate::report::Stopwatch;
@@ -78,7 +77,7 @@ impl IslandPotential<'_> {
                 let d = f.solve(grad);
                 (Box::new(f), d)
             }
-            IslandSolver::Blocks | IslandSolver::GaussSeidel => {
+            IslandSolver::Blocks => {
                 let s = h.into_solver(Some(&self.coarse))?;
                 let (d, info) = s.solve_with_info(grad);
                 if info.negative_curvature {
@@ -230,41 +229,15 @@ pub fn step_island(
             measure: &measure,
             options: &options,
         };
-        let solves = if solver == IslandSolver::GaussSeidel {
-            let mu_members = mu;
-            let gs = gauss_seidel::sweep(
-                &pot.parts,
-                &offsets,
-                &shared,
-                contact,
-                mu_members,
-                pot.friction.1,
-                &z0,
-                &mut z,
-            );
-            let mut reports = gs.reports;
-            if !gs.converged {
-                // What the sweeps left, the island's Newton finishes; each member's report
-                // counts its iterations.
-                let rest = newton::minimize(&pot, &mut z, &ctx, &mut QuasiNewtonState::default());
-                for r in &mut reports {
-                    gauss_seidel::add(r, &rest);
-                }
-            }
-            reports
-        } else {
-            let solve = newton::minimize(&pot, &mut z, &ctx, &mut QuasiNewtonState::default());
-            vec![solve; sims.len()]
-        };
+        let solve = newton::minimize(&pot, &mut z, &ctx, &mut QuasiNewtonState::default());
         let stats = contact.stats(&z);
-        (solves, z, stats)
+        (solve, z, stats)
     };
     let wall = sw.elapsed() / sims.len() as f64;
     let reports = sims
         .iter_mut()
         .zip(starts.iter().zip(&offsets))
-        .zip(solve)
-        .map(|((s, (st, &o)), solve)| {
+        .map(|(s, (st, &o))| {
             let n = s.layout().dofs();
             s.finish_step(st, z[o..o + n].to_vec(), solve, wall)
         })

@@ -12,7 +12,6 @@
 //! - [`system`]: the island's Newton system in blocks, solved by conjugate gradients
 //!   preconditioned by block Jacobi and [`coarse`], a coarse level over the objects' affine
 //!   motions.
-//! - [`gauss_seidel`]: the island solved member by member (nonlinear block Gauss-Seidel).
 //! - [`forest`]: union-find over objects (which share an island).
 //! - [`step`]: one step of every object, in stages (sweep, group, solve, regroup, stiffen,
 //!   report); `scene` keeps only the adaptor to its objects, warnings and report.
@@ -25,7 +24,6 @@ pub mod coarse;
 pub mod energy;
 pub mod features;
 pub mod forest;
-pub mod gauss_seidel;
 pub mod island;
 pub mod pairs;
 pub mod samples;
@@ -119,11 +117,6 @@ pub enum IslandSolver {
     /// The dense Hessian over the whole island, Cholesky-factorized: cost cubic in the
     /// island's size (the reference the block solve is tested against).
     Dense,
-    /// Nonlinear block Gauss-Seidel ([`gauss_seidel`]): each member minimises the island's
-    /// potential over its own coordinates with its own solver settings, the others frozen,
-    /// sweeping until every member is stationary; the island's Newton (in blocks) finishes
-    /// what [`gauss_seidel::MAX_SWEEPS`] sweeps leave.
-    GaussSeidel,
 }
 
 /// A friction coefficient for one pair of objects or of an object and a named collider.
