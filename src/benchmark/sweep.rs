@@ -76,8 +76,10 @@ pub struct SweepSpec {
     pub frames: Option<usize>,
     /// Free or boundary-aware bases for every run. Default: the beam command's.
     pub boundaries: BoundaryModes,
-    /// Kernel density bands of every run. Default: the beam command's.
-    pub density: DensityBands,
+    /// Kernel density bands: the grid is run once per entry (uniform placement is
+    /// [`DensityBands::off`]), the variations with the first. Default: the beam command's
+    /// alone.
+    pub densities: Vec<DensityBands>,
 }
 
 impl Default for SweepSpec {
@@ -94,7 +96,7 @@ impl Default for SweepSpec {
             newton: beam.newton,
             frames: None,
             boundaries: beam.boundaries,
-            density: beam.density,
+            densities: vec![beam.density],
         }
     }
 }
@@ -129,7 +131,8 @@ impl SweepSpec {
         nonempty("points", &self.resolutions)?;
         nonempty("cubature", &self.cubature)?;
         nonempty("hessian", &self.hessian)?;
-        let base = |modes, kernels| ReducedBeamOptions {
+        nonempty("density", &self.densities)?;
+        let base = |modes, kernels, density| ReducedBeamOptions {
             modes,
             kernels,
             resolution: self.resolutions[0],
@@ -142,7 +145,7 @@ impl SweepSpec {
             hold_stiffness: None,
             boundaries: self.boundaries,
             fit: false,
-            density: self.density,
+            density,
         };
         let mut runs: Vec<PlannedRun> = Vec::new();
         let mut push = |axis, opts: ReducedBeamOptions| {
@@ -150,12 +153,14 @@ impl SweepSpec {
                 runs.push(PlannedRun { axis, opts });
             }
         };
-        for &m in &self.modes {
-            for &k in &self.kernels {
-                push(SweepAxis::Grid, base(m, k));
+        for &d in &self.densities {
+            for &m in &self.modes {
+                for &k in &self.kernels {
+                    push(SweepAxis::Grid, base(m, k, d));
+                }
             }
         }
-        let b = base(self.base_modes, self.base_kernels);
+        let b = base(self.base_modes, self.base_kernels, self.densities[0]);
         push(SweepAxis::Base, b);
         for &r in &self.resolutions[1..] {
             push(SweepAxis::Points, ReducedBeamOptions { resolution: r, ..b });
@@ -183,15 +188,21 @@ impl SweepSpec {
     }
 }
 
-/// "m = 16, K = 1000, points default, cubature 5000, lbfgs".
+/// "m = 16, K = 1000, points default, cubature 5000, lbfgs" (and ", density x2 at the
+/// ends" when the ends are refined).
 pub fn describe(o: &ReducedBeamOptions) -> String {
     let res = match o.resolution {
         None => "default".to_string(),
         Some(Resolution::Count(n)) => n.to_string(),
         Some(Resolution::Spacing(h)) => format!("spacing {h} m"),
     };
+    let density = if o.density.boundaries == 1.0 {
+        String::new()
+    } else {
+        format!(", density x{} at the ends", o.density.boundaries)
+    };
     format!(
-        "m = {}, K = {}, points {res}, cubature {}, {}",
+        "m = {}, K = {}, points {res}, cubature {}, {}{density}",
         o.modes,
         o.kernels,
         o.cubature,
@@ -206,6 +217,8 @@ pub struct SweepRow {
     pub axis: SweepAxis,
     /// Requested integration grid (None: default).
     pub resolution: Option<Resolution>,
+    /// Kernel density bands of its basis.
+    pub density: DensityBands,
     /// The comparison with the FEM reference.
     pub result: BeamComparison,
     /// On the Pareto front of (precompute_s, normalized_mse).
@@ -240,12 +253,14 @@ pub struct SweepReport {
     pub bases_built: usize,
     /// Whether the FEM reference came from the cache.
     pub fem_cached: bool,
+    /// Error against K: one curve per (density, m) of the grid ([`kernel_curves`]).
+    pub curves: Vec<KernelCurve>,
     /// Wall time of the whole sweep, s.
     pub total_s: f64,
 }
 
 /// The CSV columns of [`SweepReport::to_csv`].
-pub const CSV_COLUMNS: [&str; 20] = [
+pub const CSV_COLUMNS: [&str; 21] = [
     "test",
     "axis",
     "modes",
@@ -253,6 +268,7 @@ pub const CSV_COLUMNS: [&str; 20] = [
     "points",
     "cubature",
     "hessian",
+    "density_boundaries",
     "frames",
     "normalized_mse",
     "max_error",
@@ -278,7 +294,7 @@ impl SweepReport {
             let r = &row.result;
             let _ = writeln!(
                 s,
-                "{},{},{},{},{},{},{},{},{:e},{:e},{:e},{:e},{},{},{},{},{},{},{},{}",
+                "{},{},{},{},{},{},{},{},{},{:e},{:e},{:e},{:e},{},{},{},{},{},{},{},{}",
                 r.test,
                 row.axis.name(),
                 r.modes,
@@ -286,6 +302,7 @@ impl SweepReport {
                 r.points,
                 r.cubature_points,
                 r.hessian.name(),
+                row.density.boundaries,
                 r.frames,
                 r.normalized_mse,
                 r.max_error,
@@ -322,6 +339,100 @@ pub fn mark_pareto(rows: &mut [SweepRow]) {
         r.pareto_precompute = fp[i];
         r.pareto_step = fs[i];
     }
+}
+
+/// The normalized MSE of one (density, m) row of the grid against K, and how far it rises.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct KernelCurve {
+    /// Modes m.
+    pub modes: usize,
+    /// Kernel density bands of its bases.
+    pub density: DensityBands,
+    /// Kernels K, ascending.
+    pub kernels: Vec<usize>,
+    /// Normalized MSE at each K.
+    pub normalized_mse: Vec<f64>,
+    /// The largest ratio of a point's error to the best error at a smaller K: at most 1 when
+    /// the error never rises with K; issue 30's "no point more than 20% above the best at a
+    /// smaller K" is at most 1.2. `None` with fewer than two K.
+    pub worst_rise: Option<f64>,
+    /// K of the point with [`KernelCurve::worst_rise`].
+    pub worst_rise_at: Option<usize>,
+}
+
+/// The grid's curves of error against K, one per (density, m) in the order the rows first
+/// give them. Variations and the off-grid base point are left out.
+pub fn kernel_curves(rows: &[SweepRow]) -> Vec<KernelCurve> {
+    curves_of(rows.iter().filter(|r| r.axis == SweepAxis::Grid).map(|r| {
+        (
+            r.result.modes,
+            r.density,
+            r.result.kernels,
+            r.result.normalized_mse,
+        )
+    }))
+}
+
+/// [`kernel_curves`] of (m, density, K, normalized MSE) points.
+fn curves_of(points: impl Iterator<Item = (usize, DensityBands, usize, f64)>) -> Vec<KernelCurve> {
+    let mut curves: Vec<KernelCurve> = Vec::new();
+    for (modes, density, k, mse) in points {
+        let at = curves
+            .iter()
+            .position(|c| c.modes == modes && c.density == density);
+        let i = at.unwrap_or_else(|| {
+            curves.push(KernelCurve {
+                modes,
+                density,
+                kernels: Vec::new(),
+                normalized_mse: Vec::new(),
+                worst_rise: None,
+                worst_rise_at: None,
+            });
+            curves.len() - 1
+        });
+        curves[i].kernels.push(k);
+        curves[i].normalized_mse.push(mse);
+    }
+    for c in &mut curves {
+        let mut order: Vec<usize> = (0..c.kernels.len()).collect();
+        order.sort_by_key(|&i| c.kernels[i]);
+        c.kernels = order.iter().map(|&i| c.kernels[i]).collect();
+        c.normalized_mse = order.iter().map(|&i| c.normalized_mse[i]).collect();
+        let mut best = f64::INFINITY;
+        for (&k, &e) in c.kernels.iter().zip(&c.normalized_mse) {
+            if best.is_finite() {
+                let rise = e / best;
+                if c.worst_rise.is_none_or(|w| rise > w) {
+                    c.worst_rise = Some(rise);
+                    c.worst_rise_at = Some(k);
+                }
+            }
+            best = best.min(e);
+        }
+    }
+    curves
+}
+
+/// The paper's Table 1 ("Ours", normalized MSE) at m modes, when `frames` are the frames our
+/// Table 1 compares (docs/accuracy.md: the bend over all 200, the twist over the first 100);
+/// `None` for other tests, m or frames.
+pub fn paper_table1(test: &str, modes: usize, frames: usize) -> Option<f64> {
+    let (table, protocol): (&[(usize, f64)], usize) = match test {
+        "bend" => (
+            &[(6, 7.80e-3), (9, 4.90e-3), (16, 4.10e-4), (32, 2.93e-6)],
+            200,
+        ),
+        "twist" => (
+            &[(6, 1.56e-4), (9, 2.95e-5), (16, 3.46e-6), (32, 6.64e-6)],
+            100,
+        ),
+        _ => return None,
+    };
+    if frames != protocol {
+        return None;
+    }
+    table.iter().find(|(m, _)| *m == modes).map(|&(_, e)| e)
 }
 
 /// Run a sweep planned by [`SweepSpec::plan`] on the beam `fem`: the FEM reference once
@@ -376,6 +487,7 @@ pub fn run_sweep(
             Some(Ok(result)) => rows.push(SweepRow {
                 axis: run.axis,
                 resolution: run.opts.resolution,
+                density: run.opts.density,
                 result,
                 pareto_precompute: false,
                 pareto_step: false,
@@ -389,12 +501,14 @@ pub fn run_sweep(
         }
     }
     mark_pareto(&mut rows);
+    let curves = kernel_curves(&rows);
     Ok(SweepReport {
         test: fem.test.name(),
         spec: spec.clone(),
         rows,
         failures,
         bases_built,
+        curves,
         fem_cached: matches!(reference.cache, crate::fem::beam::CacheStatus::Hit(_)),
         total_s: clock.elapsed(),
     })
@@ -436,6 +550,52 @@ mod tests {
         };
         let axes: Vec<_> = spec.plan(&fem).unwrap().iter().map(|r| r.axis).collect();
         assert_eq!(axes, [Grid, Base]);
+    }
+
+    #[test]
+    fn kernel_curves_sort_by_k_and_measure_the_worst_rise() {
+        let (u, r) = (
+            DensityBands::off(),
+            DensityBands {
+                boundaries: 2.0,
+                ..DensityBands::off()
+            },
+        );
+        // Given out of order; uniform m = 16 rises at K = 2000 to 4x the best before it
+        // (K = 1000), then falls; the refined curve only falls.
+        let pts = [
+            (16, u, 2000, 4.0e-4),
+            (16, u, 500, 2.0e-4),
+            (16, u, 1000, 1.0e-4),
+            (16, r, 500, 3.0e-4),
+            (16, u, 4000, 3.0e-4),
+            (16, r, 1000, 2.0e-4),
+            (9, u, 500, 1.0e-3),
+        ];
+        let c = curves_of(pts.into_iter());
+        assert_eq!(c.len(), 3);
+        assert_eq!((c[0].modes, c[0].density), (16, u));
+        assert_eq!(c[0].kernels, [500, 1000, 2000, 4000]);
+        assert_eq!(c[0].normalized_mse, [2.0e-4, 1.0e-4, 4.0e-4, 3.0e-4]);
+        // 4e-4 / 1e-4, exactly representable ratios of the inputs.
+        assert_eq!(c[0].worst_rise, Some(4.0e-4 / 1.0e-4));
+        assert_eq!(c[0].worst_rise_at, Some(2000));
+        assert_eq!(c[1].density, r);
+        assert_eq!(c[1].worst_rise, Some(2.0e-4 / 3.0e-4));
+        assert!(c[1].worst_rise.unwrap() < 1.0);
+        assert_eq!(
+            (c[2].modes, c[2].worst_rise, c[2].worst_rise_at),
+            (9, None, None)
+        );
+    }
+
+    #[test]
+    fn paper_table1_only_for_its_protocol() {
+        assert_eq!(paper_table1("bend", 32, 200), Some(2.93e-6));
+        assert_eq!(paper_table1("twist", 16, 100), Some(3.46e-6));
+        assert_eq!(paper_table1("twist", 16, 200), None);
+        assert_eq!(paper_table1("bend", 12, 200), None);
+        assert_eq!(paper_table1("other", 6, 200), None);
     }
 
     #[test]

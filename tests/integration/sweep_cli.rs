@@ -81,6 +81,7 @@ fn sweep_writes_csv_plots_and_consistent_pareto_flags() {
         "points",
         "cubature",
         "hessian",
+        "density_boundaries",
         "frames",
         "normalized_mse",
         "max_error",
@@ -153,7 +154,11 @@ fn sweep_writes_csv_plots_and_consistent_pareto_flags() {
         assert_eq!(rows[best][col(flag)], "true");
     }
 
-    for png in ["error_vs_precompute.png", "error_vs_step.png"] {
+    for png in [
+        "error_vs_precompute.png",
+        "error_vs_step.png",
+        "error_vs_kernels.png",
+    ] {
         let bytes = std::fs::read(out.join(png)).unwrap();
         assert!(bytes.len() > 5000, "{png} is only {} bytes", bytes.len());
         assert_eq!(bytes[..8], PNG_MAGIC, "{png}");
@@ -175,6 +180,78 @@ fn sweep_writes_csv_plots_and_consistent_pareto_flags() {
     assert!(names.iter().all(|n| !n.ends_with(".tmp")), "{names:?}");
 }
 
+#[test]
+fn sweep_runs_the_grid_once_per_density_and_measures_the_rise_with_k() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let cache = dir.path().join("fem");
+    let args = tiny(
+        out.to_str().unwrap(),
+        cache.to_str().unwrap(),
+        &[
+            "--modes",
+            "2",
+            "--kernels",
+            "100,200",
+            "--density-boundaries",
+            "1,2",
+            "--base-modes",
+            "2",
+            "--base-kernels",
+            "100",
+            "--json",
+        ],
+    );
+    let o = freeform(&args);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    let csv = std::fs::read_to_string(out.join("sweep.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    // The grid once per factor, the base point (on the grid) not again.
+    let grid: Vec<(&str, &str, &str)> = rows
+        .iter()
+        .map(|r| {
+            (
+                r[col("axis")],
+                r[col("kernels")],
+                r[col("density_boundaries")],
+            )
+        })
+        .collect();
+    assert_eq!(
+        grid,
+        [
+            ("grid", "100", "1"),
+            ("grid", "200", "1"),
+            ("grid", "100", "2"),
+            ("grid", "200", "2")
+        ]
+    );
+    // A refined basis is another basis: its error differs from the uniform one's.
+    let mse: Vec<f64> = rows
+        .iter()
+        .map(|r| r[col("normalized_mse")].parse().unwrap())
+        .collect();
+    assert_ne!(mse[0], mse[2]);
+    // One curve per density, its rise the ratio of the two points, as the CSV has them.
+    let j: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("sweep.json")).unwrap()).unwrap();
+    let curves = j["curves"].as_array().unwrap();
+    assert_eq!(curves.len(), 2);
+    for (c, pair) in curves.iter().zip([[mse[0], mse[1]], [mse[2], mse[3]]]) {
+        assert_eq!(c["kernels"], serde_json::json!([100, 200]));
+        assert_eq!(c["normalized_mse"], serde_json::json!(pair));
+        assert_eq!(c["worst_rise"].as_f64().unwrap(), pair[1] / pair[0]);
+        assert_eq!(c["worst_rise_at"], 200);
+    }
+    assert_eq!(curves[1]["density"]["boundaries"], 2.0);
+    let bytes = std::fs::read(out.join("error_vs_kernels.png")).unwrap();
+    assert_eq!(bytes[..8], PNG_MAGIC);
+}
+
 fn assert_clean_failure(o: &Output, out: &Path, needle: &str) {
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success(), "{stderr}");
@@ -189,7 +266,7 @@ fn sweep_rejects_bad_input() {
     let out = dir.path().join("out");
     let cache = dir.path().join("fem");
     let (o, c) = (out.to_str().unwrap(), cache.to_str().unwrap());
-    let cases: [(&[&str], &str); 6] = [
+    let cases: [(&[&str], &str); 7] = [
         (&["--modes", "4,32", "--kernels", "30"], "m = 32, K = 30"),
         (&["--kernels", ""], "kernels"),
         (&["--hessian", "lbfgs,bogus"], "bogus"),
@@ -201,6 +278,17 @@ fn sweep_rejects_bad_input() {
         (
             &["--spacing=-0.1", "--kernels", "100", "--modes", "2"],
             "spacing",
+        ),
+        (
+            &[
+                "--density-boundaries",
+                "1,0",
+                "--kernels",
+                "100",
+                "--modes",
+                "2",
+            ],
+            "density boundaries",
         ),
     ];
     for (extra, needle) in cases {

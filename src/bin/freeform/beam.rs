@@ -122,7 +122,7 @@ pub struct BeamArgs {
     strict: bool,
 }
 
-/// The kernel density options shared by `freeform beam` and `freeform sweep`.
+/// The kernel density options of `freeform beam` (`freeform sweep` takes a list of factors).
 #[derive(Args)]
 pub(crate) struct DensityArgs {
     /// Kernel spacing factor within the band around the held and turned ends (1 = uniform

@@ -10,6 +10,7 @@ mod render;
 mod render_usd;
 mod run;
 mod sweep;
+mod sweep_plot;
 
 use clap::{Parser, Subcommand};
 use freeform::options::Front;
