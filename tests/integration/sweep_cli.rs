@@ -28,6 +28,18 @@ fn tiny<'a>(out: &'a str, cache: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
     v
 }
 
+/// Run a tiny sweep with `extra` arguments in a fresh directory and check it succeeded:
+/// the directory (kept alive), the output folder, the process output.
+fn run_tiny(extra: &[&str]) -> (tempfile::TempDir, std::path::PathBuf, Output) {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let cache = dir.path().join("fem");
+    let o = freeform(&tiny(out.to_str().unwrap(), cache.to_str().unwrap(), extra));
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    (dir, out, o)
+}
+
 /// Whether `p` is dominated by any row of `all` (cost, error), both minimized.
 fn dominated(p: [f64; 2], all: &[[f64; 2]]) -> bool {
     all.iter()
@@ -36,33 +48,24 @@ fn dominated(p: [f64; 2], all: &[[f64; 2]]) -> bool {
 
 #[test]
 fn sweep_writes_csv_plots_and_consistent_pareto_flags() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("out");
-    let cache = dir.path().join("fem");
-    let args = tiny(
-        out.to_str().unwrap(),
-        cache.to_str().unwrap(),
-        &[
-            "--modes",
-            "2,4",
-            "--kernels",
-            "100,200",
-            "--points",
-            "5000,8000",
-            "--cubature",
-            "500,300",
-            "--hessian",
-            "lbfgs,fixed",
-            "--base-modes",
-            "4",
-            "--base-kernels",
-            "100",
-            "--json",
-        ],
-    );
-    let o = freeform(&args);
+    let (_dir, out, o) = run_tiny(&[
+        "--modes",
+        "2,4",
+        "--kernels",
+        "100,200",
+        "--points",
+        "5000,8000",
+        "--cubature",
+        "500,300",
+        "--hessian",
+        "lbfgs,fixed",
+        "--base-modes",
+        "4",
+        "--base-kernels",
+        "100",
+        "--json",
+    ]);
     let stderr = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "{stderr}");
     // One progress line per run: 4 grid runs + 1 points + 1 cubature + 1 Hessian variation.
     assert_eq!(
         stderr.lines().filter(|l| l.starts_with('[')).count(),
@@ -182,29 +185,19 @@ fn sweep_writes_csv_plots_and_consistent_pareto_flags() {
 
 #[test]
 fn sweep_runs_the_grid_once_per_density_and_measures_the_rise_with_k() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("out");
-    let cache = dir.path().join("fem");
-    let args = tiny(
-        out.to_str().unwrap(),
-        cache.to_str().unwrap(),
-        &[
-            "--modes",
-            "2",
-            "--kernels",
-            "100,200",
-            "--density-boundaries",
-            "1,2",
-            "--base-modes",
-            "2",
-            "--base-kernels",
-            "100",
-            "--json",
-        ],
-    );
-    let o = freeform(&args);
-    let stderr = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "{stderr}");
+    let (_dir, out, _) = run_tiny(&[
+        "--modes",
+        "2",
+        "--kernels",
+        "100,200",
+        "--density-boundaries",
+        "1,2",
+        "--base-modes",
+        "2",
+        "--base-kernels",
+        "100",
+        "--json",
+    ]);
     let csv = std::fs::read_to_string(out.join("sweep.csv")).unwrap();
     let mut lines = csv.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();

@@ -116,7 +116,9 @@ impl<C, DB: DrawingBackend> Drawable<DB> for Marker<C> {
 
 fn variation_label(r: &SweepRow) -> Option<String> {
     match r.axis {
-        SweepAxis::Grid | SweepAxis::Base => None,
+        SweepAxis::Grid | SweepAxis::Base => {
+            (r.density.boundaries != 1.0).then(|| density_name(r.density.boundaries))
+        }
         SweepAxis::Points => Some(match r.resolution {
             Some(Resolution::Spacing(h)) => format!("h {h} m"),
             _ => format!("N {}", r.result.points),
@@ -187,6 +189,72 @@ fn sorted_unique(v: impl Iterator<Item = usize>) -> Vec<usize> {
     v
 }
 
+/// A log-log chart on a bitmap.
+type LogLogChart<'a, 'b> =
+    ChartContext<'a, BitMapBackend<'b>, Cartesian2d<LogCoord<f64>, LogCoord<f64>>>;
+
+/// A chart of normalized MSE (log) against `x_desc` (log) on `root`, its mesh drawn.
+fn log_log_chart<'a, 'b>(
+    root: &'a DrawingArea<BitMapBackend<'b>, plotters::coord::Shift>,
+    caption: String,
+    x: std::ops::Range<f64>,
+    y: std::ops::Range<f64>,
+    x_desc: &str,
+) -> PlotResult<LogLogChart<'a, 'b>> {
+    let mut chart = ChartBuilder::on(root)
+        .caption(caption, (FONT, 24))
+        .margin(18)
+        .x_label_area_size(55)
+        .y_label_area_size(85)
+        .build_cartesian_2d(x.log_scale(), y.log_scale())?;
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc("normalized MSE vs FEM (mean |x_red - x_fem|^2 / D^2)")
+        .label_style((FONT, 15))
+        .axis_desc_style((FONT, 17))
+        .x_labels(12)
+        .y_labels(12)
+        .light_line_style(RGBColor(238, 238, 238))
+        .x_label_formatter(&|v| tick(*v))
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .draw()?;
+    Ok(chart)
+}
+
+/// The colour of m among the plot's `ms` (ascending).
+fn mode_colour(ms: &[usize], m: usize) -> RGBColor {
+    let (r, g, b) = COLOURS[ms.iter().position(|&v| v == m).unwrap_or(0) % 10];
+    RGBColor(r, g, b)
+}
+
+/// One legend entry per m: its colour.
+fn legend_modes<'a, 'b: 'a>(chart: &mut LogLogChart<'a, 'b>, ms: &[usize]) -> PlotResult<()> {
+    for &m in ms {
+        let c = mode_colour(ms, m);
+        chart
+            .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
+            .label(format!("m = {m}"))
+            .legend(move |(x, y)| Circle::new((x, y), 5, c.filled()));
+    }
+    Ok(())
+}
+
+/// The series' legend at `position`.
+fn draw_legend<'a, 'b: 'a>(
+    chart: &mut LogLogChart<'a, 'b>,
+    position: SeriesLabelPosition,
+) -> PlotResult<()> {
+    chart
+        .configure_series_labels()
+        .label_font((FONT, 15))
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .position(position)
+        .draw()?;
+    Ok(())
+}
+
 /// Draw the plot of normalized MSE against `cost` and write it as PNG to `path`
 /// (atomically).
 pub fn write_png(report: &SweepReport, cost: Cost, path: &Path) -> PlotResult<()> {
@@ -208,43 +276,23 @@ fn draw(report: &SweepReport, cost: Cost, rgb: &mut [u8]) -> PlotResult<()> {
         .collect();
     let ms = sorted_unique(rows.iter().map(|r| r.result.modes));
     let ks = sorted_unique(rows.iter().map(|r| r.result.kernels));
-    let colour = |m: usize| {
-        let (r, g, b) = COLOURS[ms.iter().position(|&v| v == m).unwrap_or(0) % 10];
-        RGBColor(r, g, b)
-    };
+    let colour = |m: usize| mode_colour(&ms, m);
     let shape = |k: usize| ks.iter().position(|&v| v == k).unwrap_or(0);
     let root = BitMapBackend::with_buffer(rgb, (WIDTH, HEIGHT)).into_drawing_area();
     root.fill(&WHITE)?;
     let frames = report.rows.first().map_or(0, |r| r.result.frames);
-    let mut chart = ChartBuilder::on(&root)
-        .caption(
-            format!(
-                "freeform sweep {}: {} ({} frames)",
-                report.test,
-                cost.title(),
-                frames
-            ),
-            (FONT, 24),
-        )
-        .margin(18)
-        .x_label_area_size(55)
-        .y_label_area_size(85)
-        .build_cartesian_2d(
-            log_range(rows.iter().map(|r| cost.of(r))).log_scale(),
-            log_range(rows.iter().map(|r| r.result.normalized_mse)).log_scale(),
-        )?;
-    chart
-        .configure_mesh()
-        .x_desc(cost.label())
-        .y_desc("normalized MSE vs FEM (mean |x_red - x_fem|^2 / D^2)")
-        .label_style((FONT, 15))
-        .axis_desc_style((FONT, 17))
-        .x_labels(12)
-        .y_labels(12)
-        .light_line_style(RGBColor(238, 238, 238))
-        .x_label_formatter(&|v| tick(*v))
-        .y_label_formatter(&|v| format!("{v:.0e}"))
-        .draw()?;
+    let mut chart = log_log_chart(
+        &root,
+        format!(
+            "freeform sweep {}: {} ({} frames)",
+            report.test,
+            cost.title(),
+            frames
+        ),
+        log_range(rows.iter().map(|r| cost.of(r))),
+        log_range(rows.iter().map(|r| r.result.normalized_mse)),
+        cost.label(),
+    )?;
     // The front as a line from the cheapest to the most accurate run.
     let pts: Vec<[f64; 2]> = rows
         .iter()
@@ -286,13 +334,7 @@ fn draw(report: &SweepReport, cost: Cost, rgb: &mut [u8]) -> PlotResult<()> {
     chart.draw_series(labels.into_iter().zip(offsets).map(|((at, t), dy)| {
         EmptyElement::at(at) + Text::new(t, (8, dy), (FONT, 13).into_font().color(&BLACK))
     }))?;
-    for &m in &ms {
-        let c = colour(m);
-        chart
-            .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
-            .label(format!("m = {m}"))
-            .legend(move |(x, y)| Circle::new((x, y), 5, c.filled()));
-    }
+    legend_modes(&mut chart, &ms)?;
     for &k in &ks {
         let s = shape(k);
         chart
@@ -305,13 +347,7 @@ fn draw(report: &SweepReport, cost: Cost, rgb: &mut [u8]) -> PlotResult<()> {
                 colour: RGBColor(60, 60, 60),
             });
     }
-    chart
-        .configure_series_labels()
-        .label_font((FONT, 15))
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperRight)
-        .draw()?;
+    draw_legend(&mut chart, SeriesLabelPosition::UpperRight)?;
     root.present()?;
     Ok(())
 }
@@ -358,10 +394,7 @@ fn draw_kernels(
             densities.push(c.density.boundaries);
         }
     }
-    let colour = |m: usize| {
-        let (r, g, b) = COLOURS[ms.iter().position(|&v| v == m).unwrap_or(0) % 10];
-        RGBColor(r, g, b)
-    };
+    let colour = |m: usize| mode_colour(&ms, m);
     let style = |d: f64| densities.iter().position(|&v| v == d).unwrap_or(0);
     let paper: Vec<(usize, f64)> = ms
         .iter()
@@ -381,30 +414,16 @@ fn draw_kernels(
     let y_range = log_range(points().map(|p| p.1).chain(paper.iter().map(|p| p.1)));
     let root = BitMapBackend::with_buffer(rgb, (WIDTH, HEIGHT)).into_drawing_area();
     root.fill(&WHITE)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(
-            format!(
-                "freeform sweep {}: error against kernels K ({} frames)",
-                report.test, frames
-            ),
-            (FONT, 24),
-        )
-        .margin(18)
-        .x_label_area_size(55)
-        .y_label_area_size(85)
-        .build_cartesian_2d(x_range.clone().log_scale(), y_range.log_scale())?;
-    chart
-        .configure_mesh()
-        .x_desc("kernels K")
-        .y_desc("normalized MSE vs FEM (mean |x_red - x_fem|^2 / D^2)")
-        .label_style((FONT, 15))
-        .axis_desc_style((FONT, 17))
-        .x_labels(12)
-        .y_labels(12)
-        .light_line_style(RGBColor(238, 238, 238))
-        .x_label_formatter(&|v| tick(*v))
-        .y_label_formatter(&|v| format!("{v:.0e}"))
-        .draw()?;
+    let mut chart = log_log_chart(
+        &root,
+        format!(
+            "freeform sweep {}: error against kernels K ({} frames)",
+            report.test, frames
+        ),
+        x_range.clone(),
+        y_range,
+        "kernels K",
+    )?;
     for &(m, e) in &paper {
         let line = [(x_range.start, e), (x_range.end, e)];
         chart.draw_series(DashedLineSeries::new(line, 2, 6, colour(m).stroke_width(2)))?;
@@ -435,13 +454,7 @@ fn draw_kernels(
             colour: col,
         }))?;
     }
-    for &m in &ms {
-        let c = colour(m);
-        chart
-            .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
-            .label(format!("m = {m}"))
-            .legend(move |(x, y)| Circle::new((x, y), 5, c.filled()));
-    }
+    legend_modes(&mut chart, &ms)?;
     let grey = RGBColor(60, 60, 60);
     for (s, &d) in densities.iter().enumerate() {
         chart
@@ -466,21 +479,10 @@ fn draw_kernels(
             .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
             .label("paper, Table 1")
             .legend(move |(x, y)| {
-                DashedPathElement::new(
-                    vec![(x - 10, y), (x + 10, y)],
-                    2,
-                    6,
-                    grey.stroke_width(2),
-                )
+                DashedPathElement::new(vec![(x - 10, y), (x + 10, y)], 2, 6, grey.stroke_width(2))
             });
     }
-    chart
-        .configure_series_labels()
-        .label_font((FONT, 15))
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperLeft)
-        .draw()?;
+    draw_legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
     root.present()?;
     Ok(())
 }
