@@ -461,9 +461,10 @@ fn draw_kernels(
             .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
             .label(density_name(d))
             .legend(move |(x, y)| {
-                // A solid line through the marker, or two short dashes beside it.
+                // A solid line through the marker, or two short dashes beside it; a few
+                // pixels right of the legend's anchor so the lines stay inside its box.
                 let (a, b) = if s == 0 { (10, 0) } else { (11, 6) };
-                EmptyElement::at((x, y))
+                EmptyElement::at((x + 4, y))
                     + PathElement::new(vec![(-a, 0), (-b, 0)], grey.stroke_width(2))
                     + PathElement::new(vec![(b, 0), (a, 0)], grey.stroke_width(2))
                     + Marker {
@@ -479,7 +480,7 @@ fn draw_kernels(
             .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
             .label("paper, Table 1")
             .legend(move |(x, y)| {
-                DashedPathElement::new(vec![(x - 10, y), (x + 10, y)], 2, 6, grey.stroke_width(2))
+                DashedPathElement::new(vec![(x - 6, y), (x + 14, y)], 2, 6, grey.stroke_width(2))
             });
     }
     draw_legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
