@@ -375,43 +375,39 @@ pub fn kernel_curves(rows: &[SweepRow]) -> Vec<KernelCurve> {
 
 /// [`kernel_curves`] of (m, density, K, normalized MSE) points.
 fn curves_of(points: impl Iterator<Item = (usize, DensityBands, usize, f64)>) -> Vec<KernelCurve> {
-    let mut curves: Vec<KernelCurve> = Vec::new();
+    // (m, density) in first-seen order, each with its (K, MSE) points.
+    type Group = ((usize, DensityBands), Vec<(usize, f64)>);
+    let mut groups: Vec<Group> = Vec::new();
     for (modes, density, k, mse) in points {
-        let at = curves
-            .iter()
-            .position(|c| c.modes == modes && c.density == density);
-        let i = at.unwrap_or_else(|| {
-            curves.push(KernelCurve {
-                modes,
-                density,
-                kernels: Vec::new(),
-                normalized_mse: Vec::new(),
-                worst_rise: None,
-                worst_rise_at: None,
-            });
-            curves.len() - 1
-        });
-        curves[i].kernels.push(k);
-        curves[i].normalized_mse.push(mse);
-    }
-    for c in &mut curves {
-        let mut order: Vec<usize> = (0..c.kernels.len()).collect();
-        order.sort_by_key(|&i| c.kernels[i]);
-        c.kernels = order.iter().map(|&i| c.kernels[i]).collect();
-        c.normalized_mse = order.iter().map(|&i| c.normalized_mse[i]).collect();
-        let mut best = f64::INFINITY;
-        for (&k, &e) in c.kernels.iter().zip(&c.normalized_mse) {
-            if best.is_finite() {
-                let rise = e / best;
-                if c.worst_rise.is_none_or(|w| rise > w) {
-                    c.worst_rise = Some(rise);
-                    c.worst_rise_at = Some(k);
-                }
-            }
-            best = best.min(e);
+        match groups.iter_mut().find(|(key, _)| *key == (modes, density)) {
+            Some((_, pts)) => pts.push((k, mse)),
+            None => groups.push(((modes, density), vec![(k, mse)])),
         }
     }
-    curves
+    groups
+        .into_iter()
+        .map(|((modes, density), mut pts)| {
+            pts.sort_by_key(|p| p.0);
+            let (mut worst_rise, mut worst_rise_at) = (None, None);
+            let mut best = f64::INFINITY;
+            for &(k, e) in &pts {
+                if best.is_finite() && worst_rise.is_none_or(|w| e / best > w) {
+                    worst_rise = Some(e / best);
+                    worst_rise_at = Some(k);
+                }
+                best = best.min(e);
+            }
+            let (kernels, normalized_mse) = pts.into_iter().unzip();
+            KernelCurve {
+                modes,
+                density,
+                kernels,
+                normalized_mse,
+                worst_rise,
+                worst_rise_at,
+            }
+        })
+        .collect()
 }
 
 /// The paper's Table 1 ("Ours", normalized MSE) at m modes, when `frames` are the frames our

@@ -202,11 +202,9 @@ fn summary(report: &SweepReport, out: &Path) -> String {
             .iter()
             .filter(|r| pick(r))
             .map(|r| {
-                let density = if r.density.boundaries == 1.0 {
-                    String::new()
-                } else {
-                    format!(" {}", plot::density_name(r.density.boundaries))
-                };
+                let density = plot::refined_name(r.density.boundaries)
+                    .map(|n| format!(" {n}"))
+                    .unwrap_or_default();
                 format!(
                     "m{} K{} N{} c{} {}{density}",
                     r.result.modes,

@@ -3,7 +3,7 @@
 //! density and m, with the paper's Table 1 where the protocol matches).
 
 use freeform::benchmark::pareto::front_by_cost;
-use freeform::benchmark::sweep::{paper_table1, SweepAxis, SweepReport, SweepRow};
+use freeform::benchmark::sweep::{paper_table1, KernelCurve, SweepAxis, SweepReport, SweepRow};
 use freeform::precompute::sampling::Resolution;
 use plotters::element::{DashedPathElement, Drawable, PointCollection};
 use plotters::prelude::*;
@@ -116,9 +116,7 @@ impl<C, DB: DrawingBackend> Drawable<DB> for Marker<C> {
 
 fn variation_label(r: &SweepRow) -> Option<String> {
     match r.axis {
-        SweepAxis::Grid | SweepAxis::Base => {
-            (r.density.boundaries != 1.0).then(|| density_name(r.density.boundaries))
-        }
+        SweepAxis::Grid | SweepAxis::Base => refined_name(r.density.boundaries),
         SweepAxis::Points => Some(match r.resolution {
             Some(Resolution::Spacing(h)) => format!("h {h} m"),
             _ => format!("N {}", r.result.points),
@@ -354,42 +352,54 @@ fn draw(report: &SweepReport, cost: Cost, rgb: &mut [u8]) -> PlotResult<()> {
 
 /// A short name of a curve's density: "uniform" or "ends x2".
 pub fn density_name(boundaries: f64) -> String {
-    if boundaries == 1.0 {
-        "uniform".to_string()
-    } else {
-        format!("ends x{boundaries}")
-    }
+    refined_name(boundaries).unwrap_or_else(|| "uniform".to_string())
+}
+
+/// "ends x2" for refined ends, `None` for uniform placement (factor 1).
+pub fn refined_name(boundaries: f64) -> Option<String> {
+    (boundaries != 1.0).then(|| format!("ends x{boundaries}"))
 }
 
 /// Draw the grid's normalized MSE against K (one line per density and m: colour = m, line
 /// and marker = density; the paper's Table 1 dotted where [`paper_table1`] has it; the legend
 /// upper left, where the axis's whole decade below the smallest K leaves room) and write it
 /// as PNG to `path` (atomically). Nothing is written when the grid has one K.
-pub fn write_kernels_png(report: &SweepReport, path: &Path) -> PlotResult<bool> {
-    let curves: Vec<_> = report
+pub fn write_kernels_png(report: &SweepReport, path: &Path) -> PlotResult<()> {
+    // Each curve with its drawable points (K, MSE), MSE finite and positive for the log axis.
+    let lines: Vec<(&KernelCurve, Vec<(f64, f64)>)> = report
         .curves
         .iter()
         .filter(|c| c.kernels.len() >= 2)
+        .map(|c| {
+            let pts = c
+                .kernels
+                .iter()
+                .zip(&c.normalized_mse)
+                .filter(|(_, &e)| e.is_finite() && e > 0.0)
+                .map(|(&k, &e)| (k as f64, e))
+                .collect();
+            (c, pts)
+        })
         .collect();
-    if curves.is_empty() {
-        return Ok(false);
+    if lines.is_empty() {
+        return Ok(());
     }
     register_font()?;
     let mut rgb = vec![255u8; (WIDTH * HEIGHT * 3) as usize];
-    draw_kernels(report, &curves, &mut rgb)?;
+    draw_kernels(report, &lines, &mut rgb)?;
     freeform::render::write_png_rgb(path, WIDTH, HEIGHT, &rgb)?;
-    Ok(true)
+    Ok(())
 }
 
 fn draw_kernels(
     report: &SweepReport,
-    curves: &[&freeform::benchmark::sweep::KernelCurve],
+    lines: &[(&KernelCurve, Vec<(f64, f64)>)],
     rgb: &mut [u8],
 ) -> PlotResult<()> {
     let frames = report.rows.first().map_or(0, |r| r.result.frames);
-    let ms = sorted_unique(curves.iter().map(|c| c.modes));
+    let ms = sorted_unique(lines.iter().map(|(c, _)| c.modes));
     let mut densities: Vec<f64> = Vec::new();
-    for c in curves {
+    for (c, _) in lines {
         if !densities.contains(&c.density.boundaries) {
             densities.push(c.density.boundaries);
         }
@@ -400,16 +410,7 @@ fn draw_kernels(
         .iter()
         .filter_map(|&m| paper_table1(report.test, m, frames).map(|e| (m, e)))
         .collect();
-    let finite = |v: f64| v.is_finite() && v > 0.0;
-    let points = || {
-        curves.iter().flat_map(|c| {
-            c.kernels
-                .iter()
-                .zip(&c.normalized_mse)
-                .filter(|(_, &e)| finite(e))
-                .map(|(&k, &e)| (k as f64, e))
-        })
-    };
+    let points = || lines.iter().flat_map(|(_, pts)| pts.iter().copied());
     let x_range = log_range(points().map(|p| p.0));
     let y_range = log_range(points().map(|p| p.1).chain(paper.iter().map(|p| p.1)));
     let root = BitMapBackend::with_buffer(rgb, (WIDTH, HEIGHT)).into_drawing_area();
@@ -428,26 +429,19 @@ fn draw_kernels(
         let line = [(x_range.start, e), (x_range.end, e)];
         chart.draw_series(DashedLineSeries::new(line, 2, 6, colour(m).stroke_width(2)))?;
     }
-    for c in curves {
-        let pts: Vec<(f64, f64)> = c
-            .kernels
-            .iter()
-            .zip(&c.normalized_mse)
-            .filter(|(_, &e)| finite(e))
-            .map(|(&k, &e)| (k as f64, e))
-            .collect();
+    for (c, pts) in lines {
         let (col, s) = (colour(c.modes), style(c.density.boundaries));
         if s == 0 {
-            chart.draw_series(LineSeries::new(pts.clone(), col.stroke_width(2)))?;
+            chart.draw_series(LineSeries::new(pts.iter().copied(), col.stroke_width(2)))?;
         } else {
             chart.draw_series(DashedLineSeries::new(
-                pts.clone(),
+                pts.iter().copied(),
                 10,
                 6,
                 col.stroke_width(2),
             ))?;
         }
-        chart.draw_series(pts.into_iter().map(|at| Marker {
+        chart.draw_series(pts.iter().map(|&at| Marker {
             at,
             shape: s,
             size: 5,
